@@ -1,0 +1,243 @@
+"""Step-response metrics of attitude channels (alpha, beta, mu) from a time history.
+
+Pure functions: arrays in, numbers out. No files, no plotting. The definitions are in
+``docs/metrics.md``; this module is their one implementation, used by ``tools.hil`` (the
+``summary.json`` of a run) and ``tools.montecarlo``.
+
+Inputs are SI (s, rad); outputs carry their unit in the name (``*_deg``, ``*_s``, ``*_pct``),
+degrees being the edge unit of reports.
+
+The command of a channel is a zero-order-hold timeline: ``cmd_t_s[i]`` is the time from which
+``cmd_rad[i]`` holds (the ``[[command]]`` tables of a scenario). Every metric is measured from
+the channel's *last step*: the last timeline entry at or before the end of the data whose value
+differs from the previous entry's (or the first entry if the value never changes).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: Settling band as a fraction of the step size |A| (2 % criterion).
+SETTLE_BAND_FRAC = 0.02
+#: Absolute floor of the settling band, deg. See docs/metrics.md ("Settling band").
+SETTLE_BAND_FLOOR_DEG = 0.05
+#: A step smaller than this (deg) counts as "command equals initial value": overshoot and
+#: rise time are undefined (reported as None / JSON null).
+MIN_STEP_DEG = 0.1
+#: Length of the window at the end of the data over which final_error_deg is taken, s.
+FINAL_WINDOW_S = 1.0
+#: Rise-time thresholds, fractions of the step.
+RISE_LO, RISE_HI = 0.1, 0.9
+#: |alpha|, |beta| or |mu| beyond this (deg) or any non-finite sample marks a run as diverged.
+DIVERGED_ANGLE_DEG = 45.0
+#: A surface within this much (deg) of its limit counts as saturated (the wire quantises
+#: deflection commands to 0.04 deg).
+SATURATION_TOL_DEG = 0.05
+
+SURFACE_NAMES = ("left_elevon", "right_elevon", "rudder")
+METRIC_KEYS = ("overshoot_pct", "settling_time_s", "rise_time_s", "final_error_deg",
+               "rms_error_deg")
+
+
+@dataclass(frozen=True)
+class ChannelMetrics:
+    """Metrics of one channel, measured from its last command step.
+
+    Attributes
+    ----------
+    overshoot_pct : excursion past the command, in the direction of the step, as % of |A|
+        (A = command - value at the step time); None when |A| < MIN_STEP_DEG.
+    settling_time_s : time from the step until the error last leaves the settling band;
+        None if the error is outside the band at the end of the data.
+    rise_time_s : time from 10 % to 90 % of the step (first crossings); None when the step is
+        undefined or 90 % is never reached.
+    final_error_deg : max |error| over the last FINAL_WINDOW_S of the data, deg.
+    rms_error_deg : RMS of the error from the step to the end (time-weighted), deg.
+    step_deg : A, the signed step (command - value at the step time), deg.
+    t_step_s : time of the last step, s.
+    peak_error_deg : max |error| after the step, deg (always defined).
+    band_deg : half-width of the settling band used, deg.
+    """
+
+    overshoot_pct: float | None
+    settling_time_s: float | None
+    rise_time_s: float | None
+    final_error_deg: float
+    rms_error_deg: float
+    step_deg: float
+    t_step_s: float
+    peak_error_deg: float
+    band_deg: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def command_at(cmd_t_s: np.ndarray, cmd_val: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Zero-order-hold command at times ``t_s`` (before the first entry: the first value)."""
+    cmd_t_s = np.asarray(cmd_t_s, dtype=float)
+    cmd_val = np.asarray(cmd_val, dtype=float)
+    idx = np.searchsorted(cmd_t_s, np.asarray(t_s, dtype=float), side="right") - 1
+    return cmd_val[np.clip(idx, 0, len(cmd_val) - 1)]
+
+
+def last_step_index(cmd_t_s: np.ndarray, cmd_val: np.ndarray, t_end_s: float) -> int:
+    """Index of the last timeline entry at or before ``t_end_s`` that changes the value."""
+    last = 0
+    for i in range(1, len(cmd_t_s)):
+        if cmd_t_s[i] > t_end_s:
+            break
+        if cmd_val[i] != cmd_val[i - 1]:
+            last = i
+    return last
+
+
+def _validate(t_s, y, cmd_t_s, cmd_val):
+    t_s = np.asarray(t_s, dtype=float)
+    y = np.asarray(y, dtype=float)
+    cmd_t_s = np.asarray(cmd_t_s, dtype=float)
+    cmd_val = np.asarray(cmd_val, dtype=float)
+    if t_s.ndim != 1 or y.shape != t_s.shape:
+        raise ValueError(f"t_s and y must be 1-D of equal length, got {t_s.shape} and {y.shape}")
+    if len(t_s) < 2:
+        raise ValueError("need at least two samples")
+    if np.any(np.diff(t_s) <= 0):
+        raise ValueError("t_s must be strictly increasing")
+    if cmd_t_s.ndim != 1 or cmd_t_s.shape != cmd_val.shape or len(cmd_t_s) == 0:
+        raise ValueError("command timeline must be two non-empty 1-D arrays of equal length")
+    if np.any(np.diff(cmd_t_s) < 0):
+        raise ValueError("command timeline times must be non-decreasing")
+    return t_s, y, cmd_t_s, cmd_val
+
+
+def _first_crossing(t: np.ndarray, x: np.ndarray, level: float) -> float | None:
+    """First time x (normalised progress) reaches ``level``, linearly interpolated."""
+    above = np.nonzero(x >= level)[0]
+    if len(above) == 0:
+        return None
+    k = int(above[0])
+    if k == 0:
+        return float(t[0])
+    x0, x1 = x[k - 1], x[k]
+    frac = (level - x0) / (x1 - x0) if x1 != x0 else 1.0
+    return float(t[k - 1] + frac * (t[k] - t[k - 1]))
+
+
+def _wrap_pi(x: np.ndarray) -> np.ndarray:
+    return (x + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def channel_metrics(t_s, y_rad, cmd_t_s, cmd_rad, *, wrap: bool = False,
+                    band_frac: float = SETTLE_BAND_FRAC,
+                    band_floor_deg: float = SETTLE_BAND_FLOOR_DEG,
+                    final_window_s: float = FINAL_WINDOW_S,
+                    min_step_deg: float = MIN_STEP_DEG) -> ChannelMetrics:
+    """Step-response metrics of one channel (docs/metrics.md).
+
+    Parameters
+    ----------
+    t_s : (n,) sample times, s, strictly increasing.
+    y_rad : (n,) the channel's true value, rad.
+    cmd_t_s, cmd_rad : the command timeline (zero-order hold), s and rad.
+    wrap : take errors modulo 2 pi (angles such as mu that may wrap).
+    band_frac, band_floor_deg : settling band = max(band_frac * |A|, band_floor_deg).
+    final_window_s : window at the end of the data for final_error_deg, s.
+    min_step_deg : below this |A| the step is undefined (overshoot and rise time None).
+    """
+    t_s, y, cmd_t_s, cmd_val = _validate(t_s, y_rad, cmd_t_s, cmd_rad)
+    i_step = last_step_index(cmd_t_s, cmd_val, t_s[-1])
+    t_step = max(float(cmd_t_s[i_step]), float(t_s[0]))
+    c = float(cmd_val[i_step])
+    k0 = int(np.searchsorted(t_s, t_step, side="left"))
+    k0 = min(k0, len(t_s) - 2)
+    t = t_s[k0:]
+    err = y[k0:] - c  # error = value - command (rad)
+    if wrap:
+        err = _wrap_pi(err)
+    step = -float(err[0])  # A = command - value at the step
+    step_deg = math.degrees(step)
+    abs_err = np.abs(err)
+    band_deg = max(band_frac * abs(step_deg), band_floor_deg)
+    band = math.radians(band_deg)
+
+    if abs(step_deg) >= min_step_deg:
+        direction = math.copysign(1.0, step)
+        past = float(np.max(direction * err))  # excursion beyond the command
+        overshoot = 100.0 * max(past, 0.0) / abs(step)
+        progress = 1.0 + err / step  # 0 at the start, 1 at the command
+        t_lo = _first_crossing(t, progress, RISE_LO)
+        t_hi = _first_crossing(t, progress, RISE_HI)
+        rise = (t_hi - t_lo) if (t_lo is not None and t_hi is not None) else None
+    else:
+        overshoot = None
+        rise = None
+
+    outside = np.nonzero(abs_err > band)[0]
+    if len(outside) == 0:
+        settling = 0.0
+    elif outside[-1] == len(t) - 1:
+        settling = None
+    else:
+        k = int(outside[-1])
+        e0, e1 = abs_err[k], abs_err[k + 1]
+        frac = (e0 - band) / (e0 - e1) if e0 != e1 else 1.0
+        settling = float(t[k] + frac * (t[k + 1] - t[k]) - t_step)
+
+    in_final = t >= (t[-1] - final_window_s)
+    final_err = math.degrees(float(np.max(abs_err[in_final])))
+    # time-weighted RMS (trapezoid), robust to uneven sampling
+    e2 = err * err
+    dur = float(t[-1] - t[0])
+    rms = math.degrees(math.sqrt(float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(t))) / dur))
+    return ChannelMetrics(overshoot_pct=overshoot, settling_time_s=settling, rise_time_s=rise,
+                          final_error_deg=final_err, rms_error_deg=rms, step_deg=step_deg,
+                          t_step_s=t_step, peak_error_deg=math.degrees(float(abs_err.max())),
+                          band_deg=band_deg)
+
+
+def surface_metrics(t_s, delta_rad, limit_rad: float | np.ndarray,
+                    tol_deg: float = SATURATION_TOL_DEG) -> tuple[dict, float]:
+    """Peak |deflection| per surface (deg) and time with any surface saturated (s).
+
+    Parameters
+    ----------
+    t_s : (n,) sample times, s.
+    delta_rad : (n, 3) actual surface deflections, rad (left elevon, right elevon, rudder).
+    limit_rad : deflection limit, rad (scalar or (3,)).
+    tol_deg : a surface within this of its limit counts as saturated.
+
+    Returns
+    -------
+    ({"left_elevon": deg, "right_elevon": deg, "rudder": deg}, saturated_s). The saturated
+    time counts each sample interval [t_k, t_k+1) whose starting sample is saturated.
+    """
+    t_s = np.asarray(t_s, dtype=float)
+    d = np.asarray(delta_rad, dtype=float)
+    if d.ndim != 2 or d.shape[1] != 3 or d.shape[0] != t_s.shape[0]:
+        raise ValueError(f"delta_rad must be (n, 3) matching t_s, got {d.shape}")
+    peak = {name: math.degrees(float(np.max(np.abs(d[:, i])))) for i, name in
+            enumerate(SURFACE_NAMES)}
+    lim = np.broadcast_to(np.asarray(limit_rad, dtype=float), (3,))
+    sat = np.any(np.abs(d) >= lim - math.radians(tol_deg), axis=1)
+    saturated_s = float(np.sum(np.diff(t_s)[sat[:-1]])) if len(t_s) > 1 else 0.0
+    return peak, saturated_s
+
+
+def is_diverged(*angles_rad: np.ndarray, limit_deg: float = DIVERGED_ANGLE_DEG) -> bool:
+    """True if any sample of any angle is non-finite or beyond ``limit_deg`` in magnitude."""
+    lim = math.radians(limit_deg)
+    for a in angles_rad:
+        a = np.asarray(a, dtype=float)
+        if not np.all(np.isfinite(a)) or np.any(np.abs(a) > lim):
+            return True
+    return False
+
+
+def json_metrics(m: ChannelMetrics) -> dict:
+    """The summary.json form of a channel: the five keys first, then the extras."""
+    d = m.as_dict()
+    out = {k: d.pop(k) for k in METRIC_KEYS}
+    out.update(d)
+    return out
