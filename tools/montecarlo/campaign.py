@@ -1,0 +1,192 @@
+"""Run a campaign: every case an independent task on Dask distributed.
+
+By default a ``LocalCluster`` of worker processes (one single-threaded worker per core, or
+``workers``) is started for the campaign and closed at the end; with ``scheduler`` the cases go
+to an existing cluster (``tcp://host:port``; its workers must be able to import this project,
+e.g. ``pip install -e .`` on each). A caller may also pass its own ``distributed.Client``.
+
+At most a window of tasks is in flight, so a campaign of any size keeps the scheduler small
+and an interruption loses only the cases being computed. Rows are written as cases finish
+(``results.RowWriter``); a campaign started again on the same directory with the same
+configuration runs only the cases not finished yet (it may also ask for more cases).
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import secrets
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tools.montecarlo import results
+from tools.montecarlo.case import CampaignConfig, dispersions_of, run_case
+from tools.montecarlo.progress import Progress
+
+MANIFEST = "campaign.json"
+
+
+class CampaignError(RuntimeError):
+    """The campaign cannot run as asked (e.g. the directory holds a different campaign)."""
+
+
+@dataclass
+class CampaignResult:
+    """What one invocation did.
+
+    out_dir : campaign directory; runs : cases asked for; skipped : cases already finished
+    before this invocation; ran : cases finished by it; failures : rows diverged or errored
+    in it; lost : (case, reason) of tasks that did not return (worker died, cancelled), not
+    written, so a resume retries them; interrupted : stopped by KeyboardInterrupt;
+    wall_s : total wall time; compute_wall_s : from the first submission to the last result;
+    cluster_start_s : time to start (or connect to) the cluster; nthreads : worker threads.
+    """
+
+    out_dir: Path
+    runs: int
+    skipped: int = 0
+    ran: int = 0
+    failures: int = 0
+    lost: list = field(default_factory=list)
+    interrupted: bool = False
+    wall_s: float = 0.0
+    compute_wall_s: float = 0.0
+    cluster_start_s: float = 0.0
+    nthreads: int = 0
+
+
+def load_manifest(out_dir: os.PathLike) -> tuple[CampaignConfig, int]:
+    """(config, runs) of an existing campaign directory."""
+    import json
+    p = Path(out_dir) / MANIFEST
+    if not p.is_file():
+        raise CampaignError(f"{out_dir} is not a campaign directory (no {MANIFEST})")
+    d = json.loads(p.read_text())
+    return CampaignConfig.from_json(d["config"]), int(d["runs"])
+
+
+def prepare_dir(cfg: CampaignConfig, runs: int, out_dir: os.PathLike) -> None:
+    """Create the campaign directory, or check that it holds this same campaign."""
+    out = Path(out_dir)
+    man = out / MANIFEST
+    if man.is_file():
+        old, old_runs = load_manifest(out)
+        if old.identity() != cfg.identity():
+            diff = [k for k, v in cfg.to_json().items() if old.to_json().get(k) != v]
+            raise CampaignError(
+                f"{out} holds a different campaign (differs in: {', '.join(diff)}); "
+                "use another --out, or the same options to resume it")
+        runs = max(runs, old_runs)
+    out.mkdir(parents=True, exist_ok=True)
+    results.write_json(man, {"config": cfg.to_json(), "runs": runs,
+                             "identity": cfg.identity()})
+    (out / "dispersions.toml").write_text(cfg.dispersions_text)
+
+
+@contextlib.contextmanager
+def cluster_client(workers: int | None = None, scheduler: str | None = None):
+    """A distributed.Client: to ``scheduler`` if given, else to a new LocalCluster."""
+    from distributed import Client, LocalCluster
+    if scheduler:
+        with Client(scheduler, timeout="30s") as client:
+            yield client
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                      host="127.0.0.1", dashboard_address=":0",
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        yield client
+
+
+def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
+                 client=None, workers: int | None = None, scheduler: str | None = None,
+                 progress_stream=None, on_case=None, window: int | None = None,
+                 flush_rows: int = 200, flush_s: float = 2.0) -> CampaignResult:
+    """Run (or resume) ``runs`` cases of ``cfg`` into ``out_dir``.
+
+    Parameters
+    ----------
+    client : an existing distributed.Client (else one is made from workers / scheduler).
+    progress_stream : where the progress bar goes (default stderr).
+    on_case : called with (case index, rows) after each case's rows are buffered.
+    window : tasks in flight at most (default 4 per worker thread, at least 8).
+
+    KeyboardInterrupt (Ctrl-C) stops the campaign cleanly: finished rows are flushed,
+    pending tasks cancelled, and the result says ``interrupted``.
+    """
+    t_start = time.monotonic()
+    if runs < 1:
+        raise ValueError(f"runs must be >= 1, got {runs}")
+    disp = dispersions_of(cfg)  # validates the text before anything starts
+    prepare_dir(cfg, runs, out_dir)
+    res = CampaignResult(out_dir=Path(out_dir), runs=runs)
+    done = results.finished_cases(out_dir, cfg.variants)
+    todo = [i for i in range(runs) if i not in done]
+    res.skipped = runs - len(todo)
+    if not todo:
+        res.wall_s = time.monotonic() - t_start
+        return res
+    writer = results.RowWriter(out_dir, list(disp.dists), flush_rows=flush_rows,
+                               flush_s=flush_s)
+    bar = Progress(runs, already=res.skipped, stream=progress_stream)
+    ctx = contextlib.nullcontext(client) if client is not None else \
+        cluster_client(workers, scheduler)
+    try:
+        with ctx as cl:
+            res.cluster_start_s = time.monotonic() - t_start
+            res.nthreads = sum(cl.nthreads().values())
+            _drive(cl, cfg, todo, writer, bar, res, on_case,
+                   window or max(8, 4 * max(res.nthreads, 1)))
+    finally:
+        writer.flush()
+        bar.close()
+        res.wall_s = time.monotonic() - t_start
+    return res
+
+
+def _drive(client, cfg, todo, writer, bar, res, on_case, window) -> None:
+    from distributed import as_completed
+    nonce = secrets.token_hex(4)
+    pending = iter(todo)
+    inflight = {}
+
+    def submit_next() -> bool:
+        i = next(pending, None)
+        if i is None:
+            return False
+        fut = client.submit(run_case, cfg, i, key=f"mc-case-{i}-{nonce}", pure=False)
+        inflight[fut.key] = i
+        ac.add(fut)
+        return True
+
+    ac = as_completed()
+    t0 = time.monotonic()
+    bar.t0 = t0  # rate and ETA from the first submission, not from the cluster's start
+    try:
+        for _ in range(window):
+            if not submit_next():
+                break
+        for fut in ac:
+            i = inflight.pop(fut.key)
+            try:
+                rows = fut.result()
+            except Exception as exc:  # the task did not return: not written, retried on resume
+                res.lost.append((i, f"{type(exc).__name__}: {exc}"))
+                bar.update(0, failures=1)
+            else:
+                writer.add(rows)
+                nfail = sum(1 for r in rows if r["diverged"] or r["error"])
+                res.ran += 1
+                res.failures += nfail
+                bar.update(1, failures=nfail)
+                if on_case is not None:
+                    on_case(i, rows)
+            fut.release()
+            submit_next()
+    except KeyboardInterrupt:
+        res.interrupted = True
+        for f in list(ac.futures):
+            f.cancel()
+    finally:
+        res.compute_wall_s = time.monotonic() - t0

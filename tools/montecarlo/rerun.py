@@ -1,0 +1,142 @@
+"""Re-run one case of a campaign alone, with full logs and the main job's plots.
+
+``python -m tools.montecarlo rerun OUT_DIR --case I`` rebuilds case I from the campaign's
+manifest (same scenario, dispersion text, seed, duration, backend), flies each variant with
+the full logging of the backend, and writes into ``OUT_DIR/case-I/``:
+
+- ``case.json``: the dispersion values, the plant seed, the metrics of each variant, and the
+  metrics stored in the campaign's rows for comparison (``matches_campaign``);
+- ``scenario.toml``-equivalent description of the dispersed scenario (``scenario.json``);
+- per variant the backend's full history (``<variant>/history.npz``);
+- the main job's plots (``tools.plots``: fig2_attitude.png, ...), variants overlaid.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from tools import metrics as mt
+from tools.montecarlo import results
+from tools.montecarlo.campaign import load_manifest
+from tools.montecarlo.case import CHANNELS, fly_case, flight_metrics
+
+
+def _row_metrics(out_dir, case: int) -> dict:
+    t = results.read_rows(out_dir)
+    rows = {}
+    for r in t.to_pylist():
+        if r["case"] == case:
+            rows[r["variant"]] = r
+    return rows
+
+
+def _same(a, b) -> bool:
+    if a is None or (isinstance(a, float) and math.isnan(a)):
+        return b is None or (isinstance(b, float) and math.isnan(b))
+    return b is not None and float(a) == float(b)
+
+
+def rerun(out_dir, case: int, variants=None, out=None) -> str:
+    """Re-run case ``case``; returns a short text report (also written as case.json)."""
+    cfg, runs = load_manifest(out_dir)
+    if case < 0:
+        raise ValueError(f"--case must be >= 0, got {case}")
+    variants = tuple(variants or cfg.variants)
+    dest = Path(out) if out else Path(out_dir) / f"case-{case}"
+    dest.mkdir(parents=True, exist_ok=True)
+    stored = _row_metrics(out_dir, case)
+    report = {"case": case, "campaign": str(out_dir), "campaign_seed": cfg.seed,
+              "backend": cfg.backend, "variants": {}}
+    runs_for_plots = {}
+    lines = [f"case {case} of {out_dir} (campaign seed {cfg.seed}, backend {cfg.backend})"]
+    for v in variants:
+        values, sim_seed, fl = fly_case(cfg, case, v, full=True)
+        report["values"] = values
+        report["sim_seed"] = sim_seed
+        m = flight_metrics(fl)
+        got = {f"{ch}.{k}": getattr(m["channels"][ch], k) for ch in CHANNELS
+               for k in mt.METRIC_KEYS}
+        entry = {"diverged": m["diverged"],
+                 "metrics": {ch: mt.json_metrics(m["channels"][ch]) for ch in CHANNELS}}
+        if v in stored:
+            row = stored[v]
+            entry["matches_campaign"] = all(_same(got[k], row.get(k)) for k in got) and \
+                bool(row["diverged"]) == m["diverged"]
+        report["variants"][v] = entry
+        vdir = dest / v
+        vdir.mkdir(exist_ok=True)
+        hist = {"t_s": fl.t_s, "alpha_rad": fl.alpha_rad, "beta_rad": fl.beta_rad,
+                "mu_rad": fl.mu_rad, "cmd_t_s": fl.cmd_t_s, "cmd_rad": fl.cmd_rad}
+        full = fl.full if isinstance(fl.full, dict) else {}
+        for k, val in full.items():
+            if isinstance(val, np.ndarray):
+                hist.setdefault(k, val)
+        np.savez_compressed(vdir / "history.npz", **hist)
+        runs_for_plots[v] = _plot_data(fl, entry)
+        ch_txt = "  ".join(
+            f"{ch}: os {_fmt(got[f'{ch}.overshoot_pct'])} % ts {_fmt(got[f'{ch}.settling_time_s'])} s "
+            f"ef {_fmt(got[f'{ch}.final_error_deg'], '{:.3f}')} deg" for ch in CHANNELS)
+        match = entry.get("matches_campaign")
+        lines.append(f"  {v:14s} diverged {m['diverged']}  {ch_txt}  "
+                     f"{'(same as the campaign row)' if match else '(DIFFERS from the campaign row)' if match is False else '(no campaign row)'}")
+    report["values"] = report.get("values", {})
+    results.write_json(dest / "case.json", _jsonable(report))
+    plots = _main_job_plots(runs_for_plots, cfg, case, dest)
+    lines.append(f"  values: " + ", ".join(f"{k}={v:.4g}" for k, v in report["values"].items()))
+    lines.append(f"  written: {dest}/case.json, */history.npz" +
+                 (", " + ", ".join(p.name for p in plots) if plots else ""))
+    return "\n".join(lines)
+
+
+def _fmt(x, f="{:.2f}"):
+    return "-" if x is None else f.format(x)
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {k: _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    return o
+
+
+def _plot_data(fl, entry) -> dict:
+    """The normalised per-variant dict tools.plots expects (see tools.hil.rundata)."""
+    d = {"t_s": fl.t_s, "alpha_rad": fl.alpha_rad, "beta_rad": fl.beta_rad, "mu_rad": fl.mu_rad,
+         "cmd_t_s": fl.cmd_t_s, "cmd_rad": fl.cmd_rad, "metrics": entry["metrics"]}
+    for i, ch in enumerate(CHANNELS):
+        d[f"cmd_{ch}_rad"] = fl.cmd_rad[:, i]
+    if isinstance(fl.full, dict):
+        for k, v in fl.full.items():
+            d.setdefault(k, v)
+    return d
+
+
+def _main_job_plots(runs: dict, cfg, case: int, dest: Path) -> list[Path]:
+    """tools.plots figures for the re-run (as many as the backend's data allows)."""
+    try:
+        from tools import plots
+    except ImportError:
+        return []
+    meta = {"scenario": cfg.scenario, "mode": f"montecarlo case {case} ({cfg.backend})",
+            "seed": cfg.seed}
+    out = []
+    for fn in ("fig_attitude", "fig_rates", "fig_surfaces", "fig_estimates"):
+        f = getattr(plots, fn, None)
+        if f is None:
+            continue
+        name = {"fig_attitude": "fig2_attitude.png", "fig_rates": "fig3_rates.png",
+                "fig_surfaces": "fig4_surfaces.png", "fig_estimates": "estimates.png"}[fn]
+        try:
+            out.append(Path(f(runs, meta, dest / name)))
+        except (KeyError, TypeError, ValueError, IndexError):
+            # the backend did not log what this figure needs (e.g. the stand-in)
+            continue
+    return out
