@@ -1,0 +1,10 @@
+"""tools.hil - the main job: plant and controller as two processes over loopback MAVLink/UDP.
+
+``python -m tools.hil run`` flies a scenario (both controller variants by default) and writes
+a run directory; ``python -m tools.hil report RUN_DIR`` rebuilds its summary and plots from the
+logs. See docs/hil.md.
+
+Modules: ``cli`` (command line, summary table), ``runner`` (one variant: start, drive, watch,
+stop), ``procs`` (child processes in their own process groups), ``gcs`` (the scripted ground
+station, the only MAVLink import of this process), ``rundata`` (logs -> summary and plot data).
+"""

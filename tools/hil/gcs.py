@@ -1,0 +1,216 @@
+"""The main job's scripted ground station: tools.hil's only MAVLink import.
+
+A small MAVLink 2 ground station (system id 250, component 190) on its own non-blocking UDP
+socket, using pymavlink's generated ``ardupilotmega`` codec (docs/architecture.md section 1).
+In realtime runs it does what an operator does in MAVProxy: wait for the vehicle's heartbeat,
+set the attitude commands (parameters ``CMD_ALPHA_DEG``, ``CMD_BETA_DEG``, ``CMD_MU_DEG``),
+select the flight mode, arm, and then send each new command of the scenario's timeline when the
+vehicle's sim time (from its telemetry) reaches it. In lockstep runs it only listens (the
+controller is armed and fed its timeline on its command line, docs/hil.md).
+
+It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
+stamps, so a run can be checked against the plant's truth.
+"""
+from __future__ import annotations
+
+import math
+import os
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+
+GCS_SYSID = 250
+GCS_COMPID = mavlink.MAV_COMP_ID_MISSIONPLANNER
+VEHICLE_SYSID = 1
+VEHICLE_COMPID = 1
+CMD_PARAMS = ("CMD_ALPHA_DEG", "CMD_BETA_DEG", "CMD_MU_DEG")
+MAV_CMD_COMPONENT_ARM_DISARM = 400
+MAV_CMD_DO_SET_MODE = 176
+
+
+class GcsError(RuntimeError):
+    """The vehicle did not do what the ground station asked within the time allowed."""
+
+
+@dataclass
+class Telemetry:
+    """What the ground station heard from the vehicle (grown by the receive thread)."""
+
+    att_t_s: list = field(default_factory=list)       # ATTITUDE.time_boot_ms / 1e3
+    att: list = field(default_factory=list)           # roll, pitch, yaw, p, q, r (rad, rad/s)
+    heartbeats: int = 0
+    last_heartbeat: object = None
+    base_mode: int = 0
+    custom_mode: int = -1
+    statustext: list = field(default_factory=list)
+    param_values: dict = field(default_factory=dict)  # name -> last PARAM_VALUE value
+    acks: list = field(default_factory=list)          # (command, result)
+    bad_datagrams: int = 0
+
+    def sim_time_s(self) -> float | None:
+        return self.att_t_s[-1] if self.att_t_s else None
+
+
+class ScriptedGcs:
+    """A ground station on 127.0.0.1:``port`` (0 = any free port; see ``self.port``)."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 0):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind((host, port))
+        self.sock.settimeout(0.1)
+        self.port = self.sock.getsockname()[1]
+        self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
+        self.mav.robust_parsing = True
+        self.vehicle_addr: tuple[str, int] | None = None
+        self.tel = Telemetry()
+        self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._rx = threading.Thread(target=self._rx_loop, name="gcs-rx", daemon=True)
+        self._rx.start()
+        self._hb_thread = threading.Thread(target=self._hb_loop, name="gcs-hb", daemon=True)
+        self._hb_thread.start()
+
+    # ---- receive ---------------------------------------------------------------------------
+    def _rx_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, addr = self.sock.recvfrom(4096)
+            except socket.timeout:
+                continue
+            except OSError:
+                if self._stop.is_set():
+                    return
+                continue
+            try:
+                msgs = self.mav.parse_buffer(data) or []
+            except Exception:  # a malformed datagram never stops the ground station
+                self.tel.bad_datagrams += 1
+                continue
+            for m in msgs:
+                if m.get_srcSystem() != VEHICLE_SYSID:
+                    continue
+                with self._cond:
+                    self.vehicle_addr = addr
+                    self._handle(m)
+                    self._cond.notify_all()
+
+    def _handle(self, m) -> None:
+        t = m.get_type()
+        tel = self.tel
+        if t == "ATTITUDE":
+            tel.att_t_s.append(m.time_boot_ms / 1e3)
+            tel.att.append((m.roll, m.pitch, m.yaw, m.rollspeed, m.pitchspeed, m.yawspeed))
+        elif t == "HEARTBEAT":
+            tel.heartbeats += 1
+            tel.base_mode = m.base_mode
+            tel.custom_mode = m.custom_mode
+            tel.last_heartbeat = m
+        elif t == "PARAM_VALUE":
+            name = m.param_id.rstrip("\x00") if isinstance(m.param_id, str) else m.param_id
+            tel.param_values[name] = m.param_value
+        elif t == "COMMAND_ACK":
+            tel.acks.append((m.command, m.result))
+        elif t == "STATUSTEXT":
+            tel.statustext.append(m.text)
+
+    def wait_for(self, pred, timeout_s: float, what: str):
+        """Wait (bounded) until ``pred(self.tel)`` is true; GcsError naming ``what`` otherwise."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while not pred(self.tel):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise GcsError(f"ground station: {what} not seen within {timeout_s:.0f} s")
+                self._cond.wait(timeout=min(remaining, 0.2))
+
+    # ---- send ------------------------------------------------------------------------------
+    def _send(self, msg) -> None:
+        if self.vehicle_addr is None:
+            return
+        try:
+            self.sock.sendto(msg.pack(self.mav), self.vehicle_addr)
+        except OSError:
+            pass
+
+    def _hb_loop(self) -> None:
+        while not self._stop.wait(1.0):
+            self._send(mavlink.MAVLink_heartbeat_message(
+                mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                mavlink.MAV_STATE_ACTIVE, 3))
+
+    def _record(self, what: str, value: float) -> None:
+        t = self.tel.sim_time_s()
+        self.sent.append((math.nan if t is None else t, what, float(value)))
+
+    def set_param(self, name: str, value: float, timeout_s: float = 5.0) -> None:
+        """PARAM_SET with retries (as MAVProxy: up to 3 tries, 1 s apart) until echoed."""
+        pid = name.encode()
+        for _ in range(3):
+            with self._cond:
+                self.tel.param_values.pop(name, None)
+            self._send(mavlink.MAVLink_param_set_message(
+                VEHICLE_SYSID, VEHICLE_COMPID, pid, float(value), mavlink.MAV_PARAM_TYPE_REAL32))
+            try:
+                self.wait_for(lambda tel: name in tel.param_values, min(1.0, timeout_s),
+                              f"PARAM_VALUE {name}")
+            except GcsError:
+                continue
+            got = self.tel.param_values[name]
+            if abs(got - value) > 1e-5 * max(1.0, abs(value)):
+                raise GcsError(f"ground station: vehicle refused {name} = {value} (kept {got})")
+            self._record(name, value)
+            return
+        raise GcsError(f"ground station: no PARAM_VALUE for {name} after 3 tries")
+
+    def command_long(self, command: int, *params: float, timeout_s: float = 3.0) -> int:
+        """COMMAND_LONG with up to 3 tries; returns the COMMAND_ACK result."""
+        p = list(params) + [0.0] * (7 - len(params))
+        for confirmation in range(3):
+            n0 = len(self.tel.acks)
+            self._send(mavlink.MAVLink_command_long_message(
+                VEHICLE_SYSID, VEHICLE_COMPID, command, confirmation, *p))
+            try:
+                self.wait_for(lambda tel: any(c == command for c, _ in tel.acks[n0:]),
+                              timeout_s / 3, f"COMMAND_ACK for command {command}")
+            except GcsError:
+                continue
+            result = next(r for c, r in self.tel.acks[n0:] if c == command)
+            self._record(f"COMMAND_{command}", result)
+            return result
+        raise GcsError(f"ground station: no COMMAND_ACK for command {command}")
+
+    def arm(self) -> None:
+        r = self.command_long(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+        if r != mavlink.MAV_RESULT_ACCEPTED:
+            raise GcsError(f"ground station: arming refused (MAV_RESULT {r})")
+
+    def set_mode(self, custom_mode: int) -> None:
+        r = self.command_long(MAV_CMD_DO_SET_MODE,
+                              float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(custom_mode))
+        if r != mavlink.MAV_RESULT_ACCEPTED:
+            raise GcsError(f"ground station: mode {custom_mode} refused (MAV_RESULT {r})")
+
+    def set_command_deg(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> None:
+        for name, v in zip(CMD_PARAMS, (alpha_deg, beta_deg, mu_deg)):
+            self.set_param(name, v)
+
+    # ---- records ---------------------------------------------------------------------------
+    def telemetry_arrays(self) -> dict:
+        with self._cond:
+            t = np.asarray(self.tel.att_t_s, dtype=float)
+            a = np.asarray(self.tel.att, dtype=float).reshape(-1, 6)
+        return {"t_s": t, "roll_rad": a[:, 0], "pitch_rad": a[:, 1], "yaw_rad": a[:, 2],
+                "p_rad_s": a[:, 3], "q_rad_s": a[:, 4], "r_rad_s": a[:, 5]}
+
+    def close(self) -> None:
+        self._stop.set()
+        self._rx.join(timeout=2.0)
+        self._hb_thread.join(timeout=2.0)
+        self.sock.close()

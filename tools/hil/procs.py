@@ -1,0 +1,160 @@
+"""Child processes of the main job: start in their own process group, read their output,
+stop them cleanly (SIGINT, then SIGTERM, then SIGKILL, each with a bounded wait).
+
+No orphans: every child is started with ``start_new_session=True`` (its own process group),
+so signals go to the whole group (the child and anything it starts), and the terminal's
+Ctrl-C reaches only tools.hil, which forwards the stop.
+"""
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+#: waits (s) after SIGINT and after SIGTERM before escalating
+STOP_INT_WAIT_S = 15.0
+STOP_TERM_WAIT_S = 5.0
+
+
+def free_udp_port(host: str = "127.0.0.1") -> int:
+    """A UDP port that is free on ``host`` right now (bind port 0, read it, release it)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+class Child:
+    """One child process with its stdout/stderr copied to a console log and its stdout lines
+    delivered through a queue (``lines``).
+
+    Parameters
+    ----------
+    name : short name used in messages ("plant", "fc").
+    argv : the command line.
+    console_path : file receiving everything the child prints (stdout and stderr).
+    env : environment (default: inherited).
+    """
+
+    def __init__(self, name: str, argv: list[str], console_path: Path,
+                 env: dict | None = None, cwd: str | None = None):
+        self.name = name
+        self.argv = argv
+        self.console_path = Path(console_path)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.stderr_tail: list[str] = []
+        self._console = open(self.console_path, "w", buffering=1)
+        self._console.write("$ " + " ".join(argv) + "\n")
+        self._lock = threading.Lock()
+        self.proc = subprocess.Popen(
+            argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True, bufsize=1, start_new_session=True, env=env, cwd=cwd)
+        self.pgid = self.proc.pid  # new session: pgid == pid
+        self._threads = [
+            threading.Thread(target=self._pump, args=(self.proc.stdout, True), daemon=True),
+            threading.Thread(target=self._pump, args=(self.proc.stderr, False), daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+
+    def _pump(self, stream, is_stdout: bool) -> None:
+        for line in stream:
+            with self._lock:
+                self._console.write(line if is_stdout else "[stderr] " + line)
+                if not is_stdout:
+                    self.stderr_tail.append(line.rstrip("\n"))
+                    del self.stderr_tail[:-20]
+            if is_stdout:
+                self.lines.put(line.rstrip("\n"))
+        stream.close()
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def poll(self) -> int | None:
+        return self.proc.poll()
+
+    def wait_for_line(self, prefix: str, timeout_s: float, on_other=None) -> str:
+        """Wait until the child prints a stdout line starting with ``prefix``.
+
+        Raises RuntimeError if the child exits first or the timeout passes.
+        """
+        deadline = time.monotonic() + timeout_s
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise RuntimeError(f"{self.name} did not print {prefix!r} within {timeout_s:.0f} s "
+                                   f"(see {self.console_path})")
+            try:
+                line = self.lines.get(timeout=min(remaining, 0.2))
+            except queue.Empty:
+                if self.poll() is not None:
+                    # drain what is left before giving up
+                    try:
+                        line = self.lines.get(timeout=0.5)
+                    except queue.Empty:
+                        raise RuntimeError(self.death_message()) from None
+                else:
+                    continue
+            if line.startswith(prefix):
+                return line
+            if on_other is not None:
+                on_other(line)
+
+    def death_message(self) -> str:
+        rc = self.poll()
+        how = (f"was killed by signal {-rc}" if rc is not None and rc < 0
+               else f"exited with code {rc}")
+        with self._lock:
+            tail = next((ln for ln in reversed(self.stderr_tail) if ln.strip()), "")
+        reason = f": {tail}" if tail else ""
+        return f"{self.name} (pid {self.pid}) {how}{reason} (full output: {self.console_path})"
+
+    def _signal_group(self, sig: int) -> None:
+        try:
+            os.killpg(self.pgid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    def _group_alive(self) -> bool:
+        try:
+            os.killpg(self.pgid, 0)
+            return True
+        except (ProcessLookupError, PermissionError):
+            return False
+
+    def stop(self, int_wait_s: float = STOP_INT_WAIT_S,
+             term_wait_s: float = STOP_TERM_WAIT_S) -> int | None:
+        """Stop the child's process group: SIGINT, then SIGTERM, then SIGKILL. Returns the
+        child's exit code (negative: killed by that signal)."""
+        for sig, wait_s in ((signal.SIGINT, int_wait_s), (signal.SIGTERM, term_wait_s),
+                            (signal.SIGKILL, 5.0)):
+            if self.poll() is None:
+                self._signal_group(sig)
+                try:
+                    self.proc.wait(timeout=wait_s)
+                except subprocess.TimeoutExpired:
+                    print(f"tools.hil: {self.name} did not stop within {wait_s:.0f} s after "
+                          f"{signal.Signals(sig).name}", file=sys.stderr)
+                    continue
+            # the child is gone; make sure nothing it started is left in its group
+            if self._group_alive():
+                self._signal_group(signal.SIGKILL)
+            break
+        self.close()
+        return self.poll()
+
+    def close(self) -> None:
+        for t in self._threads:
+            t.join(timeout=2.0)
+        with self._lock:
+            if not self._console.closed:
+                rc = self.poll()
+                self._console.write(f"# exit code {rc}\n")
+                self._console.close()

@@ -1,0 +1,209 @@
+"""From a run directory's logs to the summary and the plot data (no processes, no sockets).
+
+Reads one variant directory (``RUN/coordinated``, ``RUN/uncoordinated``): the plant's truth
+log (``plant_sim.truthlog.load``), the controller's internals log (``fc.internals_log.load``),
+``plant_summary.json`` and the command timeline actually flown (``timeline.toml``), and builds
+
+- the per-variant entry of ``summary.json`` (docs/metrics.md), and
+- the normalised arrays ``tools.plots`` draws (SI, names with units).
+
+``python -m tools.hil report RUN_DIR`` is this module applied to every variant of a run.
+"""
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from tools import metrics
+
+TIMELINE_FILE = "timeline.toml"
+CHANNELS = ("alpha", "beta", "mu")
+#: default command of a channel before the first timeline entry sets it (fc CMD_*_DEG default)
+DEFAULT_CMD_DEG = 0.0
+#: names that must never be compared between two runs of the same seed
+WALL_CLOCK_KEYS = ("wall_time_s", "real_time_factor", "created_utc", "wall_time_total_s")
+
+
+class RunDataError(RuntimeError):
+    """A log needed for the summary is missing or unreadable."""
+
+
+# ---- timeline ---------------------------------------------------------------------------
+def read_timeline(path: Path) -> list[dict]:
+    """The ``[[command]]`` tables of a TOML file (scenario or timeline), sorted by t_s."""
+    with open(path, "rb") as f:
+        data = tomllib.load(f)
+    cmds = data.get("command", [])
+    if not isinstance(cmds, list):
+        raise RunDataError(f"{path}: 'command' must be an array of tables")
+    out = []
+    for k, c in enumerate(cmds):
+        if "t_s" not in c:
+            raise RunDataError(f"{path}: command #{k} has no t_s")
+        out.append({key: float(v) for key, v in c.items()
+                    if key in ("t_s", "alpha_deg", "beta_deg", "mu_deg")})
+    return sorted(out, key=lambda c: c["t_s"])
+
+
+def write_timeline(path: Path, commands: list[dict], header: str = "") -> None:
+    lines = [f"# {ln}" for ln in header.splitlines()] if header else []
+    for c in commands:
+        lines.append("[[command]]")
+        for key in ("t_s", "alpha_deg", "beta_deg", "mu_deg"):
+            if key in c:
+                lines.append(f"{key} = {float(c[key])!r}")
+        lines.append("")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def channel_timeline(commands: list[dict], ch: str) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s, value_rad) of one channel: a missing angle keeps its previous value (as the fc)."""
+    t, v = [], []
+    cur = DEFAULT_CMD_DEG
+    for c in commands:
+        cur = c.get(f"{ch}_deg", cur)
+        t.append(c["t_s"])
+        v.append(math.radians(cur))
+    if not t:
+        t, v = [0.0], [math.radians(DEFAULT_CMD_DEG)]
+    return np.asarray(t, dtype=float), np.asarray(v, dtype=float)
+
+
+# ---- logs -------------------------------------------------------------------------------
+def _first(d: dict, *names):
+    for n in names:
+        if n in d:
+            return np.asarray(d[n])
+    return None
+
+
+def load_truth(vdir: Path) -> dict:
+    """The plant's truth log of a variant directory as a dict of arrays."""
+    path = Path(vdir) / "truth.npz"
+    if not path.exists():
+        raise RunDataError(f"{path} is missing (the plant did not finish writing its truth log)")
+    try:
+        from plant_sim.truthlog import load
+    except ImportError:  # plant_sim not importable here: the npz is one array per column
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+    return load(str(path))
+
+
+def load_internals(vdir: Path) -> dict | None:
+    path = Path(vdir) / "fc_internals.npz"
+    if not path.exists():
+        return None
+    from fc.internals_log import load
+    return load(str(path))
+
+
+def truth_series(truth: dict) -> dict:
+    """Normalised SI arrays from the truth log (column names of docs/plant.md)."""
+    out = {"t_s": _first(truth, "t_s")}
+    for ch in CHANNELS:
+        out[f"{ch}_rad"] = _first(truth, f"{ch}_rad")
+    for ch in ("p", "q", "r"):
+        out[f"{ch}_rad_s"] = _first(truth, f"{ch}_rad_s")
+    cols = [_first(truth, n) for n in ("delta_left_rad", "delta_right_rad", "delta_rudder_rad")]
+    missing = [k for k, v in out.items() if v is None]
+    if missing or any(c is None for c in cols):
+        raise RunDataError(f"truth log lacks columns {missing or 'delta_*_rad'}; "
+                           f"has {sorted(truth)}")
+    out["delta_rad"] = np.column_stack(cols)
+    dist = [_first(truth, f"dist_{ax}_nm") for ax in ("l", "m", "n")]
+    out["dtrue"] = np.column_stack(dist) if all(d is not None for d in dist) else None
+    return out
+
+
+def internals_series(internals: dict | None) -> dict:
+    """d_hat, theta_hat and the shaped command from the fc's internals log, if present."""
+    if not internals:
+        return {"int_t_s": None, "dhat": None, "theta_hat": None, "theta_nominal": None,
+                "shaped_cmd_t_s": None, "shaped_cmd_rad": None}
+    t = _first(internals, "t_s")
+    dh = [_first(internals, f"dhat_{ax}_nm", f"d_hat_{i}") for i, ax in enumerate("lmn")]
+    th_names = sorted(k for k in internals if k.startswith("theta_hat"))
+    shaped = [_first(internals, f"{ch}_ref_rad", f"{ch}_c_filt_rad") for ch in CHANNELS]
+    return {
+        "int_t_s": t,
+        "dhat": np.column_stack(dh) if all(d is not None for d in dh) else None,
+        "theta_hat": np.column_stack([internals[k] for k in th_names]) if th_names else None,
+        "theta_nominal": None,
+        "shaped_cmd_t_s": t,
+        "shaped_cmd_rad": (np.column_stack(shaped) if all(s is not None for s in shaped)
+                           else None),
+    }
+
+
+def read_json(path: Path) -> dict:
+    try:
+        return json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        return {}
+    except json.JSONDecodeError as exc:
+        raise RunDataError(f"{path}: not valid JSON ({exc})") from None
+
+
+# ---- summary ----------------------------------------------------------------------------
+def variant_summary(vdir: Path, requested_duration_s: float | None = None,
+                    surface_limit_rad: float = math.radians(20.0)) -> tuple[dict, dict]:
+    """(summary entry, plot data) of one variant directory (docs/metrics.md)."""
+    vdir = Path(vdir)
+    truth = truth_series(load_truth(vdir))
+    commands = read_timeline(vdir / TIMELINE_FILE)
+    plant = read_json(vdir / "plant_summary.json")
+    fcs = read_json(vdir / "fc_summary.json")
+    t = truth["t_s"]
+    entry: dict = {}
+    plot = dict(truth)
+    plot.update(internals_series(load_internals(vdir)))
+    for ch in CHANNELS:
+        ct, cv = channel_timeline(commands, ch)
+        m = metrics.channel_metrics(t, truth[f"{ch}_rad"], ct, cv, wrap=(ch == "mu"))
+        entry[ch] = metrics.json_metrics(m)
+        plot[f"cmd_{ch}_rad"] = cv
+        plot["cmd_t_s"] = ct
+    peak, sat_s = metrics.surface_metrics(t, truth["delta_rad"], surface_limit_rad)
+    entry["max_surface_deg"] = peak
+    entry["saturated_s"] = sat_s
+    sim_time = float(t[-1])
+    entry["sim_time_s"] = sim_time
+    entry["wall_time_s"] = float(plant.get("wall_time_s", math.nan))
+    entry["real_time_factor"] = float(plant.get("real_time_factor", math.nan))
+    entry["late_ticks"] = int(fcs.get("late_ticks", 0))
+    short = (requested_duration_s is not None and requested_duration_s > 0
+             and sim_time < requested_duration_s - 0.01)
+    entry["diverged"] = bool(metrics.is_diverged(*(truth[f"{c}_rad"] for c in CHANNELS))
+                             or short)
+    entry["plant"] = {k: plant[k] for k in plant if k not in ("wall_time_s", "real_time_factor")}
+    plot["limit_rad"] = surface_limit_rad
+    plot["metrics"] = entry
+    plot["max_surface_deg"] = peak
+    return entry, plot
+
+
+def strip_wall_clock(summary: dict) -> dict:
+    """A copy of a summary without the keys that differ between identical runs."""
+    if isinstance(summary, dict):
+        return {k: strip_wall_clock(v) for k, v in summary.items() if k not in WALL_CLOCK_KEYS}
+    if isinstance(summary, list):
+        return [strip_wall_clock(v) for v in summary]
+    return summary
+
+
+def json_safe(obj):
+    """Replace NaN/inf by None so the file is strict JSON."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return json_safe(obj.item())
+    return obj

@@ -1,0 +1,285 @@
+"""Fly one variant: start the controller and the plant as two processes on loopback UDP,
+drive them (lockstep: command line; realtime: the scripted ground station), watch them,
+stop them. See docs/hil.md.
+"""
+from __future__ import annotations
+
+import math
+import queue
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tools.hil import rundata
+from tools.hil.procs import Child, free_udp_port
+
+FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}
+CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
+#: first start of numba-compiled processes on a loaded 2-core machine can be slow
+READY_TIMEOUT_S = 180.0
+#: lockstep duration used for "--duration 0" in realtime (until Ctrl-C)
+FOREVER_S = 1.0e7
+
+
+@dataclass
+class RunConfig:
+    scenario: str
+    mode: str = "lockstep"
+    variants: tuple = ("coordinated", "uncoordinated")
+    out_dir: Path = Path("runs")
+    duration_s: float | None = None      # None: the scenario's; 0: until Ctrl-C (realtime)
+    seed: int = 0
+    command_shaping: str = "steps"
+    params_file: Path | None = None      # extra controller parameters (MAVProxy format)
+    gcs_out: tuple = ()                  # extra ground-station addresses (realtime)
+    progress_every_s: float = 1.0
+    python: str = sys.executable
+    quiet: bool = False
+    #: command prefixes of the two processes (tests and relays may substitute their own)
+    plant_cmd: tuple = ()
+    fc_cmd: tuple = ()
+
+    def plant_argv0(self) -> list[str]:
+        return list(self.plant_cmd) or [self.python, "-m", "plant_sim"]
+
+    def fc_argv0(self) -> list[str]:
+        return list(self.fc_cmd) or [self.python, "-m", "fc"]
+
+
+@dataclass
+class VariantResult:
+    variant: str
+    ok: bool
+    error: str | None = None
+    interrupted: bool = False
+    plant_rc: int | None = None
+    fc_rc: int | None = None
+    wall_time_total_s: float = math.nan
+    last_progress: dict = field(default_factory=dict)
+
+
+def shaping_params(shaping: str) -> dict[str, float]:
+    """Controller parameters that select the command shaping (fc/control/params.py)."""
+    if shaping == "steps":
+        return {"REF_PF_EN": 0.0}
+    if shaping == "prefilter":
+        return {"REF_PF_EN": 1.0}
+    raise ValueError(f"unknown command shaping {shaping!r} (steps or prefilter)")
+
+
+def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
+    """The controller's parameter file of a variant: the user's file, then the shaping."""
+    values: dict[str, float] = {}
+    lines = ["# hyfc controller parameters written by tools.hil"]
+    if cfg.params_file is not None:
+        from fc.params import ParamTable
+        values.update(ParamTable.read_file(str(cfg.params_file)))
+        lines.append(f"# from {cfg.params_file}")
+    values.update(shaping_params(cfg.command_shaping))
+    lines += [f"{k:<16s} {v:.9g}" for k, v in values.items()]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return values
+
+
+def parse_progress(line: str) -> dict | None:
+    """``PROGRESS t_s=1.234 rtf=21.5`` -> {"t_s": 1.234, "rtf": 21.5}; None otherwise."""
+    if not line.startswith("PROGRESS"):
+        return None
+    out = {}
+    for tok in line.split()[1:]:
+        k, sep, v = tok.partition("=")
+        if sep:
+            try:
+                out[k] = float(v)
+            except ValueError:
+                pass
+    return out
+
+
+class Progress:
+    """One status line per variant: sim time and real-time factor from PROGRESS lines."""
+
+    def __init__(self, variant: str, total_s: float | None, quiet: bool):
+        self.variant = variant
+        self.total_s = total_s
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.last: dict = {}
+
+    def update(self, p: dict) -> None:
+        self.last = p
+        if self.quiet:
+            return
+        t = p.get("t_s", math.nan)
+        rtf = p.get("rtf", math.nan)
+        of = f" / {self.total_s:.1f}" if self.total_s else ""
+        msg = f"[{self.variant}] sim t = {t:7.2f}{of} s   real-time factor {rtf:6.2f}"
+        if self.tty:
+            print("\r" + msg, end="", file=sys.stderr, flush=True)
+        else:
+            print(msg, file=sys.stderr, flush=True)
+
+    def done(self) -> None:
+        if self.tty and not self.quiet and self.last:
+            print(file=sys.stderr)
+
+
+def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Event,
+                    errors: queue.Queue) -> None:
+    """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
+    from tools.hil.gcs import GcsError
+    try:
+        gcs.wait_for(lambda tel: tel.heartbeats > 0 and tel.att_t_s, 60.0,
+                     "the controller's HEARTBEAT and ATTITUDE")
+        first = {"alpha_deg": 0.0, "beta_deg": 0.0, "mu_deg": 0.0}
+        pending = list(commands)
+        # entries due at start are merged and set before the law is engaged
+        while pending and pending[0]["t_s"] <= 0.0:
+            first.update({k: v for k, v in pending.pop(0).items() if k != "t_s"})
+        gcs.set_command_deg(first["alpha_deg"], first["beta_deg"], first["mu_deg"])
+        gcs.set_mode(CUSTOM_MODE[variant])
+        gcs.arm()
+        while pending and not stop.is_set():
+            c = pending[0]
+            try:
+                gcs.wait_for(lambda tel: (tel.sim_time_s() or 0.0) >= c["t_s"], 0.5, "sim time")
+            except GcsError:
+                continue
+            pending.pop(0)
+            for key, name in (("alpha_deg", "CMD_ALPHA_DEG"), ("beta_deg", "CMD_BETA_DEG"),
+                              ("mu_deg", "CMD_MU_DEG")):
+                if key in c:
+                    gcs.set_param(name, c[key])
+    except Exception as exc:  # reported by the runner, which stops the run
+        if not stop.is_set():
+            errors.put(f"ground station: {exc}")
+
+
+def sent_timeline(gcs, commands: list[dict]) -> list[dict]:
+    """The timeline as the ground station actually applied it (vehicle sim time of the
+    PARAM_VALUE confirmation), for the metrics of a realtime run."""
+    out = []
+    for t_s, what, value in gcs.sent:
+        key = {"CMD_ALPHA_DEG": "alpha_deg", "CMD_BETA_DEG": "beta_deg",
+               "CMD_MU_DEG": "mu_deg"}.get(what)
+        if key is None or not math.isfinite(t_s):
+            continue
+        if out and abs(out[-1]["t_s"] - t_s) < 1e-9:
+            out[-1][key] = value
+        else:
+            out.append({"t_s": t_s, key: value})
+    return out or commands
+
+
+def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
+                scenario_ref: str, stop: threading.Event) -> VariantResult:
+    """Fly one variant into ``vdir``; never leaves a child process behind."""
+    vdir.mkdir(parents=True, exist_ok=True)
+    res = VariantResult(variant=variant, ok=False)
+    rundata.write_timeline(vdir / rundata.TIMELINE_FILE, commands,
+                           header=f"attitude-command timeline of scenario {scenario_ref}")
+    params_path = vdir / "params_in.parm"
+    write_params(params_path, cfg)
+    plant_port = free_udp_port()
+    gcs_bind_port = free_udp_port()
+    gcs = None
+    errors: queue.Queue[str] = queue.Queue()
+    fc = plant = None
+    realtime = cfg.mode == "realtime"
+    forever = realtime and cfg.duration_s == 0
+    total_s = cfg.duration_s if cfg.duration_s else None
+    progress = Progress(variant, None if forever else total_s, cfg.quiet)
+    t0 = time.monotonic()
+    try:
+        from tools.hil.gcs import ScriptedGcs
+        gcs = ScriptedGcs()
+        fc_argv = cfg.fc_argv0() + ["--mode", cfg.mode,
+                   "--plant-bind", f"127.0.0.1:{plant_port}",
+                   "--gcs-bind", f"127.0.0.1:{gcs_bind_port}",
+                   "--gcs", f"127.0.0.1:{gcs.port}",
+                   "--params", str(params_path), "--out", str(vdir)]
+        for addr in cfg.gcs_out:
+            fc_argv += ["--gcs", addr]
+        if not realtime:
+            fc_argv += ["--timeline", str(vdir / rundata.TIMELINE_FILE), "--arm",
+                        "--flight-mode", FLIGHT_MODE[variant]]
+        fc = Child("fc", fc_argv, vdir / "fc.console.log")
+        fc.wait_for_line("READY", READY_TIMEOUT_S)
+        plant_argv = cfg.plant_argv0() + ["run", "--scenario", scenario_ref,
+                      "--mode", cfg.mode, "--fc", f"127.0.0.1:{plant_port}",
+                      "--bind", "127.0.0.1:0", "--out", str(vdir), "--seed", str(cfg.seed),
+                      "--progress-every", str(cfg.progress_every_s)]
+        if forever:
+            plant_argv += ["--duration", repr(FOREVER_S)]
+        elif cfg.duration_s is not None:
+            plant_argv += ["--duration", repr(float(cfg.duration_s))]
+        plant = Child("plant", plant_argv, vdir / "plant.console.log")
+        driver = None
+        if realtime:
+            driver = threading.Thread(target=_drive_realtime, name="gcs-driver", daemon=True,
+                                      args=(gcs, commands, variant, stop, errors))
+            driver.start()
+        # ---- watch ----
+        while True:
+            try:
+                line = plant.lines.get(timeout=0.2)
+                p = parse_progress(line)
+                if p is not None:
+                    progress.update(p)
+                    res.last_progress = p
+            except queue.Empty:
+                pass
+            if stop.is_set():
+                res.interrupted = True
+                break
+            if not errors.empty():
+                res.error = errors.get()
+                break
+            if plant.poll() is not None:
+                while True:  # drain the last lines
+                    try:
+                        p = parse_progress(plant.lines.get_nowait())
+                    except queue.Empty:
+                        break
+                    if p is not None:
+                        progress.update(p)
+                        res.last_progress = p
+                if plant.poll() != 0:
+                    res.error = plant.death_message()
+                break
+            if fc.poll() is not None:
+                res.error = (fc.death_message() + " before the plant finished")
+                break
+        progress.done()
+    except Exception as exc:
+        res.error = str(exc)
+    finally:
+        # the plant first (it writes truth.npz on SIGINT), then the controller
+        for child in (plant, fc):
+            if child is not None:
+                rc = child.stop()
+                if child is plant:
+                    res.plant_rc = rc
+                else:
+                    res.fc_rc = rc
+        if gcs is not None:
+            if realtime:
+                rundata.write_timeline(vdir / rundata.TIMELINE_FILE, sent_timeline(gcs, commands),
+                                       header="timeline as applied by the ground station "
+                                              "(vehicle sim time of each confirmed PARAM_SET)")
+            _save_gcs(gcs, vdir)
+            gcs.close()
+    res.wall_time_total_s = time.monotonic() - t0
+    if res.error is None and not res.interrupted:
+        if res.fc_rc not in (0, None):
+            res.error = f"fc exited with code {res.fc_rc} when stopped (see {vdir / 'fc.console.log'})"
+    res.ok = res.error is None and not res.interrupted
+    return res
+
+
+def _save_gcs(gcs, vdir: Path) -> None:
+    import numpy as np
+    tel = gcs.telemetry_arrays()
+    np.savez(vdir / "gcs_telemetry.npz", **tel)
