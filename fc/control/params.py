@@ -1,0 +1,251 @@
+"""The control law's parameter table: every gain, bound and option, with unit, default and range.
+
+One table (``LAW_PARAMS``) is the single source: the law reads its SI values from it through
+``to_si``, the fc process exposes it over MAVLink (PARAM_VALUE index = position in the table,
+names <= 16 characters) and generates docs/params.md from it. The order is stable: append new
+parameters at the end, never reuse a retired slot.
+
+Units are "human" units (what a G&C engineer types): degrees where an angle is meant, SI
+otherwise. ``si_scale`` converts to the SI value the kernels use (the one conversion point,
+house style 5). Integer options say so (``integer=True``) and list their values in the text.
+
+Equation numbers refer to Mu, Wang, Wu, Ying, Trans. NUAA 35(6) 2018 (docs/control_law.md).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True, slots=True)
+class Param:
+    """One law parameter.
+
+    name : <= 16 characters, uppercase (MAVLink param_id).
+    default, min, max : in ``unit``.
+    unit : human unit ("deg", "deg/s", "1/s", "-", ...).
+    group : prefix family (CO, SLW, FST, DOB, ACT, REF, MDL, LAW).
+    description : one or two sentences, with the paper's equation where there is one.
+    si_scale : SI value = value * si_scale (DEG for degree parameters, else 1).
+    integer : True for options and switches (the value must be a whole number).
+    """
+    name: str
+    default: float
+    min: float
+    max: float
+    unit: str
+    group: str
+    description: str
+    si_scale: float = 1.0
+    integer: bool = False
+
+
+def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
+    return Param(name, float(default), float(lo), float(hi), unit, group, text,
+                 si_scale, integer)
+
+
+# Index constants into the SI parameter array used by the kernels. They must follow the order
+# of LAW_PARAMS (checked below at import).
+P_PAPER_LITERAL = 0
+P_CO_ENABLE = 1
+P_CO_FAC_EQ = 2
+P_CO_K1 = 3          # k1 .. k9 are P_CO_K1 + i - 1
+P_CO_DALPHA = 12
+P_CO_NORM = 13
+P_CO_LAM_MAX = 14
+P_CO_SURF = 15
+P_CO_E = 16
+P_CO_DET_MIN = 17
+P_SLW_K1 = 18        # K1, K2, K3 consecutive
+P_SLW_KAPPA = 21
+P_SLW_GAMMA = 22
+P_SLW_LEAK = 23
+P_SLW_TH_BND = 24
+P_SLW_OMC_MAX = 25
+P_SLW_AW = 26
+P_FST_KAPPA = 27
+P_FST_GAMMA = 28
+P_FST_LEAK = 29
+P_FST_TH_BND = 30
+P_FST_CF_WN = 31
+P_FST_CF_ZETA = 32
+P_DOB_ENABLE = 33
+P_DOB_C = 34
+P_DOB_ACHIEVED = 35
+P_ACT_MAX = 36
+P_ACT_RATE = 37
+P_ACT_TAU = 38
+P_ALLOC_MODE = 39
+P_REF_PF_EN = 40
+P_REF_PF_WN = 41
+P_REF_PF_ZETA = 42
+P_MDL_MASS = 43
+P_MDL_IXX = 44
+P_MDL_IYY = 45
+P_MDL_IZZ = 46
+P_MDL_XCG = 47
+P_N = 48
+
+LAW_PARAMS: tuple[Param, ...] = (
+    _p("PAPER_LITERAL", 0, 0, 1, "-", "LAW",
+       "1 = fly the printed law: no omega_c limit, no integral/adaptation freeze, observer fed "
+       "M_c, allocation clipped per surface, no prefilter (steps), no factor clamp or matrix "
+       "guard. 0 = the documented deviations of docs/control_law.md are on.", integer=True),
+    _p("CO_ENABLE", 1, 0, 1, "-", "CO",
+       "1 = coordinated law (factors Eqs. 13/14/19 in the allocation matrix Eq. 45, surface "
+       "coordination Eq. 47); 0 = uncoordinated baseline (all factors 0, no surface "
+       "coordination). Set by the fc flight mode.", integer=True),
+    _p("CO_FAC_EQ", 14, 14, 19, "-", "CO",
+       "Inertia-coupling factors: 14 = Eq. 14 (lambda_e = k4 alpha + k5 p, lambda_a = k6 beta + "
+       "k7 r); 19 = Eq. 19 (lambda_e = k4 alpha + k5 q, lambda_a = k6 beta + k7 p). lambda_r "
+       "= Eq. 13 + lambda_r3 in both.", integer=True),
+    _p("CO_K1", 1, 0, 10, "s/rad", "CO", "k1 of Eq. 10/13: lambda_r1 = k1 p tan(alpha)."),
+    _p("CO_K2", 1, 0, 10, "1/rad", "CO", "k2 of Eq. 12/13: k2 beta term of lambda_r2."),
+    _p("CO_K3", 1, 0, 10, "s/rad", "CO",
+       "k3 of Eq. 12/13: k3 p (1 - cos alpha) / (sin alpha + Delta_alpha)."),
+    _p("CO_K4", 1, 0, 10, "1/rad", "CO", "k4 of Eq. 14/19: k4 alpha term of lambda_e."),
+    _p("CO_K5", 1, 0, 10, "s/rad", "CO", "k5 of Eq. 14/19: rate term of lambda_e (p in Eq. 14, q in Eq. 19)."),
+    _p("CO_K6", 1, 0, 10, "1/rad", "CO", "k6 of Eq. 14/19: k6 beta term of lambda_a."),
+    _p("CO_K7", 1, 0, 10, "s/rad", "CO", "k7 of Eq. 14/19: rate term of lambda_a (r in Eq. 14, p in Eq. 19)."),
+    _p("CO_K8", 1, 0, 10, "1/rad", "CO",
+       "k8 of Eq. 14: lambda_r3 = k8 beta + k9 q (not given by the paper; 1 like k1..k7)."),
+    _p("CO_K9", 1, 0, 10, "s/rad", "CO", "k9 of Eq. 14: q term of lambda_r3 (not given by the paper)."),
+    _p("CO_DALPHA", 0.05, 0.001, 1, "-", "CO",
+       "Delta_alpha of Eq. 12: added to sin(alpha) to keep the k3 term away from its singularity."),
+    _p("CO_NORM", 0, 0, 2, "-", "CO",
+       "How a factor is added to g_f_delta (Eq. 45): 0 = relative to the diagonal entry "
+       "(Gamma_ii = lambda_i g_ii); 1 = to the dimensionless coefficient per rad (Gamma_ii = "
+       "lambda_i qbar S l_i, l = b, c, b); 2 = literally in N m/rad (does nothing).", integer=True),
+    _p("CO_LAM_MAX", 0.5, 0, 10, "-", "CO",
+       "Clamp |lambda_i| <= CO_LAM_MAX (0 = no clamp). With CO_NORM 0 a value < 1 keeps the sign "
+       "of every diagonal entry."),
+    _p("CO_SURF", 1, 0, 2, "-", "CO",
+       "Surface coordination, Eq. 47 with E of Eq. 15: 0 = off; 1 = aileron-rudder interconnect "
+       "delta_a_out = delta_a + E delta_r (after the inverse); 2 = literal delta_a = E delta_r. "
+       "(A moment-preserving interconnect is identical to 0 with a full 3x3 inverse.)",
+       integer=True),
+    _p("CO_E", 0, 0, 1, "-", "CO",
+       "Surface-deflection coupling degree E (Eq. 15), 0 < E <= 1. 0 = computed at the flight "
+       "condition as |Cl_delta_r / Cl_delta_a| (rolling-moment effectiveness ratio, clipped to "
+       "[0.01, 1])."),
+    _p("CO_DET_MIN", 0.2, 0, 1, "-", "CO",
+       "Guard: the coordinated matrix is used only if det(g_Gamma)/det(g_f_delta) >= CO_DET_MIN "
+       "(not near-singular, no sign flip); otherwise g_f_delta is used and co_fallback is set."),
+    _p("SLW_K1", 4, 0, 50, "1/s", "SLW", "K1 of Eq. 27 (alpha channel integral gain of the sliding surface)."),
+    _p("SLW_K2", 4, 0, 50, "1/s", "SLW", "K2 of Eq. 27 (beta channel)."),
+    _p("SLW_K3", 4, 0, 50, "1/s", "SLW", "K3 of Eq. 27 (mu channel)."),
+    _p("SLW_KAPPA", 5, 0, 100, "1/s", "SLW", "kappa1 of Eq. 29 (slow-loop sliding-surface gain)."),
+    _p("SLW_GAMMA", 20, 0, 1e4, "1/rad^2", "SLW",
+       "Gamma1 of Eq. 30 (scalar x identity) for the relative estimate rho_Omega "
+       "(theta_hat = theta_nom (1 + rho)); 0 = no adaptation."),
+    _p("SLW_LEAK", 0.1, 0, 100, "1/s", "SLW",
+       "lambda_Omega of Eq. 30: leakage of theta_hat_Omega toward the nominal model."),
+    _p("SLW_TH_BND", 0.5, 0, 5, "-", "SLW",
+       "Projection bound of Eq. 30: |theta_hat_i / theta_nom_i - 1| <= SLW_TH_BND."),
+    _p("SLW_OMC_MAX", 10, 0, 180, "deg/s", "SLW",
+       "Limit on each component of the virtual rate command omega_c (Eq. 29), applied by scaling "
+       "the vector (direction kept). 0 = no limit.", si_scale=DEG),
+    _p("SLW_AW", 1, 0, 1, "-", "SLW",
+       "1 = freeze the integral of e1 (Eq. 27) and both adaptive laws while omega_c is limited "
+       "or a surface saturates (anti-windup).", integer=True),
+    _p("FST_KAPPA", 5, 0, 200, "1/s", "FST", "kappa2 of Eq. 35 (fast-loop rate-error gain)."),
+    _p("FST_GAMMA", 5, 0, 1e4, "s^3/rad^2", "FST",
+       "Gamma2 of Eq. 36 (scalar x identity) for the relative estimate rho_omega; 0 = no adaptation."),
+    _p("FST_LEAK", 0.1, 0, 100, "1/s", "FST",
+       "lambda_omega of Eq. 36: leakage of theta_hat_omega toward the nominal model."),
+    _p("FST_TH_BND", 0.5, 0, 5, "-", "FST",
+       "Projection bound of Eq. 36: |theta_hat_i / theta_nom_i - 1| <= FST_TH_BND."),
+    _p("FST_CF_WN", 40, 1, 500, "rad/s", "FST",
+       "Natural frequency of the 2nd-order command filter that gives omega_c and omega_c_dot "
+       "to Eq. 35 (the paper does not define omega_c_dot)."),
+    _p("FST_CF_ZETA", 0.9, 0.3, 2, "-", "FST", "Damping ratio of the omega_c command filter."),
+    _p("DOB_ENABLE", 1, 0, 1, "-", "DOB", "1 = disturbance observer of Eq. 37 on; 0 = d_hat = 0.",
+       integer=True),
+    _p("DOB_C", 10, 1.01, 200, "1/s", "DOB",
+       "c of Eq. 37/41: Q(e) = c omega, L = c I (c > 1); the observer's bandwidth."),
+    _p("DOB_ACHIEVED", 1, 0, 1, "-", "DOB",
+       "1 = feed the observer the moment achieved by the modelled actuators (limits, rate, lag); "
+       "0 = feed M_c as printed in Eq. 37.", integer=True),
+    _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
+       "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
+    _p("ACT_RATE", 60, 1, 1000, "deg/s", "ACT",
+       "Surface rate limit of the controller's actuator model (observer input only).", si_scale=DEG),
+    _p("ACT_TAU", 0.03, 0, 1, "s", "ACT",
+       "First-order lag of the controller's actuator model (0 = none)."),
+    _p("ALLOC_MODE", 1, 0, 1, "-", "ACT",
+       "Saturation of the allocation (Eq. 46): 0 = clip each surface (printed paper); "
+       "1 = scale the whole deflection vector so the moment keeps its direction.", integer=True),
+    _p("REF_PF_EN", 1, 0, 1, "-", "REF",
+       "1 = 2nd-order reference prefilter on Omega_c (gives Omega_c_dot); 0 = the paper's steps "
+       "(Omega_c_dot = 0).", integer=True),
+    _p("REF_PF_WN", 2, 0.1, 50, "rad/s", "REF", "Natural frequency of the reference prefilter."),
+    _p("REF_PF_ZETA", 1, 0.3, 2, "-", "REF", "Damping ratio of the reference prefilter."),
+    _p("MDL_MASS", 136078, 1e3, 1e7, "kg", "MDL", "Mass M of the controller's nominal model (Eq. 2)."),
+    _p("MDL_IXX", 1.36e6, 1e3, 1e9, "kg m^2", "MDL", "Ixx of the nominal model (Eq. 4)."),
+    _p("MDL_IYY", 1.5e7, 1e3, 1e9, "kg m^2", "MDL", "Iyy of the nominal model (Eq. 4)."),
+    _p("MDL_IZZ", 1.36e7, 1e3, 1e9, "kg m^2", "MDL", "Izz of the nominal model (Eq. 4)."),
+    _p("MDL_XCG", 0, -10, 10, "m", "MDL",
+       "X_cg of Eq. 6: MRC -> c.g., positive aft, of the nominal model."),
+)
+
+PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
+
+_EXPECTED = {"PAPER_LITERAL": P_PAPER_LITERAL, "CO_ENABLE": P_CO_ENABLE, "CO_FAC_EQ": P_CO_FAC_EQ,
+             "CO_K1": P_CO_K1, "CO_K9": P_CO_K1 + 8, "CO_DALPHA": P_CO_DALPHA,
+             "CO_NORM": P_CO_NORM, "CO_LAM_MAX": P_CO_LAM_MAX, "CO_SURF": P_CO_SURF,
+             "CO_E": P_CO_E, "CO_DET_MIN": P_CO_DET_MIN, "SLW_K1": P_SLW_K1,
+             "SLW_K3": P_SLW_K1 + 2, "SLW_KAPPA": P_SLW_KAPPA, "SLW_GAMMA": P_SLW_GAMMA,
+             "SLW_LEAK": P_SLW_LEAK, "SLW_TH_BND": P_SLW_TH_BND, "SLW_OMC_MAX": P_SLW_OMC_MAX,
+             "SLW_AW": P_SLW_AW, "FST_KAPPA": P_FST_KAPPA, "FST_GAMMA": P_FST_GAMMA,
+             "FST_LEAK": P_FST_LEAK, "FST_TH_BND": P_FST_TH_BND, "FST_CF_WN": P_FST_CF_WN,
+             "FST_CF_ZETA": P_FST_CF_ZETA, "DOB_ENABLE": P_DOB_ENABLE, "DOB_C": P_DOB_C,
+             "DOB_ACHIEVED": P_DOB_ACHIEVED, "ACT_MAX": P_ACT_MAX, "ACT_RATE": P_ACT_RATE,
+             "ACT_TAU": P_ACT_TAU, "ALLOC_MODE": P_ALLOC_MODE, "REF_PF_EN": P_REF_PF_EN,
+             "REF_PF_WN": P_REF_PF_WN, "REF_PF_ZETA": P_REF_PF_ZETA, "MDL_MASS": P_MDL_MASS,
+             "MDL_IXX": P_MDL_IXX, "MDL_IYY": P_MDL_IYY, "MDL_IZZ": P_MDL_IZZ,
+             "MDL_XCG": P_MDL_XCG}
+for _name, _idx in _EXPECTED.items():
+    assert PARAM_INDEX[_name] == _idx, (_name, PARAM_INDEX[_name], _idx)
+assert len(LAW_PARAMS) == P_N
+for _prm in LAW_PARAMS:
+    assert len(_prm.name) <= 16 and _prm.name == _prm.name.upper(), _prm.name
+    assert _prm.min <= _prm.default <= _prm.max, _prm.name
+
+
+def check_value(name: str, value: float) -> float:
+    """Validate ``value`` (human units) for parameter ``name``; return it as a float.
+
+    Raises KeyError for an unknown name and ValueError for a value out of range, not finite,
+    or not a whole number for an integer option.
+    """
+    if name not in PARAM_INDEX:
+        raise KeyError(f"unknown control-law parameter {name!r}")
+    prm = LAW_PARAMS[PARAM_INDEX[name]]
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: value {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: value {v} is not finite")
+    if v < prm.min or v > prm.max:
+        raise ValueError(f"{name}: {v} outside [{prm.min}, {prm.max}] {prm.unit}")
+    if prm.integer and v != round(v):
+        raise ValueError(f"{name}: option value must be a whole number, got {v}")
+    if name == "CO_FAC_EQ" and v not in (14.0, 19.0):
+        raise ValueError(f"{name}: must be 14 or 19, got {v}")
+    return v
+
+
+def to_si(name: str, value: float) -> float:
+    """The SI value the kernels use for ``value`` given in the table's unit."""
+    return check_value(name, value) * LAW_PARAMS[PARAM_INDEX[name]].si_scale
+
+
+def default_si_array() -> np.ndarray:
+    """A new float64[P_N] with every parameter's default in SI."""
+    return np.array([p.default * p.si_scale for p in LAW_PARAMS], dtype=np.float64)
