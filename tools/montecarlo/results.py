@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import os
+import secrets
 import time
 from pathlib import Path
 
@@ -81,7 +82,8 @@ class RowWriter:
         self.flush_s = flush_s
         self._buf: list[dict] = []
         self._t_first = 0.0
-        self._stamp = time.strftime("%Y%m%dT%H%M%S") + f"-{os.getpid()}"
+        # unique per writer: two invocations in the same second must not overwrite parts
+        self._stamp = time.strftime("%Y%m%dT%H%M%S") + f"-{os.getpid()}-{secrets.token_hex(3)}"
         self._seq = 0
         self.rows_written = 0
 
