@@ -3,9 +3,11 @@
 A small MAVLink 2 ground station (system id 250, component 190) on its own non-blocking UDP
 socket, using pymavlink's generated ``ardupilotmega`` codec (docs/architecture.md section 1).
 In realtime runs it does what an operator does in MAVProxy: wait for the vehicle's heartbeat,
-set the attitude commands (parameters ``CMD_ALPHA_DEG``, ``CMD_BETA_DEG``, ``CMD_MU_DEG``),
-select the flight mode, arm, and then send each new command of the scenario's timeline when the
-vehicle's sim time (from its telemetry) reaches it. In lockstep runs it only listens (the
+set the attitude command (``COMMAND_LONG MAV_CMD_USER_1``: param1..3 = alpha_c, beta_c, mu_c in
+deg, NaN keeps a value; MAVProxy ``long USER_1 5 0 4``), select the flight mode, arm, and then
+send each new command of the scenario's timeline when the vehicle's sim time reaches it. The
+vehicle's sim time is the sensor frame stamp it reports in ``AOA_SSA.time_usec`` (its
+``ATTITUDE.time_boot_ms`` is its own wall-clock boot time, not sim time). In lockstep runs it only listens (the
 controller is armed and fed its timeline on its command line, docs/hil.md).
 
 It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
@@ -32,6 +34,7 @@ VEHICLE_COMPID = 1
 CMD_PARAMS = ("CMD_ALPHA_DEG", "CMD_BETA_DEG", "CMD_MU_DEG")
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_DO_SET_MODE = 176
+MAV_CMD_USER_1 = mavlink.MAV_CMD_USER_1   # fc/gcs.py CMD_ATTITUDE
 
 
 class GcsError(RuntimeError):
@@ -42,8 +45,11 @@ class GcsError(RuntimeError):
 class Telemetry:
     """What the ground station heard from the vehicle (grown by the receive thread)."""
 
-    att_t_s: list = field(default_factory=list)       # ATTITUDE.time_boot_ms / 1e3
+    att_t_s: list = field(default_factory=list)       # sim time of the last AOA_SSA stamp, s
     att: list = field(default_factory=list)           # roll, pitch, yaw, p, q, r (rad, rad/s)
+    aoa_t_s: list = field(default_factory=list)       # AOA_SSA.time_usec / 1e6 (sim time)
+    aoa: list = field(default_factory=list)           # AOA, SSA (deg, as on the wire)
+    sim_t_s: float | None = None                      # newest sim time stamp seen
     heartbeats: int = 0
     last_heartbeat: object = None
     base_mode: int = 0
@@ -54,7 +60,7 @@ class Telemetry:
     bad_datagrams: int = 0
 
     def sim_time_s(self) -> float | None:
-        return self.att_t_s[-1] if self.att_t_s else None
+        return self.sim_t_s
 
 
 class ScriptedGcs:
@@ -105,8 +111,13 @@ class ScriptedGcs:
         t = m.get_type()
         tel = self.tel
         if t == "ATTITUDE":
-            tel.att_t_s.append(m.time_boot_ms / 1e3)
-            tel.att.append((m.roll, m.pitch, m.yaw, m.rollspeed, m.pitchspeed, m.yawspeed))
+            if tel.sim_t_s is not None:
+                tel.att_t_s.append(tel.sim_t_s)
+                tel.att.append((m.roll, m.pitch, m.yaw, m.rollspeed, m.pitchspeed, m.yawspeed))
+        elif t == "AOA_SSA":
+            tel.sim_t_s = m.time_usec / 1e6
+            tel.aoa_t_s.append(tel.sim_t_s)
+            tel.aoa.append((m.AOA, m.SSA))
         elif t == "HEARTBEAT":
             tel.heartbeats += 1
             tel.base_mode = m.base_mode
@@ -197,17 +208,27 @@ class ScriptedGcs:
         if r != mavlink.MAV_RESULT_ACCEPTED:
             raise GcsError(f"ground station: mode {custom_mode} refused (MAV_RESULT {r})")
 
-    def set_command_deg(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> None:
-        for name, v in zip(CMD_PARAMS, (alpha_deg, beta_deg, mu_deg)):
-            self.set_param(name, v)
+    def set_command_deg(self, alpha_deg: float = math.nan, beta_deg: float = math.nan,
+                        mu_deg: float = math.nan) -> None:
+        """Attitude command in deg (NaN keeps the current value), confirmed by COMMAND_ACK."""
+        r = self.command_long(MAV_CMD_USER_1, alpha_deg, beta_deg, mu_deg)
+        if r != mavlink.MAV_RESULT_ACCEPTED:
+            raise GcsError(f"ground station: attitude command refused (MAV_RESULT {r})")
+        for what, v in zip(("alpha_deg", "beta_deg", "mu_deg"), (alpha_deg, beta_deg, mu_deg)):
+            if math.isfinite(v):
+                self._record(what, v)
 
     # ---- records ---------------------------------------------------------------------------
     def telemetry_arrays(self) -> dict:
+        """ATTITUDE (stamped with the newest AOA_SSA sim time) and AOA_SSA records."""
         with self._cond:
             t = np.asarray(self.tel.att_t_s, dtype=float)
             a = np.asarray(self.tel.att, dtype=float).reshape(-1, 6)
+            ta = np.asarray(self.tel.aoa_t_s, dtype=float)
+            aa = np.asarray(self.tel.aoa, dtype=float).reshape(-1, 2)
         return {"t_s": t, "roll_rad": a[:, 0], "pitch_rad": a[:, 1], "yaw_rad": a[:, 2],
-                "p_rad_s": a[:, 3], "q_rad_s": a[:, 4], "r_rad_s": a[:, 5]}
+                "p_rad_s": a[:, 3], "q_rad_s": a[:, 4], "r_rad_s": a[:, 5],
+                "aoa_t_s": ta, "aoa_deg": aa[:, 0], "ssa_deg": aa[:, 1]}
 
     def close(self) -> None:
         self._stop.set()

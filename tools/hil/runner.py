@@ -131,8 +131,8 @@ def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Eve
     """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
     from tools.hil.gcs import GcsError
     try:
-        gcs.wait_for(lambda tel: tel.heartbeats > 0 and tel.att_t_s, 60.0,
-                     "the controller's HEARTBEAT and ATTITUDE")
+        gcs.wait_for(lambda tel: tel.heartbeats > 0 and tel.sim_t_s is not None, 60.0,
+                     "the controller's HEARTBEAT and AOA_SSA (sim time)")
         first = {"alpha_deg": 0.0, "beta_deg": 0.0, "mu_deg": 0.0}
         pending = list(commands)
         # entries due at start are merged and set before the law is engaged
@@ -148,23 +148,19 @@ def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Eve
             except GcsError:
                 continue
             pending.pop(0)
-            for key, name in (("alpha_deg", "CMD_ALPHA_DEG"), ("beta_deg", "CMD_BETA_DEG"),
-                              ("mu_deg", "CMD_MU_DEG")):
-                if key in c:
-                    gcs.set_param(name, c[key])
+            gcs.set_command_deg(c.get("alpha_deg", math.nan), c.get("beta_deg", math.nan),
+                                c.get("mu_deg", math.nan))
     except Exception as exc:  # reported by the runner, which stops the run
         if not stop.is_set():
             errors.put(f"ground station: {exc}")
 
 
 def sent_timeline(gcs, commands: list[dict]) -> list[dict]:
-    """The timeline as the ground station actually applied it (vehicle sim time of the
-    PARAM_VALUE confirmation), for the metrics of a realtime run."""
+    """The timeline as the ground station actually applied it (vehicle sim time when the
+    COMMAND_ACK arrived), for the metrics of a realtime run."""
     out = []
-    for t_s, what, value in gcs.sent:
-        key = {"CMD_ALPHA_DEG": "alpha_deg", "CMD_BETA_DEG": "beta_deg",
-               "CMD_MU_DEG": "mu_deg"}.get(what)
-        if key is None or not math.isfinite(t_s):
+    for t_s, key, value in gcs.sent:
+        if key not in ("alpha_deg", "beta_deg", "mu_deg") or not math.isfinite(t_s):
             continue
         if out and abs(out[-1]["t_s"] - t_s) < 1e-9:
             out[-1][key] = value
@@ -268,7 +264,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             if realtime:
                 rundata.write_timeline(vdir / rundata.TIMELINE_FILE, sent_timeline(gcs, commands),
                                        header="timeline as applied by the ground station "
-                                              "(vehicle sim time of each confirmed PARAM_SET)")
+                                              "(vehicle sim time of each acknowledged command)")
             _save_gcs(gcs, vdir)
             gcs.close()
     res.wall_time_total_s = time.monotonic() - t0
