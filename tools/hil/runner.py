@@ -202,6 +202,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             fc_argv += ["--timeline", str(vdir / rundata.TIMELINE_FILE), "--arm",
                         "--flight-mode", FLIGHT_MODE[variant]]
         fc = Child("fc", fc_argv, vdir / "fc.console.log")
+        _say(cfg, f"tools.hil: [{variant}] fc pid {fc.pid}")
         fc.wait_for_line("READY", READY_TIMEOUT_S)
         plant_argv = cfg.plant_argv0() + ["run", "--scenario", scenario_ref,
                       "--mode", cfg.mode, "--fc", f"127.0.0.1:{plant_port}",
@@ -212,6 +213,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
         elif cfg.duration_s is not None:
             plant_argv += ["--duration", repr(float(cfg.duration_s))]
         plant = Child("plant", plant_argv, vdir / "plant.console.log")
+        _say(cfg, f"tools.hil: [{variant}] plant pid {plant.pid}")
         driver = None
         if realtime:
             driver = threading.Thread(target=_drive_realtime, name="gcs-driver", daemon=True,
@@ -273,6 +275,11 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             res.error = f"fc exited with code {res.fc_rc} when stopped (see {vdir / 'fc.console.log'})"
     res.ok = res.error is None and not res.interrupted
     return res
+
+
+def _say(cfg: RunConfig, text: str) -> None:
+    if not cfg.quiet:
+        print(text, file=sys.stderr, flush=True)
 
 
 def _save_gcs(gcs, vdir: Path) -> None:
