@@ -1,0 +1,536 @@
+"""Rigid-body 6-DOF dynamics of the winged cone, actuators and the fixed-step RK4 integrator.
+
+Flat, non-rotating earth (NED), gravity with altitude (US76 inverse square), body axes FRD,
+attitude as a unit quaternion (scalar first, body -> NED), all in SI. See docs/plant.md for
+every modelling choice and its source.
+
+Equations (per physics step dt, RK4 on the 13 rigid-body states, surfaces held over the step):
+    p_dot_NED = C_nb v_b
+    v_b_dot   = (F_aero_b + T x_b) / m + C_bn [0, 0, g(h)] - omega x v_b
+    q_dot     = 0.5 q (x) [0, omega]
+    omega_dot = I^-1 (M_cg - omega x I omega) + d(t)
+with F_aero_b = C_bw [-D, Y, -L] (wind axes: D along -V, L in the body x-z plane), the
+aerodynamic moment about the MRC plus the transfer r_MRC/cg x F_aero_b with
+r_MRC/cg = (x_cg, 0, 0) (x_cg = MRC -> c.g., + aft; winged_cone.md section 3), thrust T along
+body x through the c.g. (speed model), and d(t) the paper's disturbance as an angular
+acceleration (or as a moment divided by the inertia, per scenario).
+
+All kernels work on flat float64 arrays with the index constants below; nothing allocates.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from plant_sim.aero import C_D, C_L, C_N, C_PITCH, C_ROLL, C_Y, C_YAW, coefficients
+from plant_sim.atmosphere import A_G_M_S2, A_N, A_P_PA, A_RHO_KG_M3, A_SOUND_M_S, us76
+from plant_sim.vehicle import B_REF_M, C_REF_M, S_REF_M2
+
+DEG = math.pi / 180.0
+
+# ---- state vector x (float64[X_N]) ----
+X_PN = 0          # position north (m)
+X_PE = 1          # position east (m)
+X_PD = 2          # position down (m); h = -x[X_PD]
+X_U = 3           # body velocity (m/s), FRD
+X_V = 4
+X_W = 5
+X_Q0 = 6          # attitude quaternion body -> NED, scalar first
+X_Q1 = 7
+X_Q2 = 8
+X_Q3 = 9
+X_P = 10          # body rates (rad/s)
+X_Q = 11
+X_R = 12
+X_RB_N = 13       # rigid-body states integrated by RK4: x[0:13]
+X_DL = 13         # surface positions (rad): left elevon, right elevon, rudder
+X_DR = 14
+X_DU = 15
+X_CMD_L = 16      # latched surface commands (rad)
+X_CMD_R = 17
+X_CMD_U = 18
+X_STEP = 19       # physics step counter (t = step * dt, exact)
+X_THRUST = 20     # thrust at the last derivative evaluation (N)
+X_CLIP = 21       # OR of aero clip flags since the last frame began
+X_N = 22
+
+# ---- parameter vector p (float64[P_N]) ----
+P_MASS = 0
+P_IXX = 1
+P_IYY = 2
+P_IZZ = 3
+P_IXZ = 4
+P_XCG = 5          # MRC -> c.g., + aft (m)
+P_DT = 6           # physics step (s)
+P_UNC = 7          # 7..12: multipliers (1 + u) on CL, CD, CY, Cl, Cm, Cn
+P_DIST_ON = 13
+P_DIST_AMP = 14    # amplitude x scale, in rad/s^2 (or N m if P_DIST_MOMENT)
+P_DIST_MOMENT = 15  # 1: the disturbance is a moment (N m) divided by the inertia
+P_SPEED_MODE = 16  # 0 none, 1 thrust speed hold
+P_VREF = 17        # m/s
+P_KV = 18          # 1/s
+P_TMAX = 19        # N
+P_ACT_LIMIT = 20   # rad
+P_ACT_RATE = 21    # rad/s, 0 = no rate limit
+P_ACT_TAU = 22     # s, 0 = no lag
+P_IINV = 23        # 23..31: inverse inertia, row major
+P_FRAME_DT = 32    # s
+P_NOISE = 33       # 33..46: noise standard deviation per measurement channel (SI)
+P_BIAS = 47        # 47..60: bias per measurement channel (SI)
+P_DELAY = 61       # 61..74: latency per channel in frames (integer valued)
+P_SENSORS_ON = 75
+P_N = 76
+
+SPEED_NONE = 0
+SPEED_HOLD = 1
+
+# ---- work array w (float64[W_N]) ----
+W_ATM = 0          # 0..4 atmosphere output
+W_COEF = 5         # 5..10 coefficients
+W_K1 = 11          # 11..23, RK4 stages (13 each)
+W_K2 = 24
+W_K3 = 37
+W_K4 = 50
+W_XT = 63          # 63..75 trial state
+W_AUX = 76         # 76..: aero_eval outputs
+# aero_eval outputs (offsets from W_AUX)
+AX_ALPHA = 0
+AX_BETA = 1
+AX_V = 2
+AX_MACH = 3
+AX_QBAR = 4
+AX_FX = 5          # aerodynamic force, body axes (N)
+AX_FY = 6
+AX_FZ = 7
+AX_L = 8           # aerodynamic moment about the c.g., body axes (N m)
+AX_M = 9
+AX_N = 10
+AX_LIFT = 11
+AX_DRAG = 12
+AX_SIDE = 13
+AX_GRAV = 14
+AX_SOUND = 15
+AX_THRUST = 16     # speed-model thrust (N)
+AX_N_OUT = 17
+W_N = W_AUX + AX_N_OUT
+
+
+@njit(cache=True)
+def disturbance_components(t_s, p):
+    """The paper's Section 5 disturbance as body angular acceleration (rad/s^2) at ``t_s``.
+
+    d(t) = A [0.5 sin(1.5 t), 0.5 cos(2 t), 0.5 sin(2 t)] with A = amplitude x scale
+    (paper: 10), converted to rad/s^2 from the scenario unit; a disturbance given as a moment
+    (N m) is divided by the inertia (I^-1 d). Returns (d_p, d_q, d_r); zeros when off.
+    """
+    if p[P_DIST_ON] == 0.0:
+        return 0.0, 0.0, 0.0
+    a = p[P_DIST_AMP]
+    d0 = a * 0.5 * math.sin(1.5 * t_s)
+    d1 = a * 0.5 * math.cos(2.0 * t_s)
+    d2 = a * 0.5 * math.sin(2.0 * t_s)
+    if p[P_DIST_MOMENT] != 0.0:
+        i = P_IINV
+        return (p[i] * d0 + p[i + 1] * d1 + p[i + 2] * d2,
+                p[i + 3] * d0 + p[i + 4] * d1 + p[i + 5] * d2,
+                p[i + 6] * d0 + p[i + 7] * d1 + p[i + 8] * d2)
+    return d0, d1, d2
+
+
+@njit(cache=True)
+def aero_eval(x, dl, dr, du, p, w):
+    """Air data, aerodynamic forces (body) and moments about the c.g. at state ``x``.
+
+    Writes w[W_AUX + AX_*] and returns the aero clip flags. ``dl, dr, du`` are the surface
+    positions (rad).
+    """
+    h = -x[X_PD]
+    us76(h, w[W_ATM:W_ATM + A_N])
+    rho = w[W_ATM + A_RHO_KG_M3]
+    a_snd = w[W_ATM + A_SOUND_M_S]
+    u = x[X_U]
+    v = x[X_V]
+    ww = x[X_W]
+    V = math.sqrt(u * u + v * v + ww * ww)
+    if V < 1e-6:
+        V = 1e-6
+    alpha = math.atan2(ww, u)
+    sb = v / V
+    if sb > 1.0:
+        sb = 1.0
+    elif sb < -1.0:
+        sb = -1.0
+    beta = math.asin(sb)
+    mach = V / a_snd
+    qbar = 0.5 * rho * V * V
+    inv2v = 1.0 / (2.0 * V)
+    c = w[W_COEF:W_COEF + C_N]
+    flags = coefficients(alpha / DEG, mach, beta,
+                         x[X_P] * B_REF_M * inv2v, x[X_Q] * C_REF_M * inv2v, x[X_R] * B_REF_M * inv2v,
+                         dl / DEG, dr / DEG, du / DEG, c)
+    qs = qbar * S_REF_M2
+    lift = qs * c[C_L] * p[P_UNC + 0]
+    drag = qs * c[C_D] * p[P_UNC + 1]
+    side = qs * c[C_Y] * p[P_UNC + 2]
+    ca = math.cos(alpha)
+    sa = math.sin(alpha)
+    cb = math.cos(beta)
+    # wind -> body: F_b = C_bw [-D, Y, -L]; columns of C_bw are the wind axes in body axes
+    fx = -drag * ca * cb - side * ca * sb + lift * sa
+    fy = -drag * sb + side * cb
+    fz = -drag * sa * cb - side * sa * sb - lift * ca
+    xcg = p[P_XCG]
+    # moments about the MRC, then r x F with r = (x_cg, 0, 0) from the c.g. to the MRC
+    lm = qs * B_REF_M * c[C_ROLL] * p[P_UNC + 3]
+    mm = qs * C_REF_M * c[C_PITCH] * p[P_UNC + 4] - xcg * fz
+    nm = qs * B_REF_M * c[C_YAW] * p[P_UNC + 5] + xcg * fy
+    o = W_AUX
+    w[o + AX_ALPHA] = alpha
+    w[o + AX_BETA] = beta
+    w[o + AX_V] = V
+    w[o + AX_MACH] = mach
+    w[o + AX_QBAR] = qbar
+    w[o + AX_FX] = fx
+    w[o + AX_FY] = fy
+    w[o + AX_FZ] = fz
+    w[o + AX_L] = lm
+    w[o + AX_M] = mm
+    w[o + AX_N] = nm
+    w[o + AX_LIFT] = lift
+    w[o + AX_DRAG] = drag
+    w[o + AX_SIDE] = side
+    w[o + AX_GRAV] = w[W_ATM + A_G_M_S2]
+    w[o + AX_SOUND] = a_snd
+    return flags
+
+
+@njit(cache=True)
+def thrust_n(x, p, w):
+    """Speed-hold thrust (N) along body x, from the last aero_eval in ``w``.
+
+    Ideal autothrottle: T cos(alpha) cos(beta) = D + m g sin(gamma) + m k_V (V_ref - V),
+    clipped to [0, T_max]; SPEED_NONE gives 0.
+    """
+    if p[P_SPEED_MODE] != SPEED_HOLD:
+        return 0.0
+    o = W_AUX
+    V = w[o + AX_V]
+    m = p[P_MASS]
+    # sin(gamma) = -v_D / V; v_D from the quaternion: third row of C_nb times v_b
+    q0 = x[X_Q0]
+    q1 = x[X_Q1]
+    q2 = x[X_Q2]
+    q3 = x[X_Q3]
+    vd = (2.0 * (q1 * q3 - q0 * q2) * x[X_U] + 2.0 * (q2 * q3 + q0 * q1) * x[X_V]
+          + (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) * x[X_W])
+    sgam = -vd / V
+    need = w[o + AX_DRAG] + m * w[o + AX_GRAV] * sgam + m * p[P_KV] * (p[P_VREF] - V)
+    cc = math.cos(w[o + AX_ALPHA]) * math.cos(w[o + AX_BETA])
+    t = need / cc if cc > 0.05 else 0.0
+    if t < 0.0:
+        t = 0.0
+    elif t > p[P_TMAX]:
+        t = p[P_TMAX]
+    return t
+
+
+@njit(cache=True)
+def deriv(x, t_s, dl, dr, du, p, w, xdot):
+    """Time derivative of the 13 rigid-body states; returns the aero clip flags."""
+    flags = aero_eval(x, dl, dr, du, p, w)
+    thrust = thrust_n(x, p, w)
+    o = W_AUX
+    w[o + AX_THRUST] = thrust
+    m = p[P_MASS]
+    g = w[o + AX_GRAV]
+    u = x[X_U]
+    v = x[X_V]
+    ww = x[X_W]
+    pp = x[X_P]
+    qq = x[X_Q]
+    rr = x[X_R]
+    q0 = x[X_Q0]
+    q1 = x[X_Q1]
+    q2 = x[X_Q2]
+    q3 = x[X_Q3]
+    # C_nb (body -> NED)
+    c11 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+    c12 = 2.0 * (q1 * q2 - q0 * q3)
+    c13 = 2.0 * (q1 * q3 + q0 * q2)
+    c21 = 2.0 * (q1 * q2 + q0 * q3)
+    c22 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c23 = 2.0 * (q2 * q3 - q0 * q1)
+    c31 = 2.0 * (q1 * q3 - q0 * q2)
+    c32 = 2.0 * (q2 * q3 + q0 * q1)
+    c33 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    xdot[X_PN] = c11 * u + c12 * v + c13 * ww
+    xdot[X_PE] = c21 * u + c22 * v + c23 * ww
+    xdot[X_PD] = c31 * u + c32 * v + c33 * ww
+    # gravity in body axes: C_bn [0, 0, g] = g * (third row of C_nb) transposed
+    xdot[X_U] = (w[o + AX_FX] + thrust) / m + g * c31 - (qq * ww - rr * v)
+    xdot[X_V] = w[o + AX_FY] / m + g * c32 - (rr * u - pp * ww)
+    xdot[X_W] = w[o + AX_FZ] / m + g * c33 - (pp * v - qq * u)
+    xdot[X_Q0] = 0.5 * (-q1 * pp - q2 * qq - q3 * rr)
+    xdot[X_Q1] = 0.5 * (q0 * pp + q2 * rr - q3 * qq)
+    xdot[X_Q2] = 0.5 * (q0 * qq + q3 * pp - q1 * rr)
+    xdot[X_Q3] = 0.5 * (q0 * rr + q1 * qq - q2 * pp)
+    ixx = p[P_IXX]
+    iyy = p[P_IYY]
+    izz = p[P_IZZ]
+    ixz = p[P_IXZ]
+    # I omega with I = [[Ixx, 0, -Ixz], [0, Iyy, 0], [-Ixz, 0, Izz]]
+    h0 = ixx * pp - ixz * rr
+    h1 = iyy * qq
+    h2 = izz * rr - ixz * pp
+    m0 = w[o + AX_L] - (qq * h2 - rr * h1)
+    m1 = w[o + AX_M] - (rr * h0 - pp * h2)
+    m2 = w[o + AX_N] - (pp * h1 - qq * h0)
+    i = P_IINV
+    xdot[X_P] = p[i] * m0 + p[i + 1] * m1 + p[i + 2] * m2
+    xdot[X_Q] = p[i + 3] * m0 + p[i + 4] * m1 + p[i + 5] * m2
+    xdot[X_R] = p[i + 6] * m0 + p[i + 7] * m1 + p[i + 8] * m2
+    if p[P_DIST_ON] != 0.0:
+        d0, d1, d2 = disturbance_components(t_s, p)
+        xdot[X_P] += d0
+        xdot[X_Q] += d1
+        xdot[X_R] += d2
+    return flags
+
+
+@njit(cache=True)
+def actuator_step(x, p, dt):
+    """Advance the three surfaces one physics step toward their latched commands.
+
+    Per surface: command clipped to +-limit; first-order lag with time constant tau
+    (exact discretisation, tau = 0: none); the change per step limited to rate_max*dt
+    (rate_max = 0: none); position clipped to +-limit.
+    """
+    lim = p[P_ACT_LIMIT]
+    tau = p[P_ACT_TAU]
+    rate = p[P_ACT_RATE]
+    frac = 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
+    for k in range(3):
+        cmd = x[X_CMD_L + k]
+        if cmd > lim:
+            cmd = lim
+        elif cmd < -lim:
+            cmd = -lim
+        pos = x[X_DL + k]
+        step = (cmd - pos) * frac
+        if rate > 0.0:
+            mx = rate * dt
+            if step > mx:
+                step = mx
+            elif step < -mx:
+                step = -mx
+        pos += step
+        if pos > lim:
+            pos = lim
+        elif pos < -lim:
+            pos = -lim
+        x[X_DL + k] = pos
+
+
+@njit(cache=True)
+def rk4_step(x, p, w):
+    """One physics step: actuators, then classic RK4 of the rigid body with the surfaces held."""
+    dt = p[P_DT]
+    t = x[X_STEP] * dt
+    actuator_step(x, p, dt)
+    dl = x[X_DL]
+    dr = x[X_DR]
+    du = x[X_DU]
+    n = X_RB_N
+    k1 = w[W_K1:W_K1 + n]
+    k2 = w[W_K2:W_K2 + n]
+    k3 = w[W_K3:W_K3 + n]
+    k4 = w[W_K4:W_K4 + n]
+    xt = w[W_XT:W_XT + X_RB_N]         # trial state (deriv reads only 0..12)
+    flags = deriv(x, t, dl, dr, du, p, w, k1)
+    thrust0 = w[W_AUX + AX_THRUST]
+    for i in range(n):
+        xt[i] = x[i] + 0.5 * dt * k1[i]
+    flags |= deriv(xt, t + 0.5 * dt, dl, dr, du, p, w, k2)
+    for i in range(n):
+        xt[i] = x[i] + 0.5 * dt * k2[i]
+    flags |= deriv(xt, t + 0.5 * dt, dl, dr, du, p, w, k3)
+    for i in range(n):
+        xt[i] = x[i] + dt * k3[i]
+    flags |= deriv(xt, t + dt, dl, dr, du, p, w, k4)
+    for i in range(n):
+        x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    qn = math.sqrt(x[X_Q0] ** 2 + x[X_Q1] ** 2 + x[X_Q2] ** 2 + x[X_Q3] ** 2)
+    for i in range(X_Q0, X_Q3 + 1):
+        x[i] /= qn
+    x[X_THRUST] = thrust0
+    x[X_STEP] += 1.0
+    x[X_CLIP] = float(int(x[X_CLIP]) | flags)
+    return flags
+
+
+@njit(cache=True)
+def advance_frame(x, cmd_rad, p, w, n_sub):
+    """Latch ``cmd_rad`` (float64[3], rad: left, right, rudder) and advance ``n_sub`` physics
+    steps (one frame). Returns the OR of the aero clip flags over the frame."""
+    x[X_CMD_L] = cmd_rad[0]
+    x[X_CMD_R] = cmd_rad[1]
+    x[X_CMD_U] = cmd_rad[2]
+    x[X_CLIP] = 0.0
+    flags = 0
+    for _ in range(n_sub):
+        flags |= rk4_step(x, p, w)
+    return flags
+
+
+@njit(cache=True)
+def advance_frame_latched(x, p, w, n_sub):
+    """Advance one frame with the commands already latched in x[X_CMD_*]."""
+    x[X_CLIP] = 0.0
+    flags = 0
+    for _ in range(n_sub):
+        flags |= rk4_step(x, p, w)
+    return flags
+
+
+@njit(cache=True)
+def dcm_from_euler(phi, theta, psi, c):
+    """C_nb (body -> NED, 3x3) from ZYX Euler angles."""
+    cf = math.cos(phi)
+    sf = math.sin(phi)
+    ct = math.cos(theta)
+    st = math.sin(theta)
+    cp = math.cos(psi)
+    sp = math.sin(psi)
+    c[0, 0] = ct * cp
+    c[0, 1] = sf * st * cp - cf * sp
+    c[0, 2] = cf * st * cp + sf * sp
+    c[1, 0] = ct * sp
+    c[1, 1] = sf * st * sp + cf * cp
+    c[1, 2] = cf * st * sp - sf * cp
+    c[2, 0] = -st
+    c[2, 1] = sf * ct
+    c[2, 2] = cf * ct
+
+
+@njit(cache=True)
+def euler_from_quat(x, out3):
+    """ZYX Euler angles (phi, theta, psi) in rad from the attitude quaternion in x."""
+    q0 = x[X_Q0]
+    q1 = x[X_Q1]
+    q2 = x[X_Q2]
+    q3 = x[X_Q3]
+    out3[0] = math.atan2(2.0 * (q0 * q1 + q2 * q3), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
+    s = 2.0 * (q0 * q2 - q3 * q1)
+    if s > 1.0:
+        s = 1.0
+    elif s < -1.0:
+        s = -1.0
+    out3[1] = math.asin(s)
+    out3[2] = math.atan2(2.0 * (q0 * q3 + q1 * q2), 1.0 - 2.0 * (q2 * q2 + q3 * q3))
+
+
+@njit(cache=True)
+def flight_path(x, out4):
+    """Flight-path angles from the state: out4 = gamma, chi, mu (rad) and V (m/s).
+
+    v_NED = C_nb v_b; gamma = atan2(-v_D, sqrt(v_N^2 + v_E^2)); chi = atan2(v_E, v_N).
+    mu from the wind-axes DCM: C_wn = C_wb C_bn with C_bw = R2(alpha) R3(-beta) (columns of
+    C_bw^T are the wind axes in body axes) and C_wn = R1(mu) R2(gamma) R3(chi), so
+    mu = atan2(C_wn[1, 2], C_wn[2, 2]) (the 'roll' of the wind frame about the velocity).
+    """
+    q0 = x[X_Q0]
+    q1 = x[X_Q1]
+    q2 = x[X_Q2]
+    q3 = x[X_Q3]
+    c11 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+    c12 = 2.0 * (q1 * q2 - q0 * q3)
+    c13 = 2.0 * (q1 * q3 + q0 * q2)
+    c21 = 2.0 * (q1 * q2 + q0 * q3)
+    c22 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c23 = 2.0 * (q2 * q3 - q0 * q1)
+    c31 = 2.0 * (q1 * q3 - q0 * q2)
+    c32 = 2.0 * (q2 * q3 + q0 * q1)
+    c33 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    u = x[X_U]
+    v = x[X_V]
+    ww = x[X_W]
+    vn = c11 * u + c12 * v + c13 * ww
+    ve = c21 * u + c22 * v + c23 * ww
+    vd = c31 * u + c32 * v + c33 * ww
+    V = math.sqrt(u * u + v * v + ww * ww)
+    out4[0] = math.atan2(-vd, math.sqrt(vn * vn + ve * ve))
+    out4[1] = math.atan2(ve, vn)
+    alpha = math.atan2(ww, u)
+    sb = v / V if V > 0.0 else 0.0
+    sb = min(1.0, max(-1.0, sb))
+    beta = math.asin(sb)
+    ca = math.cos(alpha)
+    sa = math.sin(alpha)
+    cb = math.cos(beta)
+    # wind y and z axes in body components (rows 2 and 3 of C_wb)
+    yw0 = -ca * sb
+    yw1 = cb
+    yw2 = -sa * sb
+    zw0 = -sa
+    zw1 = 0.0
+    zw2 = ca
+    # C_wn = C_wb C_bn, C_bn = C_nb^T: element (j, 3) = (wind axis j) . (third column of C_bn)
+    # third column of C_bn = third row of C_nb = (c31, c32, c33)
+    cwn23 = yw0 * c31 + yw1 * c32 + yw2 * c33
+    cwn33 = zw0 * c31 + zw1 * c32 + zw2 * c33
+    out4[2] = math.atan2(cwn23, cwn33)
+    out4[3] = V
+
+
+def initial_state(V_m_s, h_m, alpha_rad, beta_rad, mu_rad, gamma_rad, chi_rad,
+                  p_rad_s, q_rad_s, r_rad_s, x):
+    """Fill x (float64[X_N]) from flight-path quantities (Python; called at reset only).
+
+    C_bn = R2(alpha) R3(-beta) R1(mu) R2(gamma) R3(chi) (frame rotations); v_b = C_bw [V,0,0].
+    """
+    def r1(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[1, 0, 0], [0, c, s], [0, -s, c]], dtype=np.float64)
+
+    def r2(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]], dtype=np.float64)
+
+    def r3(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]], dtype=np.float64)
+
+    c_bw = r2(alpha_rad) @ r3(-beta_rad)
+    c_bn = c_bw @ r1(mu_rad) @ r2(gamma_rad) @ r3(chi_rad)
+    c_nb = c_bn.T
+    vb = c_bw @ np.array([V_m_s, 0.0, 0.0])
+    x[:] = 0.0
+    x[X_PD] = -h_m
+    x[X_U:X_W + 1] = vb
+    # quaternion from C_nb (Shepperd)
+    tr = c_nb[0, 0] + c_nb[1, 1] + c_nb[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2.0
+        q = [0.25 * s, (c_nb[2, 1] - c_nb[1, 2]) / s, (c_nb[0, 2] - c_nb[2, 0]) / s,
+             (c_nb[1, 0] - c_nb[0, 1]) / s]
+    elif c_nb[0, 0] > c_nb[1, 1] and c_nb[0, 0] > c_nb[2, 2]:
+        s = math.sqrt(1.0 + c_nb[0, 0] - c_nb[1, 1] - c_nb[2, 2]) * 2.0
+        q = [(c_nb[2, 1] - c_nb[1, 2]) / s, 0.25 * s, (c_nb[0, 1] + c_nb[1, 0]) / s,
+             (c_nb[0, 2] + c_nb[2, 0]) / s]
+    elif c_nb[1, 1] > c_nb[2, 2]:
+        s = math.sqrt(1.0 + c_nb[1, 1] - c_nb[0, 0] - c_nb[2, 2]) * 2.0
+        q = [(c_nb[0, 2] - c_nb[2, 0]) / s, (c_nb[0, 1] + c_nb[1, 0]) / s, 0.25 * s,
+             (c_nb[1, 2] + c_nb[2, 1]) / s]
+    else:
+        s = math.sqrt(1.0 + c_nb[2, 2] - c_nb[0, 0] - c_nb[1, 1]) * 2.0
+        q = [(c_nb[1, 0] - c_nb[0, 1]) / s, (c_nb[0, 2] + c_nb[2, 0]) / s,
+             (c_nb[1, 2] + c_nb[2, 1]) / s, 0.25 * s]
+    q = np.array(q)
+    if q[0] < 0:
+        q = -q
+    x[X_Q0:X_Q3 + 1] = q / np.linalg.norm(q)
+    x[X_P] = p_rad_s
+    x[X_Q] = q_rad_s
+    x[X_R] = r_rad_s

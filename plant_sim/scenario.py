@@ -1,0 +1,322 @@
+"""Scenario files: TOML under plant_sim/scenarios/NAME.toml, strictly validated.
+
+``load(name_or_path) -> Scenario``. Every key of the schema below has a default, a unit in its
+name and a range; unknown keys, wrong types and out-of-range values raise ``ScenarioError``
+with a message naming the file and the dotted key. The command timeline is a list of
+``[[command]]`` tables ``{ t_s, alpha_deg, beta_deg, mu_deg }`` (architecture.md section 7).
+Degrees only here, at the edge; ``Scenario`` exposes SI helpers.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from plant_sim import vehicle
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+class ScenarioError(ValueError):
+    """A scenario file is missing, malformed or has a bad key/value (message names the key)."""
+
+
+@dataclass(frozen=True)
+class Key:
+    kind: str                 # "float", "int", "bool", "str", "vec3"
+    default: Any
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple = ()
+    doc: str = ""
+
+
+INF = math.inf
+
+SCHEMA: dict[str, Any] = {
+    "name": Key("str", "", doc="scenario name"),
+    "description": Key("str", "", doc="one-line description"),
+    "seed": Key("int", 1, 0, 2**63 - 1, doc="seed of the sensor-noise generator"),
+    "duration_s": Key("float", 20.0, 0.001, 1e6, doc="run length (sim time)"),
+    "timing": {
+        "physics_hz": Key("float", 1000.0, 10.0, 1e6, doc="RK4 step rate"),
+        "frame_hz": Key("float", 500.0, 1.0, 1e5,
+                        doc="sensor frame / exchange rate; physics_hz must be an integer multiple"),
+    },
+    "initial": {
+        "V_m_s": Key("float", 2200.0, 100.0, 8000.0, doc="airspeed"),
+        "h_m": Key("float", 21000.0, 0.0, 80000.0, doc="altitude (geometric)"),
+        "alpha_deg": Key("float", 1.0, -10.0, 30.0, doc="angle of attack"),
+        "beta_deg": Key("float", 0.0, -20.0, 20.0, doc="sideslip"),
+        "mu_deg": Key("float", 0.0, -90.0, 90.0, doc="bank angle about the velocity"),
+        "gamma_deg": Key("float", 0.0, -45.0, 45.0, doc="flight-path angle"),
+        "chi_deg": Key("float", 0.0, -360.0, 360.0, doc="heading of the velocity"),
+        "p_deg_s": Key("float", 0.0, -180.0, 180.0, doc="body roll rate"),
+        "q_deg_s": Key("float", 0.0, -180.0, 180.0, doc="body pitch rate"),
+        "r_deg_s": Key("float", 0.0, -180.0, 180.0, doc="body yaw rate"),
+    },
+    "vehicle": {
+        "mass_kg": Key("float", vehicle.MASS_KG, 1000.0, 1e7),
+        "Ixx_kg_m2": Key("float", vehicle.IXX_KG_M2, 1.0, 1e10),
+        "Iyy_kg_m2": Key("float", vehicle.IYY_KG_M2, 1.0, 1e10),
+        "Izz_kg_m2": Key("float", vehicle.IZZ_KG_M2, 1.0, 1e10),
+        "Ixz_kg_m2": Key("float", vehicle.IXZ_KG_M2, -1e9, 1e9),
+        "x_cg_m": Key("float", 0.0, -10.0, 10.0, doc="MRC -> c.g. distance, + aft"),
+    },
+    "speed": {
+        "model": Key("str", "hold", choices=("hold", "none"),
+                     doc="hold: thrust along body x holds V_ref; none: no thrust, V decays"),
+        "V_ref_m_s": Key("float", 0.0, 0.0, 8000.0, doc="held speed; 0 = the initial V"),
+        "k_1_s": Key("float", 0.5, 0.0, 100.0, doc="speed-hold gain"),
+        "thrust_max_N": Key("float", 1.468e6, 0.0, 1e8, doc="330,000 lbf (S2 engine deck)"),
+    },
+    "uncertainty": {
+        # coefficient used = (1 + value) x model
+        "CL": Key("float", 0.0, -0.9, 5.0),
+        "CD": Key("float", 0.0, -0.9, 5.0),
+        "CY": Key("float", 0.0, -0.9, 5.0),
+        "Cl": Key("float", 0.0, -0.9, 5.0),
+        "Cm": Key("float", 0.0, -0.9, 5.0),
+        "Cn": Key("float", 0.0, -0.9, 5.0),
+    },
+    "disturbance": {
+        "enabled": Key("bool", False),
+        "amplitude": Key("float", 10.0, 0.0, 1e9, doc="A in A [0.5 sin 1.5t, 0.5 cos 2t, 0.5 sin 2t]"),
+        "unit": Key("str", "deg/s^2", choices=("deg/s^2", "rad/s^2", "N*m"),
+                    doc="angular acceleration, or a moment divided by the inertia"),
+        "scale": Key("float", 1.0, 0.0, 1e6, doc="factor on the amplitude"),
+    },
+    "actuators": {
+        "limit_deg": Key("float", vehicle.DEFLECTION_MAX_DEG, 0.1, vehicle.DEFLECTION_MAX_DEG),
+        "rate_limit_deg_s": Key("float", 90.0, 0.0, 1e5, doc="0 = no rate limit"),
+        "tau_s": Key("float", 0.02, 0.0, 10.0, doc="first-order lag; 0 = none"),
+        "initial": Key("str", "zero", choices=("zero", "trim"),
+                       doc="surface positions at t = 0: zero, or the initial-state trim"),
+    },
+    "servo": {
+        "pwm_min_us": Key("int", 1000, 500, 2500),
+        "pwm_trim_us": Key("int", 1500, 500, 2500),
+        "pwm_max_us": Key("int", 2000, 500, 2500),
+        "no_command_s": Key("float", 0.5, 0.0, 1e6,
+                            doc="real time: after this long without SERVO_OUTPUT_RAW apply no_command"),
+        "no_command": Key("str", "hold", choices=("hold", "trim"),
+                          doc="hold the last command, or go to the initial-state trim"),
+    },
+    "sensors": {
+        "enabled": Key("bool", True, doc="false: exact measurements (no noise, bias, latency)"),
+        "noise": {
+            "attitude_deg": Key("float", 0.0, 0.0, 90.0),
+            "rate_deg_s": Key("float", 0.0, 0.0, 90.0),
+            "aoa_deg": Key("float", 0.0, 0.0, 90.0),
+            "ssa_deg": Key("float", 0.0, 0.0, 90.0),
+            "airspeed_m_s": Key("float", 0.0, 0.0, 1000.0),
+            "alt_m": Key("float", 0.0, 0.0, 10000.0),
+            "climb_m_s": Key("float", 0.0, 0.0, 1000.0),
+            "groundspeed_m_s": Key("float", 0.0, 0.0, 1000.0),
+            "heading_deg": Key("float", 0.0, 0.0, 90.0),
+        },
+        "bias": {
+            "roll_deg": Key("float", 0.0, -90.0, 90.0),
+            "pitch_deg": Key("float", 0.0, -90.0, 90.0),
+            "yaw_deg": Key("float", 0.0, -180.0, 180.0),
+            "p_deg_s": Key("float", 0.0, -90.0, 90.0),
+            "q_deg_s": Key("float", 0.0, -90.0, 90.0),
+            "r_deg_s": Key("float", 0.0, -90.0, 90.0),
+            "aoa_deg": Key("float", 0.0, -90.0, 90.0),
+            "ssa_deg": Key("float", 0.0, -90.0, 90.0),
+            "airspeed_m_s": Key("float", 0.0, -1000.0, 1000.0),
+            "alt_m": Key("float", 0.0, -10000.0, 10000.0),
+            "climb_m_s": Key("float", 0.0, -1000.0, 1000.0),
+        },
+        "latency_s": {
+            "ahrs": Key("float", 0.0, 0.0, 0.5, doc="attitude and rates"),
+            "air_data": Key("float", 0.0, 0.0, 0.5, doc="alpha, beta, airspeed, altitude, climb"),
+            "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed, heading"),
+        },
+    },
+}
+
+COMMAND_KEYS = {"t_s": (0.0, 1e6), "alpha_deg": (-10.0, 30.0), "beta_deg": (-20.0, 20.0),
+                "mu_deg": (-90.0, 90.0)}
+
+
+def _check_value(where: str, key: Key, value: Any) -> Any:
+    if key.kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ScenarioError(f"{where}: expected a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ScenarioError(f"{where}: must be finite, got {value!r}")
+    elif key.kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(f"{where}: expected an integer, got {value!r}")
+    elif key.kind == "bool":
+        if not isinstance(value, bool):
+            raise ScenarioError(f"{where}: expected true or false, got {value!r}")
+        return value
+    elif key.kind == "str":
+        if not isinstance(value, str):
+            raise ScenarioError(f"{where}: expected a string, got {value!r}")
+        if key.choices and value not in key.choices:
+            raise ScenarioError(f"{where}: must be one of {', '.join(key.choices)}; got {value!r}")
+        return value
+    if key.lo is not None and value < key.lo:
+        raise ScenarioError(f"{where}: {value!r} is below the minimum {key.lo!r}")
+    if key.hi is not None and value > key.hi:
+        raise ScenarioError(f"{where}: {value!r} is above the maximum {key.hi!r}")
+    return value
+
+
+def _apply(src: str, schema: dict, given: dict, prefix: str) -> dict:
+    out: dict[str, Any] = {}
+    for k in given:
+        if k not in schema:
+            dotted = prefix + k
+            known = ", ".join(sorted(schema))
+            raise ScenarioError(f"{src}: unknown key '{dotted}' (known here: {known})")
+    for k, spec in schema.items():
+        dotted = prefix + k
+        if isinstance(spec, dict):
+            sub = given.get(k, {})
+            if not isinstance(sub, dict):
+                raise ScenarioError(f"{src}: '{dotted}' must be a table")
+            out[k] = _apply(src, spec, sub, dotted + ".")
+        elif k in given:
+            out[k] = _check_value(f"{src}: '{dotted}'", spec, given[k])
+        else:
+            out[k] = spec.default
+    return out
+
+
+@dataclass
+class Scenario:
+    """A validated scenario: ``data`` holds every key (defaults filled in), degrees as written."""
+    name: str
+    path: str
+    data: dict
+    commands: list = field(default_factory=list)   # [(t_s, alpha_deg, beta_deg, mu_deg)]
+
+    def get(self, dotted: str) -> Any:
+        node: Any = self.data
+        for part in dotted.split("."):
+            node = node[part]
+        return node
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.data["duration_s"])
+
+    @property
+    def seed(self) -> int:
+        return int(self.data["seed"])
+
+    def command_at(self, t_s: float) -> tuple[float, float, float]:
+        """Commanded (alpha, beta, mu) in rad at sim time ``t_s`` (last entry with t <= t_s)."""
+        cur = (0.0, 0.0, 0.0)
+        for t, a, b, m in self.commands:
+            if t <= t_s:
+                cur = (math.radians(a), math.radians(b), math.radians(m))
+        return cur
+
+    def to_toml(self) -> str:
+        """The scenario as used (all keys, defaults filled in), as TOML text."""
+        lines: list[str] = []
+
+        def fmt(v: Any) -> str:
+            if isinstance(v, bool):
+                return "true" if v else "false"
+            if isinstance(v, str):
+                return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+            if isinstance(v, float):
+                return repr(v)
+            return str(v)
+
+        def emit(d: dict, prefix: str) -> None:
+            scalars = [(k, v) for k, v in d.items() if not isinstance(v, dict)]
+            tables = [(k, v) for k, v in d.items() if isinstance(v, dict)]
+            if prefix and scalars:
+                lines.append(f"\n[{prefix}]")
+            for k, v in scalars:
+                lines.append(f"{k} = {fmt(v)}")
+            for k, v in tables:
+                emit(v, f"{prefix}.{k}" if prefix else k)
+
+        emit(self.data, "")
+        for t, a, b, m in self.commands:
+            lines.append("\n[[command]]")
+            lines.append(f"t_s = {float(t)!r}\nalpha_deg = {float(a)!r}\nbeta_deg = {float(b)!r}\n"
+                         f"mu_deg = {float(m)!r}")
+        return "\n".join(lines) + "\n"
+
+
+def _resolve(name_or_path: str | os.PathLike) -> Path:
+    s = str(name_or_path)
+    p = Path(s)
+    if p.suffix == ".toml" or os.sep in s or "/" in s:
+        if not p.is_file():
+            raise ScenarioError(f"scenario file not found: {s}")
+        return p
+    cand = SCENARIO_DIR / f"{s}.toml"
+    if not cand.is_file():
+        raise ScenarioError(f"unknown scenario '{s}' (shipped: {', '.join(list_names())})")
+    return cand
+
+
+def list_names() -> list[str]:
+    """Names of the shipped scenarios."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
+
+
+def parse(text: str, src: str = "<string>", name: str = "") -> Scenario:
+    """Validate TOML text into a Scenario (``src`` names it in error messages)."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ScenarioError(f"{src}: not valid TOML: {e}") from None
+    cmds_raw = raw.pop("command", [])
+    if not isinstance(cmds_raw, list):
+        raise ScenarioError(f"{src}: 'command' must be an array of tables ([[command]])")
+    data = _apply(src, SCHEMA, raw, "")
+    commands = []
+    last_t = -1.0
+    for i, c in enumerate(cmds_raw):
+        if not isinstance(c, dict):
+            raise ScenarioError(f"{src}: command[{i}] must be a table")
+        for k in c:
+            if k not in COMMAND_KEYS:
+                raise ScenarioError(f"{src}: unknown key 'command[{i}].{k}' "
+                                    f"(known: {', '.join(COMMAND_KEYS)})")
+        row = []
+        for k, (lo, hi) in COMMAND_KEYS.items():
+            if k not in c:
+                raise ScenarioError(f"{src}: 'command[{i}].{k}' is missing")
+            row.append(_check_value(f"{src}: 'command[{i}].{k}'", Key("float", 0.0, lo, hi), c[k]))
+        if row[0] < last_t:
+            raise ScenarioError(f"{src}: 'command[{i}].t_s' goes back in time ({row[0]} < {last_t})")
+        last_t = row[0]
+        commands.append(tuple(row))
+    t = data["timing"]
+    ratio = t["physics_hz"] / t["frame_hz"]
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise ScenarioError(f"{src}: 'timing.physics_hz' ({t['physics_hz']}) must be an integer "
+                            f"multiple of 'timing.frame_hz' ({t['frame_hz']})")
+    sv = data["servo"]
+    if not sv["pwm_min_us"] < sv["pwm_trim_us"] < sv["pwm_max_us"]:
+        raise ScenarioError(f"{src}: 'servo.pwm_min_us' < 'servo.pwm_trim_us' < 'servo.pwm_max_us' "
+                            f"does not hold ({sv['pwm_min_us']}, {sv['pwm_trim_us']}, {sv['pwm_max_us']})")
+    if not data["name"]:
+        data["name"] = name or Path(src).stem
+    return Scenario(name=data["name"], path=src, data=data, commands=commands)
+
+
+def load(name_or_path: str | os.PathLike) -> Scenario:
+    """Load and validate a shipped scenario by name, or a TOML file by path."""
+    p = _resolve(name_or_path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ScenarioError(f"cannot read scenario {p}: {e}") from None
+    return parse(text, src=str(p), name=p.stem)

@@ -1,0 +1,285 @@
+"""The plant's in-process API (docs/architecture.md section 12): ``PlantSim``.
+
+    sim = PlantSim(load("paper"), seed=None)   # allocates once
+    sim.measure(meas)                          # float64[14] at sim.t_s (section 4)
+    sim.step_frame(cmd_rad)                    # latch the surface command, advance one frame
+    sim.truth_row(row)                         # float64[TRUTH_N], names in PlantSim.TRUTH_NAMES
+
+The frame loop the plant process runs (and tools can copy) is, per frame k at t_k:
+measure -> send -> receive command -> ``command(cmd)`` -> ``truth_row`` (state, measurement
+and command at t_k) -> ``advance()`` (n_sub RK4 steps to t_k+1). ``step_frame(cmd)`` is
+``command(cmd)`` + ``advance()``.
+
+For speed, tools call the njit kernels directly on ``sim.kernel_args()`` (see docs/plant.md,
+"In-process API"): ``dynamics.advance_frame``, ``sensors.measure``, ``truth_kernel``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from plant_sim import dynamics as dy
+from plant_sim.dynamics import (AX_ALPHA, AX_BETA, AX_L, AX_M, AX_MACH, AX_N, AX_QBAR,
+                                AX_THRUST, AX_V, P_N, W_AUX, W_N, X_CLIP, X_CMD_L, X_DL, X_N,
+                                X_P, X_PD, X_PE, X_PN, X_Q, X_R, X_STEP, X_U, X_V, X_W)
+from plant_sim.scenario import Scenario
+from plant_sim.sensors import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING,
+                               M_N, M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, MEAS_NAMES,
+                               RING_N)
+from plant_sim import sensors as se
+
+DEG = math.pi / 180.0
+
+_STATE_NAMES = (
+    "t_s", "alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s", "h_m",
+    "gamma_rad", "chi_rad", "phi_rad", "theta_rad", "psi_rad", "mach", "qbar_pa",
+    "pos_n_m", "pos_e_m", "u_m_s", "v_m_s", "w_m_s",
+    "delta_cmd_left_rad", "delta_cmd_right_rad", "delta_cmd_rudder_rad",
+    "delta_left_rad", "delta_right_rad", "delta_rudder_rad",
+    "dist_p_rad_s2", "dist_q_rad_s2", "dist_r_rad_s2",
+    "moment_l_N_m", "moment_m_N_m", "moment_n_N_m", "thrust_N", "aero_clip_flags",
+)
+TRUTH_NAMES: tuple[str, ...] = _STATE_NAMES + tuple("meas_" + n for n in MEAS_NAMES)
+TRUTH_N = len(TRUTH_NAMES)
+T_MEAS0 = len(_STATE_NAMES)      # first meas_* column
+
+
+@njit(cache=True)
+def truth_kernel(x, p, w, meas, out):
+    """Fill one truth row (layout TRUTH_NAMES) from state x, the last measurement ``meas``.
+
+    Aerodynamic moments (about the c.g., with the uncertainty multipliers) are evaluated at
+    the current state and surface positions. ``w``: the work array of the simulation (its
+    aero slots are overwritten).
+    """
+    flags = dy.aero_eval(x, x[X_DL], x[X_DL + 1], x[X_DL + 2], p, w)
+    thrust = dy.thrust_n(x, p, w)
+    t = x[X_STEP] * p[dy.P_DT]
+    o = W_AUX
+    out[0] = t
+    out[1] = w[o + AX_ALPHA]
+    out[2] = w[o + AX_BETA]
+    fp = w[dy.W_XT:dy.W_XT + 4]
+    dy.flight_path(x, fp)
+    gamma = fp[0]
+    chi = fp[1]
+    out[3] = fp[2]
+    out[4] = x[X_P]
+    out[5] = x[X_Q]
+    out[6] = x[X_R]
+    out[7] = w[o + AX_V]
+    out[8] = -x[X_PD]
+    out[9] = gamma
+    out[10] = chi
+    eu = w[dy.W_XT:dy.W_XT + 3]
+    dy.euler_from_quat(x, eu)
+    out[11] = eu[0]
+    out[12] = eu[1]
+    out[13] = eu[2]
+    out[14] = w[o + AX_MACH]
+    out[15] = w[o + AX_QBAR]
+    out[16] = x[X_PN]
+    out[17] = x[X_PE]
+    out[18] = x[X_U]
+    out[19] = x[X_V]
+    out[20] = x[X_W]
+    for k in range(3):
+        out[21 + k] = x[X_CMD_L + k]
+        out[24 + k] = x[X_DL + k]
+    d0, d1, d2 = dy.disturbance_components(t, p)
+    out[27] = d0
+    out[28] = d1
+    out[29] = d2
+    out[30] = w[o + AX_L]
+    out[31] = w[o + AX_M]
+    out[32] = w[o + AX_N]
+    out[33] = thrust
+    out[34] = float(int(x[X_CLIP]) | flags)
+    for i in range(M_N):
+        out[35 + i] = meas[i]
+
+
+def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
+    """Parameter vector (SI) and physics steps per frame from a validated scenario."""
+    d = sc.data
+    p = np.zeros(P_N)
+    v = d["vehicle"]
+    p[dy.P_MASS] = v["mass_kg"]
+    p[dy.P_IXX] = v["Ixx_kg_m2"]
+    p[dy.P_IYY] = v["Iyy_kg_m2"]
+    p[dy.P_IZZ] = v["Izz_kg_m2"]
+    p[dy.P_IXZ] = v["Ixz_kg_m2"]
+    p[dy.P_XCG] = v["x_cg_m"]
+    inertia = np.array([[v["Ixx_kg_m2"], 0.0, -v["Ixz_kg_m2"]],
+                        [0.0, v["Iyy_kg_m2"], 0.0],
+                        [-v["Ixz_kg_m2"], 0.0, v["Izz_kg_m2"]]])
+    if np.linalg.det(inertia) <= 0.0:
+        raise ValueError(f"{sc.path}: inertia matrix (Ixx, Iyy, Izz, Ixz) is not positive definite")
+    p[dy.P_IINV:dy.P_IINV + 9] = np.linalg.inv(inertia).ravel()
+    tm = d["timing"]
+    p[dy.P_DT] = 1.0 / tm["physics_hz"]
+    p[dy.P_FRAME_DT] = 1.0 / tm["frame_hz"]
+    n_sub = int(round(tm["physics_hz"] / tm["frame_hz"]))
+    u = d["uncertainty"]
+    for i, k in enumerate(("CL", "CD", "CY", "Cl", "Cm", "Cn")):
+        p[dy.P_UNC + i] = 1.0 + u[k]
+    ds = d["disturbance"]
+    p[dy.P_DIST_ON] = 1.0 if ds["enabled"] else 0.0
+    amp = ds["amplitude"] * ds["scale"]
+    if ds["unit"] == "deg/s^2":
+        amp *= DEG
+    p[dy.P_DIST_AMP] = amp
+    p[dy.P_DIST_MOMENT] = 1.0 if ds["unit"] == "N*m" else 0.0
+    s = d["speed"]
+    p[dy.P_SPEED_MODE] = dy.SPEED_HOLD if s["model"] == "hold" else dy.SPEED_NONE
+    p[dy.P_VREF] = s["V_ref_m_s"] if s["V_ref_m_s"] > 0.0 else d["initial"]["V_m_s"]
+    p[dy.P_KV] = s["k_1_s"]
+    p[dy.P_TMAX] = s["thrust_max_N"]
+    a = d["actuators"]
+    p[dy.P_ACT_LIMIT] = a["limit_deg"] * DEG
+    p[dy.P_ACT_RATE] = a["rate_limit_deg_s"] * DEG
+    p[dy.P_ACT_TAU] = a["tau_s"]
+    sn = d["sensors"]
+    p[dy.P_SENSORS_ON] = 1.0 if sn["enabled"] else 0.0
+    nz, bs, lat = sn["noise"], sn["bias"], sn["latency_s"]
+    noise = {M_ROLL: nz["attitude_deg"] * DEG, M_PITCH: nz["attitude_deg"] * DEG,
+             M_YAW: nz["attitude_deg"] * DEG, M_P: nz["rate_deg_s"] * DEG,
+             M_Q: nz["rate_deg_s"] * DEG, M_R: nz["rate_deg_s"] * DEG,
+             M_AOA: nz["aoa_deg"] * DEG, M_SSA: nz["ssa_deg"] * DEG,
+             M_AIRSPEED: nz["airspeed_m_s"], M_ALT: nz["alt_m"], M_CLIMB: nz["climb_m_s"],
+             M_GROUNDSPEED: nz["groundspeed_m_s"], M_HEADING: nz["heading_deg"] * DEG}
+    bias = {M_ROLL: bs["roll_deg"] * DEG, M_PITCH: bs["pitch_deg"] * DEG, M_YAW: bs["yaw_deg"] * DEG,
+            M_P: bs["p_deg_s"] * DEG, M_Q: bs["q_deg_s"] * DEG, M_R: bs["r_deg_s"] * DEG,
+            M_AOA: bs["aoa_deg"] * DEG, M_SSA: bs["ssa_deg"] * DEG,
+            M_AIRSPEED: bs["airspeed_m_s"], M_ALT: bs["alt_m"], M_CLIMB: bs["climb_m_s"]}
+    frame_hz = tm["frame_hz"]
+    delay = {}
+    for ch in (M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R):
+        delay[ch] = lat["ahrs"]
+    for ch in (M_AOA, M_SSA, M_AIRSPEED, M_ALT, M_CLIMB):
+        delay[ch] = lat["air_data"]
+    for ch in (M_GROUNDSPEED, M_HEADING):
+        delay[ch] = lat["gps"]
+    for ch, val in noise.items():
+        p[dy.P_NOISE + ch] = val
+    for ch, val in bias.items():
+        p[dy.P_BIAS + ch] = val
+    for ch, sec in delay.items():
+        frames = int(round(sec * frame_hz))
+        if frames > RING_N - 1:
+            raise ValueError(f"{sc.path}: sensors.latency_s gives {frames} frames; at most "
+                             f"{RING_N - 1} frames at {frame_hz} Hz")
+        p[dy.P_DELAY + ch] = frames
+    return p, n_sub
+
+
+class PlantSim:
+    """The winged-cone plant for in-process use (allocates everything once).
+
+    Parameters
+    ----------
+    scenario : a validated ``plant_sim.scenario.Scenario``.
+    seed : sensor-noise seed; ``None`` uses the scenario's ``seed``.
+    """
+    TRUTH_NAMES = TRUTH_NAMES
+    TRUTH_N = TRUTH_N
+
+    def __init__(self, scenario: Scenario, seed: int | None = None):
+        self.scenario = scenario
+        self.seed = int(scenario.seed if seed is None else seed)
+        self.p, self.n_sub = build_params(scenario)
+        self.physics_dt_s = float(self.p[dy.P_DT])
+        self.frame_dt_s = float(self.p[dy.P_FRAME_DT])
+        self.x = np.zeros(X_N)
+        self.w = np.zeros(W_N)
+        self.ring = np.zeros((RING_N, M_N))
+        self.ring_count = np.zeros(1, dtype=np.int64)
+        self.rng_state = np.zeros(1, dtype=np.uint64)
+        self.meas_work = np.zeros(8)
+        self.last_meas = np.zeros(M_N)
+        self.cmd_rad = np.zeros(3)
+        self.trim_rad = np.zeros(3)        # initial-state trim (set by reset when asked)
+        self.clip_frames = 0               # frames in which the aero inputs were clipped
+        self.frames = 0
+        self.reset()
+
+    # ---- life cycle ----
+    def reset(self) -> None:
+        """Back to the scenario's initial state, sensor history and noise stream."""
+        ini = self.scenario.data["initial"]
+        dy.initial_state(ini["V_m_s"], ini["h_m"], ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG,
+                         ini["mu_deg"] * DEG, ini["gamma_deg"] * DEG, ini["chi_deg"] * DEG,
+                         ini["p_deg_s"] * DEG, ini["q_deg_s"] * DEG, ini["r_deg_s"] * DEG, self.x)
+        if self.scenario.data["actuators"]["initial"] == "trim":
+            from plant_sim.trim import trim_at
+            res = trim_at(self.scenario, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG)
+            self.trim_rad[:] = res.deflection_rad
+        else:
+            self.trim_rad[:] = 0.0
+        self.x[X_DL:X_DL + 3] = self.trim_rad
+        self.x[X_CMD_L:X_CMD_L + 3] = self.trim_rad
+        self.cmd_rad[:] = self.trim_rad
+        self.w[:] = 0.0
+        self.ring[:] = 0.0
+        self.ring_count[0] = 0
+        self.rng_state[0] = np.uint64(self.seed & 0xFFFFFFFFFFFFFFFF)
+        self.last_meas[:] = 0.0
+        self.clip_frames = 0
+        self.frames = 0
+
+    @property
+    def t_s(self) -> float:
+        """Sim time (s) = physics steps x physics step (exact multiple)."""
+        return float(self.x[X_STEP]) * self.physics_dt_s
+
+    @property
+    def frame_index(self) -> int:
+        return self.frames
+
+    # ---- per frame ----
+    def command(self, servo_cmd_rad) -> None:
+        """Latch a surface command (float64[3], rad: left elevon, right elevon, rudder)."""
+        x = self.x
+        x[X_CMD_L] = servo_cmd_rad[0]
+        x[X_CMD_L + 1] = servo_cmd_rad[1]
+        x[X_CMD_L + 2] = servo_cmd_rad[2]
+
+    def advance(self) -> int:
+        """Advance one frame (n_sub RK4 steps) with the latched command; returns clip flags."""
+        flags = dy.advance_frame_latched(self.x, self.p, self.w, self.n_sub)
+        self.frames += 1
+        if flags:
+            self.clip_frames += 1
+        return flags
+
+    def step_frame(self, servo_cmd_rad) -> int:
+        """Apply a surface command (rad) and advance one frame; returns the aero clip flags."""
+        flags = dy.advance_frame(self.x, servo_cmd_rad, self.p, self.w, self.n_sub)
+        self.frames += 1
+        if flags:
+            self.clip_frames += 1
+        return flags
+
+    def measure(self, meas_out) -> None:
+        """Sensor outputs at ``t_s`` into ``meas_out`` (float64[14], architecture.md section 4).
+
+        Call once per frame: each call advances the latency buffer and the noise stream.
+        """
+        se.measure(self.x, self.p, self.ring, self.ring_count, self.rng_state, self.meas_work,
+                   meas_out)
+        self.last_meas[:] = meas_out
+
+    def truth_row(self, out) -> None:
+        """True state, inputs and the last measurement at ``t_s`` (layout TRUTH_NAMES)."""
+        truth_kernel(self.x, self.p, self.w, self.last_meas, out)
+
+    def kernel_args(self):
+        """Arrays for the njit kernels: (x, p, w, n_sub, ring, ring_count, rng_state, meas_work).
+
+        advance_frame(x, cmd, p, w, n_sub); measure(x, p, ring, ring_count, rng_state,
+        meas_work, meas_out); truth_kernel(x, p, w, meas, out).
+        """
+        return (self.x, self.p, self.w, self.n_sub, self.ring, self.ring_count, self.rng_state,
+                self.meas_work)
