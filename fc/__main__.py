@@ -1,0 +1,111 @@
+"""``python -m fc``: the flight-controller process (docs/fc.md, docs/architecture.md 10)."""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import time
+
+from fc.link import parse_hostport
+
+
+def _hostport(text: str) -> tuple[str, int]:
+    try:
+        return parse_hostport(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m fc",
+        description="hyfc flight controller: fixed-rate attitude loops, MAVLink to the plant "
+                    "and to ground stations (docs/fc.md). Prints READY when its sockets are "
+                    "bound; SIGINT/SIGTERM flush the logs and exit 0.")
+    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                    help="lockstep: loops driven by the plant's frame stamps (deterministic); "
+                         "realtime: wall-clock deadlines (default %(default)s)")
+    ap.add_argument("--plant-bind", type=_hostport, default=("127.0.0.1", 14560),
+                    metavar="HOST:PORT", help="UDP address the plant sends to (default 127.0.0.1:14560)")
+    ap.add_argument("--plant-sysid", type=int, default=2,
+                    help="only plant frames from this MAVLink system id are accepted (default 2)")
+    ap.add_argument("--gcs", type=_hostport, action="append", metavar="HOST:PORT",
+                    help="ground-station output, repeatable (default 127.0.0.1:14550)")
+    ap.add_argument("--gcs-bind", type=_hostport, default=("127.0.0.1", 14555), metavar="HOST:PORT",
+                    help="local address of the ground-station socket (default 127.0.0.1:14555)")
+    ap.add_argument("--fast-hz", type=float, default=500.0, help="fast loop rate (default 500)")
+    ap.add_argument("--slow-hz", type=float, default=100.0,
+                    help="slow loop rate, an integer divisor of --fast-hz (default 100)")
+    ap.add_argument("--params", metavar="FILE",
+                    help="parameter file (MAVProxy format), loaded at start and saved on change "
+                         "(default OUT/params.parm)")
+    ap.add_argument("--timeline", metavar="FILE",
+                    help="TOML [[command]] timeline {t_s, alpha_deg, beta_deg, mu_deg} by sensor time")
+    ap.add_argument("--out", metavar="DIR", help="run directory (default runs/fc-<UTC time>)")
+    ap.add_argument("--arm", action="store_true", help="start armed")
+    ap.add_argument("--flight-mode", choices=("MANUAL", "COORDINATED", "UNCOORDINATED"),
+                    default="MANUAL", help="mode at start (default MANUAL)")
+    ap.add_argument("--sysid", type=int, default=1, help="our MAVLink system id (default 1)")
+    ap.add_argument("--signing-key-file", metavar="FILE",
+                    help="enable MAVLink 2 signing on the GCS link; FILE holds the passphrase "
+                         "(key = SHA-256, MAVProxy convention) and must be mode 600")
+    ap.add_argument("--rt-priority", type=int, default=50,
+                    help="SCHED_FIFO priority in realtime mode, 0 = do not ask (default 50)")
+    ap.add_argument("--spin-us", type=int, default=0,
+                    help="realtime: busy-wait this many us before each deadline (default 0)")
+    ap.add_argument("--law-module", default="fc.control",
+                    help="module providing AttitudeLaw and LAW_PARAMS (default fc.control; "
+                         "tests inject stand-ins)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from fc.app import FcConfig, FlightController   # after --help: imports numba/pymavlink
+
+    out = args.out or os.path.join("runs", "fc-" + time.strftime("%Y%m%dT%H%M%SZ", time.gmtime()))
+    os.makedirs(out, exist_ok=True)
+    log = logging.getLogger("fc")
+    log.setLevel(logging.INFO)
+    fh = logging.FileHandler(os.path.join(out, "fc.log"))
+    fh.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    log.addHandler(fh)
+    eh = logging.StreamHandler(sys.stderr)
+    eh.setLevel(logging.WARNING)
+    eh.setFormatter(logging.Formatter("fc: %(levelname)s %(message)s"))
+    log.addHandler(eh)
+    log.propagate = False
+
+    cfg = FcConfig(mode=args.mode, plant_bind=args.plant_bind, plant_sysid=args.plant_sysid,
+                   gcs=args.gcs or [("127.0.0.1", 14550)], gcs_bind=args.gcs_bind,
+                   fast_hz=args.fast_hz, slow_hz=args.slow_hz, params=args.params,
+                   timeline=args.timeline, out=out, arm=args.arm, flight_mode=args.flight_mode,
+                   sysid=args.sysid, signing_key_file=args.signing_key_file,
+                   realtime_priority=args.rt_priority, spin_us=args.spin_us,
+                   law_module=args.law_module)
+    stopping = []
+
+    def _stop(signum, _frame):
+        stopping.append(signum)
+
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        fc = FlightController(cfg, log)
+    except (OSError, ValueError, KeyError, ImportError) as exc:
+        print(f"fc: {exc}", file=sys.stderr)
+        return 2
+    log.info("fc started: %s", cfg)
+    print("READY", flush=True)
+    try:
+        fc.run(lambda: bool(stopping))
+    finally:
+        fc.close()
+    log.info("fc stopped (signal %s)", stopping[0] if stopping else None)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

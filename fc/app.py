@@ -1,0 +1,528 @@
+"""fc/app.py - the flight-controller process: loops, glue between links, estimator and law.
+
+Data flows one way per fast tick: sensor frame (fc/link.py) -> estimator (fc/estimator.py)
+-> [slow loop: law.slow_step] -> law.fast_step -> surface command -> SERVO_OUTPUT_RAW.
+Mode logic lives in fc/modes.py, the ground station in fc/gcs.py, parameters in fc/params.py,
+time in fc/scheduler.py. The law (fc/control, docs/architecture.md section 11) is injected:
+``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAMS``.
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+import math
+import os
+import select
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fc.estimator import E_N, Estimator
+from fc.gcs import GcsLink
+from fc.internals_log import InternalsLog
+from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
+                     mavlink)
+from fc.modes import FlightMode, ModeManager
+from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
+from fc.scheduler import LoopStats, TickPlanner, sleep_until_ns, try_realtime
+from fc.timeline import Timeline, load_timeline
+
+__all__ = ["FcConfig", "FlightController", "load_law_module"]
+
+ML = mavlink
+DEG = math.pi / 180.0
+EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
+            "h_m", "gamma_rad")
+#: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
+DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+                  | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_AHRS
+                  | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
+
+
+@dataclass
+class FcConfig:
+    """Everything ``python -m fc`` takes on its command line (docs/architecture.md 10)."""
+
+    mode: str = "lockstep"                 # lockstep | realtime
+    plant_bind: tuple = ("127.0.0.1", 14560)
+    plant_sysid: int = 2
+    gcs: list = field(default_factory=lambda: [("127.0.0.1", 14550)])
+    gcs_bind: tuple = ("127.0.0.1", 14555)
+    fast_hz: float = 500.0
+    slow_hz: float = 100.0
+    params: str | None = None
+    timeline: str | None = None
+    out: str = "."
+    arm: bool = False
+    flight_mode: str = "MANUAL"
+    sysid: int = 1
+    compid: int = 1
+    signing_key_file: str | None = None
+    realtime_priority: int = 50            # SCHED_FIFO priority, 0 = do not ask
+    spin_us: int = 0                       # busy-wait the last microseconds before a deadline
+    law_module: str = "fc.control"
+
+
+def load_law_module(name: str):
+    """(AttitudeLaw class, LAW_PARAMS) from ``name`` (default ``fc.control``)."""
+    if name == "fc.control":
+        law_cls = importlib.import_module("fc.control.law").AttitudeLaw
+        params = importlib.import_module("fc.control.params").LAW_PARAMS
+        return law_cls, params
+    mod = importlib.import_module(name)
+    return mod.AttitudeLaw, mod.LAW_PARAMS
+
+
+class FlightController:
+    """The fc process. ``run(stop)`` loops until ``stop()`` returns True."""
+
+    def __init__(self, cfg: FcConfig, log: logging.Logger | None = None) -> None:
+        self.cfg = cfg
+        self.log = log or logging.getLogger("fc")
+        self.sysid = cfg.sysid
+        self.compid = cfg.compid
+        os.makedirs(cfg.out, exist_ok=True)
+        self.planner = TickPlanner(cfg.fast_hz, cfg.slow_hz,
+                                   max_catchup=1 if cfg.mode == "realtime" else 8)
+        if cfg.mode not in ("lockstep", "realtime"):
+            raise ValueError(f"--mode must be lockstep or realtime, not {cfg.mode!r}")
+        self.stats = LoopStats(self.planner.period_ns)
+
+        # --- parameters and law
+        law_cls, law_params = load_law_module(cfg.law_module)
+        self.params: ParamTable = build_table(law_params)
+        self.law_names = {p.name for p in law_params}
+        self.params_path = cfg.params or os.path.join(cfg.out, "params.parm")
+        self.params_dirty = False
+        self.startup_texts: list[tuple[int, str]] = []
+        self._load_params()
+        overrides = {n: self.params.get(n) for n in self.law_names}
+        self.law = law_cls(overrides)
+        self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
+
+        # --- state
+        self.meas = np.zeros(M_N)
+        self.meas_scratch = np.zeros(M_N)
+        self.meas_stamp_us = 0
+        self.est = Estimator(self.params.get("EST_STALE_S"))
+        self.cmd_rad = np.zeros(3)
+        self.trim_rad = np.zeros(3)
+        self.delta_rad = np.zeros(3)
+        self.pwm_us = [1500, 1500, 1500]
+        self._apply_process_params()
+        self.modes = ModeManager()
+        self.seen_data = False
+        self.last_good_wall_s = -1.0
+        self.last_stamp_us = -1
+        self.answered_stamp_us = -1
+        self.law_changes_seen = -1
+        self.law_errors = 0
+        self.duplicate_frames = 0
+        self.plant_resets = 0
+        self.timeline = Timeline(load_timeline(cfg.timeline)) if cfg.timeline else None
+        self._exec_ns_sum = 0
+        self._exec_n = 0
+        self._load_permille = 0
+        self._named_cache: list = []
+        self._dbg_cache: list = []
+
+        # --- links and logs (bind last: READY means everything is in place)
+        self.plant = PlantLink(UdpEndpoint(*cfg.plant_bind), plant_sysid=cfg.plant_sysid,
+                               sysid=cfg.sysid, compid=cfg.compid)
+        key = load_signing_key(cfg.signing_key_file) if cfg.signing_key_file else None
+        self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
+                           signing_key=key, log=self.log)
+        if key is not None:
+            self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
+                          cfg.signing_key_file)
+        self.ilog = InternalsLog(cfg.out, self._columns())
+        for sev, text in self.startup_texts:
+            self.gcs.statustext(sev, text)
+        if cfg.flight_mode:
+            ok, text = self.modes.request_mode(FlightMode[cfg.flight_mode.upper()])
+            if not ok:
+                raise ValueError(text)
+        if cfg.arm:
+            self.modes.set_armed(True, data_ok=True)
+        self._sync_mode()
+        self._refresh_telemetry_cache()
+
+    # ------------------------------------------------------------------ parameters
+    def _load_params(self) -> None:
+        path = self.params_path
+        if os.path.exists(path):
+            try:
+                applied, warnings = self.params.load(path)
+            except (ParamFileError, OSError) as exc:
+                aside = set_aside(path)
+                msg = (f"parameter file unreadable ({exc}); kept aside as {aside}; "
+                       "running on defaults")
+                self.log.error(msg)
+                self.startup_texts.append((ML.MAV_SEVERITY_CRITICAL,
+                                           "param file corrupt: kept aside, defaults used"))
+            else:
+                for w in warnings:
+                    self.log.warning(w)
+                self.log.info("loaded %d parameters from %s", len(applied), path)
+                return
+        self.params.save(path)
+
+    def set_param(self, name: str, value: float) -> str | None:
+        """Validate and apply one parameter (GCS, timeline). None on success, else the reason."""
+        if name in PROCESS_DRIVEN:
+            return PROCESS_DRIVEN[name]
+        old = self.params.get(name) if name in self.params else None
+        reason = self.params.set(name, value, notify=False)
+        if reason is not None:
+            self.log.warning("parameter set refused: %s", reason)
+            return reason
+        new = self.params.get(name)
+        if name in self.law_names:
+            try:
+                self.law.set_param(name, new)
+            except (KeyError, ValueError) as exc:
+                self.params.force(name, old)
+                return f"{name}: {exc}"
+        else:
+            self._apply_process_params()
+        if self.params.defn(name).group != "command":
+            self.params_dirty = True
+        self.log.info("param %s = %g (was %g)", name, new, old)
+        return None
+
+    def _apply_process_params(self) -> None:
+        p = self.params
+        self.cmd_rad[0] = p.get("CMD_ALPHA_DEG") * DEG
+        self.cmd_rad[1] = p.get("CMD_BETA_DEG") * DEG
+        self.cmd_rad[2] = p.get("CMD_MU_DEG") * DEG
+        self.trim_rad[0] = p.get("TRIM_ELEVL_DEG") * DEG
+        self.trim_rad[1] = p.get("TRIM_ELEVR_DEG") * DEG
+        self.trim_rad[2] = p.get("TRIM_RUD_DEG") * DEG
+        self.fs_timeout_s = p.get("FS_TIMEOUT_S")
+        self.fs_recover = p.get("FS_RECOVER") > 0.5
+        self.fs_recover_s = p.get("FS_RECOVER_S")
+        if hasattr(self, "est"):
+            self.est.stale_s = p.get("EST_STALE_S")
+
+    def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
+        """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
+        pairs = [(n, v) for n, v in (("CMD_ALPHA_DEG", alpha_deg), ("CMD_BETA_DEG", beta_deg),
+                                      ("CMD_MU_DEG", mu_deg)) if not math.isnan(v)]
+        for n, v in pairs:
+            reason = self.params.check(n, float(v))
+            if reason is not None:
+                return reason
+        for n, v in pairs:
+            self.set_param(n, float(v))
+            self.gcs.announce_param(n)
+        return None
+
+    # ------------------------------------------------------------------ modes
+    def request_mode(self, mode: int) -> tuple[bool, str]:
+        ok, text = self.modes.request_mode(mode)
+        self._sync_mode()
+        return ok, text
+
+    def arm(self, armed: bool) -> tuple[bool, str]:
+        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy)
+        self._sync_mode()
+        return ok, text
+
+    def _sync_mode(self) -> None:
+        """After any mode/arming change: CO_ENABLE from the mode, law reset on engagement."""
+        if self.modes.changes == self.law_changes_seen:
+            return
+        self.law_changes_seen = self.modes.changes
+        if self.modes.mode in (FlightMode.COORDINATED, FlightMode.UNCOORDINATED):
+            co = self.modes.co_enable
+            if "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
+                self.law.set_param("CO_ENABLE", co)
+                self.params.force("CO_ENABLE", co)
+                if hasattr(self, "gcs"):
+                    self.gcs.announce_param("CO_ENABLE")
+        if self.modes.law_active:
+            self.law.reset(self.est.est)
+            self.planner.ticks = 0      # slow loop runs on the first tick after engagement
+        self.log.info("mode %s, %s", self.modes.mode.name,
+                      "armed" if self.modes.armed else "disarmed")
+
+    # ------------------------------------------------------------------ the tick
+    def _fast_tick(self, slow: bool) -> None:
+        if self.modes.law_active:
+            try:
+                if slow:
+                    self.law.slow_step(self.est.est, self.cmd_rad, self.planner.slow_dt_s)
+                self.law.fast_step(self.est.est, self.planner.fast_dt_s)
+                self.delta_rad[:] = self.law.delta_cmd_rad
+            except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
+                self.law_errors += 1
+                self.log.exception("law raised: %r", exc)
+                self.modes.request_mode(FlightMode.FAILSAFE)
+                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, "law fault: FAILSAFE")
+                self._sync_mode()
+                self.delta_rad[:] = self.trim_rad
+        else:
+            self.delta_rad[:] = self.trim_rad
+        d = self.delta_rad
+        self.pwm_us[0] = deflection_to_pwm(d[0])
+        self.pwm_us[1] = deflection_to_pwm(d[1])
+        self.pwm_us[2] = deflection_to_pwm(d[2])
+
+    def _new_frame(self, now_s: float) -> None:
+        """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
+        self.meas[:] = self.meas_scratch
+        self.est.update(self.meas)
+        if self.est.healthy:
+            self.seen_data = True
+            self.last_good_wall_s = now_s
+            text = self.modes.on_data_ok(now_s, self.fs_recover, self.fs_recover_s)
+            if text is not None:
+                self._event(text)
+                self._sync_mode()
+        if self.timeline is not None:
+            for c in self.timeline.due(self.meas[0]):
+                for name, value in c.values:
+                    reason = self.set_param(name, value)
+                    if reason is not None:
+                        self._event(f"timeline t={c.t_s:g}: {reason}", ML.MAV_SEVERITY_WARNING)
+                    else:
+                        self.gcs.announce_param(name)
+
+    def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
+        self.gcs.statustext(severity, text)
+
+    def _log_row(self, lateness_ns: int, exec_ns: int) -> None:
+        r = self.ilog.row()
+        if r is None:
+            return
+        r[0] = self.meas[0]
+        r[1] = time.monotonic()
+        r[2] = float(self.meas_stamp_us)
+        r[3] = float(self.modes.mode)
+        r[4] = 1.0 if self.modes.armed else 0.0
+        r[5] = 1.0 if self.est.healthy else 0.0
+        r[6] = float(self.est.masks[0])
+        r[7] = float(self.est.masks[1])
+        r[8:8 + E_N] = self.est.est
+        k = 8 + E_N
+        r[k:k + 3] = self.cmd_rad
+        r[k + 3:k + 6] = self.delta_rad
+        r[k + 6] = lateness_ns * 1e-3
+        r[k + 7] = exec_ns * 1e-3
+        ns = len(self.status_names)
+        if ns:
+            r[k + 8:k + 8 + ns] = self.law.status[:ns]
+
+    def _columns(self) -> list[str]:
+        cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
+                "est_stale_mask"]
+        cols += ["est_" + c for c in EST_COLS]
+        cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
+                 "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
+        cols += ["law_" + n for n in self.status_names]
+        return cols
+
+    # ------------------------------------------------------------------ housekeeping
+    def _housekeeping(self, now_s: float) -> None:
+        """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
+        self.gcs.poll(now_s)
+        if (self.seen_data and not self.modes.data_lost
+                and now_s - self.last_good_wall_s > self.fs_timeout_s):
+            text = self.modes.on_data_lost()
+            if text:
+                self.log.warning(text)
+                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, text)
+                self._sync_mode()
+        elif self.modes.data_lost and now_s - self.last_good_wall_s > 0.05:
+            self.modes.on_data_gap()
+        if now_s >= self._next_1hz:
+            self._next_1hz = now_s + 1.0
+            self.stats.roll()
+            if self._exec_n:
+                self._load_permille = min(1000, int(1000 * self._exec_ns_sum / self._exec_n
+                                                    / self.planner.period_ns))
+            self._exec_ns_sum = self._exec_n = 0
+            self._refresh_telemetry_cache()
+            self.gcs.flush()
+            if self.params_dirty:
+                self.params_dirty = False
+                self._save_params()
+        self.gcs.service(now_s)
+
+    def _save_params(self) -> None:
+        try:
+            saved = ParamTable(self.params.defs)
+            saved.values[:] = self.params.values
+            for i, d in enumerate(saved.defs):     # commands are not settings: defaults on file
+                if d.group == "command":
+                    saved.values[i] = d.default
+            saved.save(self.params_path)
+        except OSError as exc:
+            self.log.error("cannot save parameters to %s: %s", self.params_path, exc)
+
+    # telemetry sources for fc/gcs.py
+    def health_failed_bits(self) -> int:
+        if self.modes.data_lost:
+            return DATA_LOSS_BITS
+        if self.seen_data and not self.est.healthy:
+            return ML.MAV_SYS_STATUS_AHRS
+        return 0
+
+    def load_permille(self) -> int:
+        return self._load_permille
+
+    def error_counts(self) -> tuple[int, int, int, int, int]:
+        return (self.gcs.rejected_bad + self.gcs.rejected_signing, self.plant.counters.rejected,
+                self.est.invalid_frames, self.stats.overruns + self.planner.skipped,
+                self.stats.late)
+
+    def named_values(self) -> list:
+        return self._named_cache
+
+    def debug_vectors(self) -> list:
+        return self._dbg_cache
+
+    def _refresh_telemetry_cache(self) -> None:
+        e = self.est.est
+        c = self.plant.counters if hasattr(self, "plant") else None
+        nv = [
+            (b"GAMMA_DEG", math.degrees(e[8])),
+            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
+            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
+            (b"SKIPPED", float(self.planner.skipped)),
+            (b"REJ_PLANT", float(c.rejected if c else 0)),
+            (b"REJ_GCS", float(self.gcs.rejected_bad if hasattr(self, "gcs") else 0)),
+            (b"REJ_SIGN", float(self.gcs.rejected_signing if hasattr(self, "gcs") else 0)),
+            (b"EST_INVAL", float(self.est.invalid_frames)),
+            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
+            (b"FS_CAUSE", float(self.modes.fs_cause if hasattr(self, "modes") else 0)),
+            (b"DUP_FRAMES", float(self.duplicate_frames)),
+        ]
+        st = getattr(self.law, "status", None)
+        for i, n in enumerate(self.status_names[:16]):
+            nv.append((n.upper()[:10].encode("ascii", "replace"), float(st[i])))
+        self._named_cache = nv
+        self._dbg_cache = [
+            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_rad)),
+            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
+            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
+        ]
+
+    # ------------------------------------------------------------------ loops
+    def run(self, stop) -> None:
+        self._next_1hz = 0.0
+        if self.cfg.mode == "realtime":
+            if self.cfg.realtime_priority > 0:
+                ok, msg = try_realtime(self.cfg.realtime_priority)
+                (self.log.info if ok else self.log.warning)(msg)
+            self._run_realtime(stop)
+        else:
+            self._run_lockstep(stop)
+
+    def _run_lockstep(self, stop) -> None:
+        plant_fd = self.plant.endpoint.fileno()
+        gcs_fd = self.gcs.endpoint.fileno()
+        fds = [plant_fd, gcs_fd]
+        mono = time.monotonic
+        while not stop():
+            # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits
+            try:
+                select.select(fds, [], [], 0.01)
+            except InterruptedError:
+                pass
+            now_s = mono()
+            for _ in range(16):   # frames per wake-up: bounded
+                stamp = self.plant.read_frame(self.meas_scratch)
+                if stamp < 0:
+                    break
+                t0 = time.perf_counter_ns()
+                self._lockstep_frame(stamp, now_s)
+                self._exec_ns_sum += time.perf_counter_ns() - t0
+                self._exec_n += 1
+            self._housekeeping(now_s)
+
+    def _lockstep_frame(self, stamp: int, now_s: float) -> None:
+        if stamp == self.answered_stamp_us:
+            # the plant re-sent frame k (re-request): answer again with the same output
+            self.duplicate_frames += 1
+            self.plant.send_servo(stamp, self.pwm_us)
+            return
+        if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
+            self.plant_resets += 1
+            self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
+            self.est.reset()
+            self.planner.next_ns = None
+            self.law_changes_seen = -1
+        self.last_stamp_us = stamp
+        self.meas_stamp_us = stamp
+        t_exec = time.perf_counter_ns()
+        self._new_frame(now_s)
+        self._sync_mode()
+        n = self.planner.due(stamp * 1000)
+        for _ in range(n):
+            self._fast_tick(self.planner.slow_due())
+        self.plant.send_servo(stamp, self.pwm_us)
+        self.answered_stamp_us = stamp
+        if n:
+            self._log_row(0, time.perf_counter_ns() - t_exec)
+
+    def _run_realtime(self, stop) -> None:
+        planner = self.planner
+        planner.anchor(time.monotonic_ns() + planner.period_ns)
+        spin_ns = self.cfg.spin_us * 1000
+        mono_ns = time.monotonic_ns
+        have_frame = False
+        while not stop():
+            deadline = planner.next_ns
+            sleep_until_ns(deadline, spin_ns)
+            wake = mono_ns()
+            planner.due(wake)
+            now_s = wake * 1e-9
+            new = False
+            for _ in range(64):   # drain: keep the newest frame
+                stamp = self.plant.read_frame(self.meas_scratch)
+                if stamp < 0:
+                    break
+                if stamp <= self.last_stamp_us and self.last_stamp_us - stamp < 1_000_000:
+                    self.duplicate_frames += 1
+                    continue
+                self.last_stamp_us = stamp
+                self.meas_stamp_us = stamp
+                new = True
+            if new:
+                self._new_frame(now_s)
+                have_frame = True
+            self._sync_mode()
+            self._fast_tick(planner.slow_due())
+            if have_frame:
+                self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
+            exec_ns = mono_ns() - wake
+            self.stats.record(wake - deadline, exec_ns)
+            self._exec_ns_sum += exec_ns
+            self._exec_n += 1
+            self._log_row(wake - deadline, exec_ns)
+            self._housekeeping(now_s)
+
+    # ------------------------------------------------------------------ shutdown
+    def close(self) -> None:
+        """Flush and close logs and sockets (SIGINT/SIGTERM path)."""
+        if self.params_dirty:
+            self._save_params()
+        c = self.plant.counters
+        self.log.info(
+            "exit: frames %d, outputs %d, duplicates %d, rejected plant %d "
+            "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
+            "late ticks %d/%d, overruns %d, skipped %d, law errors %d",
+            c.frames, c.outputs, self.duplicate_frames, c.rejected, c.rejected_sysid,
+            c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
+            self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
+            self.planner.skipped, self.law_errors)
+        try:
+            path = self.ilog.close()
+            self.log.info("internals log: %s (%d rows, %d dropped)", path, self.ilog.rows,
+                          self.ilog.dropped)
+        finally:
+            self.gcs.close()
+            self.plant.endpoint.close()
+

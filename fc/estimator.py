@@ -1,0 +1,171 @@
+"""fc/estimator.py - measurements (ATTITUDE + AOA_SSA + VFR_HUD) -> estimated state.
+
+Input: the measurement vector ``float64[14]`` of docs/architecture.md section 4 (filled by
+fc/link.py). Output: the estimated state ``float64[9]`` of section 5 (E_ALPHA ... E_GAMMA).
+
+Frames: NED earth axes, FRD body axes, ZYX Euler angles (psi, theta, phi) as MAVLink
+ATTITUDE. Air-relative velocity in body axes v_b = V [cos a cos b, sin b, sin a cos b].
+The wind axes are x_w = v_b / V, y_w = [-cos a sin b, cos b, -sin a sin b],
+z_w = [-sin a, 0, cos a] (body components). The "down" component of a body vector
+x = [x1, x2, x3] in NED is d(x) = -sin(theta) x1 + sin(phi) cos(theta) x2 + cos(phi) cos(theta) x3.
+With the wind-axis Euler angles (chi, gamma, mu) (ZYX, like phi/theta/psi for the body):
+
+    sin(gamma)          = -d(x_w) = cos a cos b sin th - sin b sin ph cos th - sin a cos b cos ph cos th
+    cos(gamma) sin(mu)  =  d(y_w) = cos a sin b sin th + cos b sin ph cos th - sin a sin b cos ph cos th
+    cos(gamma) cos(mu)  =  d(z_w) = sin a sin th + cos a cos ph cos th
+
+so ``gamma = atan2(-d(x_w), hypot(d(y_w), d(z_w)))`` and ``mu = atan2(d(y_w), d(z_w))``
+(Stevens & Lewis, Aircraft Control and Simulation, 3rd ed., section 2.4; wind-over-earth
+neglected: the air-relative and inertial velocity directions coincide). alpha and beta are
+the vane measurements, p, q, r the body rates, V the airspeed, h the altitude.
+
+Validation: each measured field must be finite and inside the plausible range of
+``LIMITS_LO/HI``; an invalid field keeps its last good value and sets its bit in the
+``invalid`` mask. A field whose last good value is older (sensor time) than ``stale_s`` sets
+its bit in the ``stale`` mask. A frame whose stamp does not advance is flagged FLAG_OLD_STAMP
+and changes nothing. The estimate is healthy when every field the law uses has a good,
+fresh value.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fc.link import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P,
+                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
+
+try:  # the law owns its input layout (architecture.md section 5)
+    from fc.control.layout import (E_ALPHA, E_BETA, E_GAMMA, E_H, E_MU, E_N, E_P,  # noqa: F401
+                                   E_Q, E_R, E_V)
+except ImportError:  # the law is not there yet: same layout, section 5
+    E_ALPHA, E_BETA, E_MU, E_P, E_Q, E_R, E_V, E_H, E_GAMMA = range(9)
+    E_N = 9
+
+__all__ = ["Estimator", "estimate_kernel", "mu_gamma", "LIMITS_LO", "LIMITS_HI",
+           "FLAG_OLD_STAMP", "FLAG_NEVER", "USED_MASK", "E_N"]
+
+_PI = math.pi
+#: Plausible range of each measurement field (SI, index = M_*); outside = invalid.
+LIMITS_LO = np.full(M_N, -np.inf)
+LIMITS_HI = np.full(M_N, np.inf)
+for _i, _lo, _hi in (
+        (M_ROLL, -_PI - 1e-3, _PI + 1e-3), (M_PITCH, -_PI / 2 - 1e-3, _PI / 2 + 1e-3),
+        (M_YAW, -2 * _PI, 2 * _PI), (M_P, -20.0, 20.0), (M_Q, -20.0, 20.0), (M_R, -20.0, 20.0),
+        (M_AOA, -_PI / 2, _PI / 2), (M_SSA, -_PI / 2, _PI / 2), (M_AIRSPEED, 1.0, 1.0e4),
+        (M_ALT, -1.0e3, 1.5e5), (M_CLIMB, -5.0e3, 5.0e3), (M_GROUNDSPEED, 0.0, 1.0e4),
+        (M_HEADING, 0.0, 2 * _PI)):
+    LIMITS_LO[_i] = _lo
+    LIMITS_HI[_i] = _hi
+
+#: Fields the estimate depends on (bit i = M_i).
+USED_MASK = sum(1 << i for i in (M_ROLL, M_PITCH, M_P, M_Q, M_R, M_AOA, M_SSA, M_AIRSPEED, M_ALT))
+FLAG_OLD_STAMP = 1 << 30   # in the invalid mask: stamp did not advance, frame ignored
+FLAG_NEVER = 1 << 31       # in the stale mask: some used field never had a good value
+
+
+@njit(cache=True)
+def mu_gamma(phi, theta, alpha, beta):
+    """(mu, gamma) [rad] from Euler roll/pitch and alpha/beta [rad] (module docstring)."""
+    sa = math.sin(alpha)
+    ca = math.cos(alpha)
+    sb = math.sin(beta)
+    cb = math.cos(beta)
+    sp = math.sin(phi)
+    cp = math.cos(phi)
+    st = math.sin(theta)
+    ct = math.cos(theta)
+    dx = -st * ca * cb + sp * ct * sb + cp * ct * sa * cb
+    dy = st * ca * sb + sp * ct * cb - cp * ct * sa * sb
+    dz = st * sa + cp * ct * ca
+    return math.atan2(dy, dz), math.atan2(-dx, math.sqrt(dy * dy + dz * dz))
+
+
+@njit(cache=True)
+def estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks):
+    """One estimator update, no allocation.
+
+    meas: float64[14] measurement (SI). good: float64[14] last good values (in/out).
+    good_t: float64[14] sensor time of the last good value, -inf = never (in/out).
+    lo, hi: float64[14] plausible ranges. stale_s: staleness threshold [s].
+    est: float64[9] estimated state (out). masks: int64[2] -> [invalid, stale] bit masks.
+    Returns 1 when the estimate is healthy, 0 otherwise.
+    """
+    t = meas[M_T_S]
+    invalid = 0
+    if not (math.isfinite(t) and t > good_t[M_T_S]):
+        invalid = FLAG_OLD_STAMP
+    else:
+        good[M_T_S] = t
+        good_t[M_T_S] = t
+        for i in range(1, 14):
+            x = meas[i]
+            if math.isfinite(x) and lo[i] <= x <= hi[i]:
+                good[i] = x
+                good_t[i] = t
+            else:
+                invalid |= 1 << i
+    stale = 0
+    tnow = good_t[M_T_S]
+    for i in range(1, 14):
+        if good_t[i] == -np.inf:
+            stale |= 1 << i
+            if (USED_MASK >> i) & 1:
+                stale |= FLAG_NEVER
+        elif tnow - good_t[i] > stale_s:
+            stale |= 1 << i
+    masks[0] = invalid
+    masks[1] = stale
+    alpha = good[M_AOA]
+    beta = good[M_SSA]
+    mu, gamma = mu_gamma(good[M_ROLL], good[M_PITCH], alpha, beta)
+    est[E_ALPHA] = alpha
+    est[E_BETA] = beta
+    est[E_MU] = mu
+    est[E_P] = good[M_P]
+    est[E_Q] = good[M_Q]
+    est[E_R] = good[M_R]
+    est[E_V] = good[M_AIRSPEED]
+    est[E_H] = good[M_ALT]
+    est[E_GAMMA] = gamma
+    return 1 if (stale & (USED_MASK | FLAG_NEVER)) == 0 and good_t[M_T_S] > -np.inf else 0
+
+
+class Estimator:
+    """Allocates the estimator's arrays once; ``update(meas)`` returns True when healthy."""
+
+    def __init__(self, stale_s: float = 0.1) -> None:
+        self.stale_s = float(stale_s)
+        self.est = np.zeros(E_N)
+        self.good = np.zeros(M_N)
+        self.good_t = np.full(M_N, -np.inf)
+        self.masks = np.zeros(2, dtype=np.int64)
+        self.healthy = False
+        self.invalid_frames = 0
+        self.update(np.full(M_N, np.nan))  # compile / load from cache now, not in the loop
+        self.reset()
+
+    def reset(self) -> None:
+        self.est[:] = 0.0
+        self.good[:] = 0.0
+        self.good_t[:] = -np.inf
+        self.masks[:] = 0
+        self.healthy = False
+        self.invalid_frames = 0
+
+    def update(self, meas: np.ndarray) -> bool:
+        ok = estimate_kernel(meas, self.good, self.good_t, LIMITS_LO, LIMITS_HI, self.stale_s,
+                             self.est, self.masks)
+        if self.masks[0]:
+            self.invalid_frames += 1
+        self.healthy = bool(ok)
+        return self.healthy
+
+    @property
+    def invalid_mask(self) -> int:
+        return int(self.masks[0])
+
+    @property
+    def stale_mask(self) -> int:
+        return int(self.masks[1])

@@ -1,0 +1,457 @@
+"""fc/gcs.py - the ground-station link: heartbeat, telemetry streams, parameters, commands.
+
+Speaks MAVLink 2 (codec from fc/link.py) on one non-blocking UDP socket bound to
+``--gcs-bind`` (default 127.0.0.1:14555), sending to every ``--gcs`` output (default
+127.0.0.1:14550) and to every peer that has sent us a valid message (so a ground station
+may also connect *to* the bind port). The wire contract (which message, field, unit,
+direction) is in docs/fc.md.
+
+Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
+at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
+loop, and a ground station that goes away never affects control: sends are fire-and-forget.
+
+The vehicle (fc/app.py) is reached through a small interface: ``params`` (ParamTable),
+``modes`` (ModeManager), ``set_param``, ``request_mode``, ``arm``, ``set_attitude_command``
+and the telemetry sources ``meas``, ``est``, ``cmd_rad``, ``delta_rad``, ``pwm_us``,
+``named_values()``, ``health_failed_bits()``, ``load_permille()``.
+"""
+from __future__ import annotations
+
+import math
+import struct
+import time
+from collections import deque
+
+from fc.link import UdpEndpoint, decode_datagram, mavlink, new_codec
+
+__all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
+
+ML = mavlink
+#: MAV_CMD_USER_1: set the attitude command (param1 alpha_c, param2 beta_c, param3 mu_c, deg;
+#: NaN keeps the current value). MAVProxy: ``long USER_1 5 0 4``.
+CMD_ATTITUDE = ML.MAV_CMD_USER_1
+
+#: Default stream intervals [s] by message id (changed with SET_MESSAGE_INTERVAL /
+#: REQUEST_DATA_STREAM). HEARTBEAT is always 1 Hz.
+STREAM_DEFAULTS_S = {
+    ML.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
+    ML.MAVLINK_MSG_ID_ATTITUDE: 0.1,
+    ML.MAVLINK_MSG_ID_AOA_SSA: 0.1,
+    ML.MAVLINK_MSG_ID_VFR_HUD: 0.25,
+    ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW: 0.1,
+    ML.MAVLINK_MSG_ID_DEBUG_VECT: 0.1,          # each of CMD_DEG, EST_DEG, DELTA_DEG
+    ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT: 1.0,   # each named value once per interval
+}
+#: REQUEST_DATA_STREAM stream id -> message ids.
+DATA_STREAMS = {
+    ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
+    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,),
+    ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
+    ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
+    ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
+    ML.MAV_DATA_STREAM_EXTRA3: (ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT),
+}
+#: With signing on, unsigned (or badly signed) messages are accepted only of these types:
+#: read-only requests. PARAM_SET, COMMAND_LONG/INT, SET_MODE and the rest are rejected.
+UNSIGNED_ALLOWED = frozenset({
+    ML.MAVLINK_MSG_ID_HEARTBEAT, ML.MAVLINK_MSG_ID_PARAM_REQUEST_LIST,
+    ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ, ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST,
+    ML.MAVLINK_MSG_ID_TIMESYNC, ML.MAVLINK_MSG_ID_SYSTEM_TIME,
+})
+SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
+MAX_PEERS = 8
+PEER_TIMEOUT_S = 10.0
+
+
+class GcsLink:
+    """Ground-station side of the fc. Single-threaded: called from the control loop."""
+
+    def __init__(self, vehicle, bind: tuple[str, int], outputs: list[tuple[str, int]],
+                 tlog_path: str | None = None, signing_key: bytes | None = None,
+                 log=None, max_rx: int = 8, max_tx: int = 6) -> None:
+        self.v = vehicle
+        self.log = log
+        self.endpoint = UdpEndpoint(*bind)
+        self.outputs = list(outputs)
+        self.peers: dict[tuple, float] = {}
+        self.mav = new_codec(vehicle.sysid, vehicle.compid)
+        self.max_rx = max_rx
+        self.max_tx = max_tx
+        self.boot_s = time.monotonic()
+        self.intervals = dict(STREAM_DEFAULTS_S)
+        self.next_due = {k: 0.0 for k in self.intervals}
+        self.next_heartbeat = 0.0
+        self.param_queue: deque[int] = deque()
+        self.text_queue: deque[tuple[int, str]] = deque(maxlen=32)
+        self.oneshot: deque = deque(maxlen=16)
+        self.nv_cursor = 0
+        self.dv_cursor = 0
+        # counters (telemetry: REJ_GCS, REJ_SIGN)
+        self.rx_msgs = 0
+        self.rejected_bad = 0
+        self.rejected_signing = 0
+        self.ignored_target = 0
+        self.tlog = open(tlog_path, "wb", buffering=1 << 16) if tlog_path else None
+        self.signing = signing_key is not None
+        if signing_key is not None:
+            s = self.mav.signing
+            s.secret_key = signing_key
+            s.sign_outgoing = True
+            s.link_id = 0
+            s.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
+            s.allow_unsigned_callback = self._allow_unsigned
+
+    # ------------------------------------------------------------------ plumbing
+    @staticmethod
+    def _allow_unsigned(_mav, msg_id: int) -> bool:
+        return msg_id in UNSIGNED_ALLOWED
+
+    def _tlog_write(self, buf: bytes) -> None:
+        if self.tlog is not None:
+            self.tlog.write(struct.pack(">Q", int(time.time() * 1e6)))
+            self.tlog.write(buf)
+
+    def send(self, msg) -> None:
+        buf = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        self._tlog_write(buf)
+        for addr in self.outputs:
+            self.endpoint.send(buf, addr)
+        for addr in self.peers:
+            if addr not in self.outputs:
+                self.endpoint.send(buf, addr)
+
+    def statustext(self, severity: int, text: str) -> None:
+        """Queue a STATUSTEXT (MAV_SEVERITY_*); sent from ``service``; mirrored to fc.log."""
+        if self.log is not None:
+            self.log.info("STATUSTEXT[%d] %s", severity, text)
+        self.text_queue.append((severity, text))
+
+    def time_boot_ms(self) -> int:
+        return int((time.monotonic() - self.boot_s) * 1000) & 0xFFFFFFFF
+
+    def close(self) -> None:
+        if self.tlog is not None:
+            self.tlog.flush()
+            self.tlog.close()
+            self.tlog = None
+        self.endpoint.close()
+
+    def flush(self) -> None:
+        if self.tlog is not None:
+            self.tlog.flush()
+
+    # ------------------------------------------------------------------ receive
+    def poll(self, now_s: float) -> int:
+        """Read and handle at most ``max_rx`` datagrams. Returns how many were read."""
+        n = 0
+        while n < self.max_rx:
+            got = self.endpoint.recv()
+            if got is None:
+                break
+            n += 1
+            data, addr = got
+            before = self.mav.signing.reject_count
+            msgs, n_bad = decode_datagram(self.mav, data)
+            rejected_sig = self.mav.signing.reject_count - before
+            self.rejected_signing += rejected_sig
+            self.rejected_bad += max(0, n_bad - rejected_sig)
+            for m in msgs:
+                if m.get_srcSystem() == self.v.sysid:
+                    continue  # our own echo or a clash: never obey it
+                self.rx_msgs += 1
+                self._tlog_write(bytes(m.get_msgbuf()))
+                if addr not in self.peers and len(self.peers) >= MAX_PEERS:
+                    self._expire_peers(now_s, force=True)
+                self.peers[addr] = now_s
+                try:
+                    self._handle(m, now_s)
+                except Exception as exc:  # noqa: BLE001 - never die on a message
+                    self.rejected_bad += 1
+                    if self.log is not None:
+                        self.log.warning("GCS message %s not handled: %r", m.get_type(), exc)
+        return n
+
+    def _expire_peers(self, now_s: float, force: bool = False) -> None:
+        for addr, t in list(self.peers.items()):
+            if now_s - t > PEER_TIMEOUT_S:
+                del self.peers[addr]
+        if force and len(self.peers) >= MAX_PEERS:
+            oldest = min(self.peers, key=self.peers.get)
+            del self.peers[oldest]
+
+    def _for_us(self, m) -> bool:
+        ts = getattr(m, "target_system", 0)
+        tc = getattr(m, "target_component", 0)
+        ok = ts in (0, self.v.sysid) and tc in (0, self.v.compid)
+        if not ok:
+            self.ignored_target += 1
+        return ok
+
+    def _handle(self, m, now_s: float) -> None:
+        t = m.get_msgId()
+        if t == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            return
+        if t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_LIST:
+            if self._for_us(m):
+                self.param_queue.clear()
+                self.param_queue.extend(range(len(self.v.params)))
+        elif t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ:
+            if self._for_us(m):
+                idx = self._param_index(m.param_id, m.param_index)
+                if idx is not None and len(self.param_queue) < 4 * len(self.v.params):
+                    self.param_queue.append(idx)
+        elif t == ML.MAVLINK_MSG_ID_PARAM_SET:
+            if self._for_us(m):
+                self._param_set(m)
+        elif t == ML.MAVLINK_MSG_ID_COMMAND_LONG:
+            if self._for_us(m):
+                self._command(m, now_s)
+        elif t == ML.MAVLINK_MSG_ID_COMMAND_INT:
+            if self._for_us(m):
+                self._ack(m, m.command, ML.MAV_RESULT_UNSUPPORTED)
+        elif t == ML.MAVLINK_MSG_ID_SET_MODE:
+            if m.target_system in (0, self.v.sysid):
+                ok, text = self.v.request_mode(m.custom_mode)
+                self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
+        elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
+            if self._for_us(m):
+                self._data_stream(m)
+        elif t == ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST:
+            if self._for_us(m):
+                self.send(self.mav.mission_count_encode(
+                    m.get_srcSystem(), m.get_srcComponent(), 0, m.mission_type))
+        elif t in (ML.MAVLINK_MSG_ID_MISSION_COUNT, ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL):
+            if self._for_us(m):
+                result = (ML.MAV_MISSION_ACCEPTED if t == ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL
+                          or m.count == 0 else ML.MAV_MISSION_UNSUPPORTED)
+                self.send(self.mav.mission_ack_encode(
+                    m.get_srcSystem(), m.get_srcComponent(), result, m.mission_type))
+
+    # ------------------------------------------------------------------ parameters
+    def _param_index(self, param_id, index: int) -> int | None:
+        params = self.v.params
+        if index >= 0:
+            return index if index < len(params) else None
+        name = param_id if isinstance(param_id, str) else param_id.decode("ascii", "replace")
+        name = name.rstrip("\x00")
+        if name in params.index:
+            return params.index[name]
+        return params.index.get(name.upper())
+
+    def _param_value(self, idx: int):
+        params = self.v.params
+        return self.mav.param_value_encode(
+            params.names[idx].encode("ascii"), float(params.values[idx]),
+            ML.MAV_PARAM_TYPE_REAL32, len(params), idx)
+
+    def _param_set(self, m) -> None:
+        idx = self._param_index(m.param_id, -1)
+        if idx is None:
+            self.statustext(ML.MAV_SEVERITY_WARNING, f"unknown parameter {m.param_id}")
+            return
+        name = self.v.params.names[idx]
+        reason = self.v.set_param(name, float(m.param_value))
+        if reason is not None:
+            self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
+        self.send(self._param_value(idx))   # current value, also when refused
+
+    def announce_param(self, name: str) -> None:
+        """Broadcast a value the vehicle changed itself (timeline, mode -> CO_ENABLE)."""
+        idx = self.v.params.index.get(name)
+        if idx is not None and len(self.param_queue) < 4 * len(self.v.params):
+            self.param_queue.append(idx)
+
+    # ------------------------------------------------------------------ commands
+    def _ack(self, m, command: int, result: int) -> None:
+        self.send(self.mav.command_ack_encode(command, result, 0, 0, m.get_srcSystem(),
+                                              m.get_srcComponent()))
+
+    def _command(self, m, now_s: float) -> None:
+        c = m.command
+        r = ML.MAV_RESULT_UNSUPPORTED
+        if c == ML.MAV_CMD_COMPONENT_ARM_DISARM:
+            ok, text = self.v.arm(m.param1 > 0.5)
+            r = ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+            self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
+        elif c == ML.MAV_CMD_DO_SET_MODE:
+            ok, text = self.v.request_mode(int(m.param2))
+            r = ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+            self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
+        elif c == CMD_ATTITUDE:
+            reason = self.v.set_attitude_command(m.param1, m.param2, m.param3)
+            r = ML.MAV_RESULT_ACCEPTED if reason is None else ML.MAV_RESULT_DENIED
+            if reason is not None:
+                self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
+        elif c == ML.MAV_CMD_SET_MESSAGE_INTERVAL:
+            msg_id = int(m.param1)
+            if msg_id in self.intervals:
+                self._set_interval(msg_id, m.param2)
+                r = ML.MAV_RESULT_ACCEPTED
+                self.oneshot.append(self._message_interval(msg_id))
+            else:
+                r = ML.MAV_RESULT_DENIED
+        elif c == ML.MAV_CMD_GET_MESSAGE_INTERVAL:
+            msg_id = int(m.param1)
+            r = ML.MAV_RESULT_ACCEPTED
+            self.oneshot.append(self._message_interval(msg_id))
+        elif c == ML.MAV_CMD_REQUEST_MESSAGE:
+            msg_id = int(m.param1)
+            msg = self._build(msg_id, 0)
+            if msg_id == ML.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+                msg = self._autopilot_version()
+            elif msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+                msg = self._heartbeat()
+            if msg is not None:
+                r = ML.MAV_RESULT_ACCEPTED
+                self.oneshot.append(msg)
+        elif c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            r = ML.MAV_RESULT_ACCEPTED
+            self.oneshot.append(self._autopilot_version())
+        elif c == ML.MAV_CMD_PREFLIGHT_STORAGE:
+            # parameters are saved on every accepted set: "write" is already done
+            r = ML.MAV_RESULT_ACCEPTED if int(m.param1) == 1 else ML.MAV_RESULT_UNSUPPORTED
+        self._ack(m, c, r)
+
+    def _set_interval(self, msg_id: int, interval_us: float) -> None:
+        if not math.isfinite(interval_us) or interval_us < 0:
+            self.intervals[msg_id] = -1.0           # disabled
+        elif interval_us == 0:
+            self.intervals[msg_id] = STREAM_DEFAULTS_S[msg_id]
+        else:
+            self.intervals[msg_id] = max(interval_us * 1e-6, 0.01)   # at most 100 Hz
+        self.next_due[msg_id] = 0.0
+
+    def _message_interval(self, msg_id: int):
+        iv = self.intervals.get(msg_id)
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            us = 1_000_000
+        elif iv is None:
+            us = 0   # not available
+        elif iv < 0:
+            us = -1
+        else:
+            us = int(iv * 1e6)
+        return self.mav.message_interval_encode(msg_id, us)
+
+    def _data_stream(self, m) -> None:
+        ids = (tuple(self.intervals) if m.req_stream_id == ML.MAV_DATA_STREAM_ALL
+               else DATA_STREAMS.get(m.req_stream_id, ()))
+        for msg_id in ids:
+            if m.start_stop == 0 or m.req_message_rate == 0:
+                self.intervals[msg_id] = -1.0
+            else:
+                self.intervals[msg_id] = max(1.0 / m.req_message_rate, 0.01)
+            self.next_due[msg_id] = 0.0
+
+    # ------------------------------------------------------------------ transmit
+    def _heartbeat(self):
+        modes = self.v.modes
+        base = ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if modes.armed:
+            base |= ML.MAV_MODE_FLAG_SAFETY_ARMED
+        if modes.law_active:
+            base |= ML.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if modes.fs_cause or modes.data_lost:
+            status = ML.MAV_STATE_CRITICAL
+        elif modes.armed:
+            status = ML.MAV_STATE_ACTIVE
+        else:
+            status = ML.MAV_STATE_STANDBY
+        return self.mav.heartbeat_encode(ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC,
+                                         base, int(modes.mode), status)
+
+    def _autopilot_version(self):
+        caps = ML.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | ML.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+        version = (0 << 24) | (1 << 16) | (0 << 8) | 0xFF   # 0.1.0 release
+        return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
+                                                 [0] * 8, [0] * 8, 0, 0, 0)
+
+    def _build(self, msg_id: int, cursor: int):
+        v = self.v
+        ms = self.time_boot_ms()
+        if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
+            present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+                       | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+                       | ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+                       | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+                       | ML.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | ML.MAV_SYS_STATUS_AHRS
+                       | ML.MAV_SYS_STATUS_LOGGING)
+            enabled = present
+            if not v.modes.law_active:
+                enabled &= ~(ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+                             | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
+            health = 0xFFFFFFFF & ~v.health_failed_bits()
+            c = v.error_counts()
+            return self.mav.sys_status_encode(present, enabled, health, v.load_permille(),
+                                              65535, -1, -1, 0, min(c[0], 65535),
+                                              min(c[1], 65535), min(c[2], 65535),
+                                              min(c[3], 65535), min(c[4], 65535))
+        m = v.meas
+        if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
+            return self.mav.attitude_encode(ms, m[1], m[2], m[3], m[4], m[5], m[6])
+        if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
+            return self.mav.aoa_ssa_encode(int(v.meas_stamp_us), math.degrees(m[7]),
+                                           math.degrees(m[8]))
+        if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
+            hdg = int(round(math.degrees(m[13]))) % 360 if math.isfinite(m[13]) else 0
+            return self.mav.vfr_hud_encode(m[9], m[12], hdg, 0, m[10], m[11])
+        if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
+            p = v.pwm_us
+            return self.mav.servo_output_raw_encode(int(v.meas_stamp_us) & 0xFFFFFFFF, 0,
+                                                    p[0], p[1], p[2], 0, 0, 0, 0, 0)
+        if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
+            name, xyz = v.debug_vectors()[cursor % 3]
+            return self.mav.debug_vect_encode(name, int(v.meas_stamp_us), *xyz)
+        if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
+            items = v.named_values()
+            name, value = items[cursor % len(items)]
+            return self.mav.named_value_float_encode(ms, name, value)
+        return None
+
+    def service(self, now_s: float) -> int:
+        """Send what is due (at most ``max_tx`` messages). Returns how many were sent."""
+        sent = 0
+        if now_s >= self.next_heartbeat:
+            self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
+            self.send(self._heartbeat())
+            self._expire_peers(now_s)
+            sent += 1
+        while self.oneshot and sent < self.max_tx:
+            msg = self.oneshot.popleft()
+            if msg is not None:
+                self.send(msg)
+                sent += 1
+        if self.text_queue and sent < self.max_tx:
+            sev, text = self.text_queue.popleft()
+            self.send(self.mav.statustext_encode(sev, text.encode("ascii", "replace")[:50]))
+            sent += 1
+        n_param = 0
+        while self.param_queue and n_param < 2 and sent < self.max_tx:
+            self.send(self._param_value(self.param_queue.popleft()))
+            n_param += 1
+            sent += 1
+        for msg_id, iv in self.intervals.items():
+            if sent >= self.max_tx:
+                break
+            if iv < 0 or now_s < self.next_due[msg_id]:
+                continue
+            if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
+                n_items = len(self.v.named_values())
+                step = iv / n_items
+                cursor = self.nv_cursor
+                self.nv_cursor += 1
+            elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
+                step = iv / 3
+                cursor = self.dv_cursor
+                self.dv_cursor += 1
+            else:
+                step = iv
+                cursor = 0
+            nd = self.next_due[msg_id] + step
+            self.next_due[msg_id] = nd if nd > now_s else now_s + step
+            msg = self._build(msg_id, cursor)
+            if msg is not None:
+                self.send(msg)
+                sent += 1
+        return sent

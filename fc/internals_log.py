@@ -1,0 +1,122 @@
+"""fc/internals_log.py - full-rate log of estimator and law internals (``fc_internals.npz``).
+
+One row per fast tick, float64 columns (names carry units). Rows go into preallocated
+chunks; a full chunk is handed to a writer thread that appends it to the crash-safe raw
+companion ``fc_internals.raw`` (column names in ``fc_internals.cols.json``), so the loop
+never waits on the disk. ``close()`` converts the raw file into ``fc_internals.npz``
+(one array per column). ``load(path)`` reads either.
+"""
+from __future__ import annotations
+
+import json
+import os
+import queue
+import threading
+
+import numpy as np
+
+__all__ = ["InternalsLog", "load"]
+
+NPZ_NAME = "fc_internals.npz"
+RAW_NAME = "fc_internals.raw"
+COLS_NAME = "fc_internals.cols.json"
+
+
+class InternalsLog:
+    """Row logger. ``row()`` returns the next preallocated row to fill in place."""
+
+    def __init__(self, out_dir: str, columns: list[str], chunk_rows: int = 2048,
+                 n_chunks: int = 8) -> None:
+        self.columns = list(columns)
+        self.ncol = len(columns)
+        self.col = {c: i for i, c in enumerate(columns)}
+        self.dir = out_dir
+        self.raw_path = os.path.join(out_dir, RAW_NAME)
+        self.npz_path = os.path.join(out_dir, NPZ_NAME)
+        with open(os.path.join(out_dir, COLS_NAME), "w", encoding="utf-8") as f:
+            json.dump({"columns": self.columns, "dtype": "float64"}, f)
+        self._raw = open(self.raw_path, "wb")
+        self._free: queue.Queue = queue.Queue()
+        for _ in range(n_chunks):
+            self._free.put(np.zeros((chunk_rows, self.ncol)))
+        self._full: queue.Queue = queue.Queue()
+        self.chunk = self._free.get()
+        self.n = 0
+        self.rows = 0
+        self.dropped = 0
+        self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
+        self._thread.start()
+        self.closed = False
+
+    def row(self) -> np.ndarray | None:
+        """The next row (zeroed is not guaranteed: fill every column). None if no buffer free."""
+        if self.chunk is None:
+            try:
+                self.chunk = self._free.get_nowait()
+            except queue.Empty:
+                self.dropped += 1
+                return None
+            self.n = 0
+        r = self.chunk[self.n]
+        self.n += 1
+        self.rows += 1
+        if self.n == self.chunk.shape[0]:
+            self._full.put((self.chunk, self.n))
+            self.chunk = None
+        return r
+
+    def _writer(self) -> None:
+        while True:
+            item = self._full.get()
+            if item is None:
+                break
+            chunk, n = item
+            self._raw.write(chunk[:n].tobytes())
+            self._raw.flush()
+            self._free.put(chunk)
+
+    def flush(self) -> None:
+        """Hand the partial chunk to the writer (e.g. at shutdown)."""
+        if self.chunk is not None and self.n:
+            self._full.put((self.chunk, self.n))
+            self.chunk = None
+
+    def close(self) -> str:
+        """Flush, stop the writer, write ``fc_internals.npz``; returns its path."""
+        if self.closed:
+            return self.npz_path
+        self.closed = True
+        self.flush()
+        self._full.put(None)
+        self._thread.join(timeout=10.0)
+        self._raw.close()
+        data = _read_raw(self.raw_path, self.columns)
+        tmp = self.npz_path + ".tmp.npz"
+        np.savez(tmp, **data)
+        os.replace(tmp, self.npz_path)
+        os.unlink(self.raw_path)
+        return self.npz_path
+
+
+def _read_raw(raw_path: str, columns: list[str]) -> dict[str, np.ndarray]:
+    flat = np.fromfile(raw_path, dtype=np.float64)
+    n = flat.size // len(columns)
+    table = flat[: n * len(columns)].reshape(n, len(columns))
+    return {c: table[:, i].copy() for i, c in enumerate(columns)}
+
+
+def load(path: str) -> dict[str, np.ndarray]:
+    """Load the internals log: ``path`` is the npz, the raw companion or the run directory.
+
+    Returns one array per column. After a crash (no npz), the raw companion is read.
+    """
+    if os.path.isdir(path):
+        npz = os.path.join(path, NPZ_NAME)
+        path = npz if os.path.exists(npz) else os.path.join(path, RAW_NAME)
+    if path.endswith(".npz"):
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+    cols_path = os.path.join(os.path.dirname(path), COLS_NAME)
+    with open(cols_path, encoding="utf-8") as f:
+        columns = json.load(f)["columns"]
+    return _read_raw(path, columns)

@@ -1,0 +1,309 @@
+"""fc/link.py - the flight controller's only MAVLink import: codec, sockets, plant link.
+
+Everything that touches pymavlink in the fc lives here (docs/architecture.md section 1):
+the generated ``ardupilotmega`` MAVLink 2 codec, a non-blocking UDP endpoint, the
+datagram decoder that never raises, the plant link (sensor frames in, SERVO_OUTPUT_RAW
+out, docs/wire.md) and the PWM <-> deflection mapping of docs/wire.md section 3.
+``fc/gcs.py`` takes its codec (``new_codec``, ``mavlink``) from this module.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import socket
+import stat
+from dataclasses import dataclass, field
+
+import numpy as np
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+
+__all__ = [
+    "mavlink", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink", "LinkCounters",
+    "deflection_to_pwm", "pwm_to_deflection", "load_signing_key", "parse_hostport",
+    "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
+    "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",
+]
+
+# Measurement vector layout (docs/architecture.md section 4), SI.
+M_T_S = 0
+M_ROLL = 1
+M_PITCH = 2
+M_YAW = 3
+M_P = 4
+M_Q = 5
+M_R = 6
+M_AOA = 7
+M_SSA = 8
+M_AIRSPEED = 9
+M_ALT = 10
+M_CLIMB = 11
+M_GROUNDSPEED = 12
+M_HEADING = 13
+M_N = 14
+
+# PWM mapping of docs/wire.md section 3 (ArduPilot SERVOn_MIN/TRIM/MAX).
+PWM_MIN_US = 1000
+PWM_TRIM_US = 1500
+PWM_MAX_US = 2000
+DEFLECTION_LIMIT_RAD = math.radians(20.0)
+
+MAX_DATAGRAM_B = 2048
+
+
+def parse_hostport(text: str) -> tuple[str, int]:
+    """Parse ``HOST:PORT`` into a socket address; ValueError with a clear message otherwise."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host:
+        raise ValueError(f"expected HOST:PORT, got {text!r}")
+    try:
+        port_n = int(port)
+    except ValueError:
+        raise ValueError(f"port must be an integer in {text!r}") from None
+    if not 0 <= port_n <= 65535:
+        raise ValueError(f"port out of range in {text!r}")
+    return host, port_n
+
+
+class _NullFile:
+    """Write sink for the codec: we send packed bytes ourselves."""
+
+    def write(self, _buf: bytes) -> None:
+        return None
+
+
+def new_codec(sysid: int, compid: int = 1) -> mavlink.MAVLink:
+    """A MAVLink 2 ``ardupilotmega`` codec sending as ``sysid``/``compid``.
+
+    ``robust_parsing`` is on: malformed input becomes ``MAVLink_bad_data`` instead of raising.
+    """
+    mav = mavlink.MAVLink(_NullFile(), srcSystem=sysid, srcComponent=compid)
+    mav.robust_parsing = True
+    return mav
+
+
+def decode_datagram(mav: mavlink.MAVLink, data: bytes) -> tuple[list, int]:
+    """Decode one UDP datagram into messages; never raises.
+
+    The parser state is reset first, so a truncated frame in one datagram cannot swallow
+    the next datagram's bytes. Returns ``(messages, n_bad)`` where ``n_bad`` counts
+    malformed frames (bad prefix, CRC, length, signature).
+    """
+    mav.buf = bytearray()
+    mav.buf_index = 0
+    mav.expected_length = mavlink.HEADER_LEN_V1 + 2
+    mav.have_prefix_error = False
+    out: list = []
+    n_bad = 0
+    try:
+        msgs = mav.parse_buffer(data) or []
+    except Exception:  # noqa: BLE001 - a malformed packet must never kill the process
+        return out, 1
+    for m in msgs:
+        if m.get_type() == "BAD_DATA":
+            n_bad += 1
+        else:
+            out.append(m)
+    if mav.buf_len() > 0:
+        n_bad += 1  # trailing truncated frame
+    return out, n_bad
+
+
+def load_signing_key(path: str) -> bytes:
+    """Read a MAVLink 2 signing key from ``path``.
+
+    The file holds a passphrase (first line, stripped); the key is SHA-256(passphrase) as in
+    MAVProxy's ``signing setup``/``signing key``. The file must be a regular file readable
+    only by its owner (mode 0600 or stricter), like an ssh private key; the key is never logged.
+    """
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"signing key file {path} is not a regular file")
+    if st.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+        raise PermissionError(
+            f"signing key file {path} is accessible by group/others "
+            f"(mode {stat.S_IMODE(st.st_mode):o}); chmod 600 it")
+    with open(path, "rb") as f:
+        passphrase = f.read().split(b"\n", 1)[0].strip()
+    if not passphrase:
+        raise ValueError(f"signing key file {path} is empty")
+    return hashlib.sha256(passphrase).digest()
+
+
+def deflection_to_pwm(delta_rad: float, trim_us: int = PWM_TRIM_US) -> int:
+    """Surface deflection [rad] -> PWM [us] (docs/wire.md section 3), clipped to MIN..MAX."""
+    if not math.isfinite(delta_rad):
+        return trim_us
+    if delta_rad >= 0.0:
+        us = trim_us + delta_rad / DEFLECTION_LIMIT_RAD * (PWM_MAX_US - trim_us)
+    else:
+        us = trim_us + delta_rad / DEFLECTION_LIMIT_RAD * (trim_us - PWM_MIN_US)
+    us = int(round(us))
+    return PWM_MIN_US if us < PWM_MIN_US else PWM_MAX_US if us > PWM_MAX_US else us
+
+
+def pwm_to_deflection(pwm_us: int, trim_us: int = PWM_TRIM_US) -> float:
+    """PWM [us] -> deflection [rad], the inverse of :func:`deflection_to_pwm`."""
+    pwm_us = min(max(pwm_us, PWM_MIN_US), PWM_MAX_US)
+    if pwm_us >= trim_us:
+        return (pwm_us - trim_us) / (PWM_MAX_US - trim_us) * DEFLECTION_LIMIT_RAD
+    return (pwm_us - trim_us) / (trim_us - PWM_MIN_US) * DEFLECTION_LIMIT_RAD
+
+
+class UdpEndpoint:
+    """A bound, non-blocking UDP socket. ``recv`` returns None when nothing is waiting."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        except OSError:
+            pass
+        try:
+            self.sock.bind((host, port))
+        except OSError as exc:
+            self.sock.close()
+            raise OSError(f"cannot bind UDP {host}:{port}: {exc}") from exc
+        self.address = self.sock.getsockname()
+        self.send_errors = 0
+
+    def recv(self) -> tuple[bytes, tuple] | None:
+        try:
+            return self.sock.recvfrom(MAX_DATAGRAM_B)
+        except (BlockingIOError, InterruptedError):
+            return None
+        except OSError:
+            # e.g. ICMP port unreachable reported on a later recv (ECONNREFUSED)
+            return None
+
+    def send(self, data: bytes, addr: tuple) -> bool:
+        try:
+            self.sock.sendto(data, addr)
+            return True
+        except OSError:
+            self.send_errors += 1
+            return False
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@dataclass(slots=True)
+class LinkCounters:
+    """Rejected and accepted input of the plant link (telemetry and fc.log)."""
+
+    datagrams: int = 0
+    frames: int = 0               # complete sensor frames accepted
+    duplicates: int = 0           # frames with a stamp already answered (plant re-requests)
+    rejected_sysid: int = 0       # from a system id other than the plant's
+    rejected_addr: int = 0        # from another address than the first accepted one
+    rejected_bad: int = 0         # malformed MAVLink (CRC, length, prefix)
+    rejected_incomplete: int = 0  # datagram without the ATTITUDE+AOA_SSA+VFR_HUD triple
+    outputs: int = 0
+
+    @property
+    def rejected(self) -> int:
+        return (self.rejected_sysid + self.rejected_addr + self.rejected_bad
+                + self.rejected_incomplete)
+
+
+@dataclass(slots=True)
+class PlantLink:
+    """The plant side of the fc (docs/wire.md): one datagram = one sensor frame.
+
+    ``poll`` drains the socket without blocking and keeps the newest complete frame; the
+    caller answers with ``send_servo``. Only frames from ``plant_sysid`` are accepted and,
+    after the first accepted frame, only from that source address.
+    """
+
+    endpoint: UdpEndpoint
+    plant_sysid: int = 2
+    sysid: int = 1
+    compid: int = 1
+    codec: mavlink.MAVLink = None
+    peer: tuple | None = None
+    counters: LinkCounters = field(default_factory=LinkCounters)
+    _tx_codec: mavlink.MAVLink = None
+
+    def __post_init__(self) -> None:
+        self.codec = new_codec(self.sysid, self.compid)
+        self._tx_codec = new_codec(self.sysid, self.compid)
+
+    def read_frame(self, meas_out: np.ndarray) -> int:
+        """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
+
+        Returns the frame stamp in us (u64) or -1 when no acceptable datagram is waiting.
+        At most 64 datagrams are read per call (bounded work).
+        """
+        for _ in range(64):
+            got = self.endpoint.recv()
+            if got is None:
+                return -1
+            data, addr = got
+            self.counters.datagrams += 1
+            if self.peer is not None and addr != self.peer:
+                self.counters.rejected_addr += 1
+                continue
+            stamp = self._decode(data, meas_out)
+            if stamp < 0:
+                continue
+            if self.peer is None:
+                self.peer = addr
+            self.counters.frames += 1
+            return stamp
+        return -1
+
+    def _decode(self, data: bytes, meas_out: np.ndarray) -> int:
+        msgs, n_bad = decode_datagram(self.codec, data)
+        if n_bad:
+            self.counters.rejected_bad += 1
+            return -1
+        att = aoa = hud = None
+        for m in msgs:
+            if m.get_srcSystem() != self.plant_sysid:
+                self.counters.rejected_sysid += 1
+                return -1
+            t = m.get_msgId()
+            if t == mavlink.MAVLINK_MSG_ID_ATTITUDE:
+                att = m
+            elif t == mavlink.MAVLINK_MSG_ID_AOA_SSA:
+                aoa = m
+            elif t == mavlink.MAVLINK_MSG_ID_VFR_HUD:
+                hud = m
+        if att is None or aoa is None or hud is None:
+            self.counters.rejected_incomplete += 1
+            return -1
+        stamp = int(aoa.time_usec)
+        meas_out[M_T_S] = stamp * 1e-6
+        meas_out[M_ROLL] = att.roll
+        meas_out[M_PITCH] = att.pitch
+        meas_out[M_YAW] = att.yaw
+        meas_out[M_P] = att.rollspeed
+        meas_out[M_Q] = att.pitchspeed
+        meas_out[M_R] = att.yawspeed
+        meas_out[M_AOA] = math.radians(aoa.AOA)
+        meas_out[M_SSA] = math.radians(aoa.SSA)
+        meas_out[M_AIRSPEED] = hud.airspeed
+        meas_out[M_ALT] = hud.alt
+        meas_out[M_CLIMB] = hud.climb
+        meas_out[M_GROUNDSPEED] = hud.groundspeed
+        meas_out[M_HEADING] = math.radians(hud.heading)
+        return stamp
+
+    def send_servo(self, stamp_us: int, pwm_us: tuple[int, int, int]) -> bool:
+        """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3)."""
+        if self.peer is None:
+            return False
+        msg = self._tx_codec.servo_output_raw_encode(
+            stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], 0, 0, 0, 0, 0)
+        ok = self.endpoint.send(msg.pack(self._tx_codec), self.peer)
+        self._tx_codec.seq = (self._tx_codec.seq + 1) % 256
+        if ok:
+            self.counters.outputs += 1
+        return ok

@@ -1,0 +1,115 @@
+"""fc/modes.py - flight modes, arming and the plant-data failsafe state machine.
+
+Modes travel as HEARTBEAT ``custom_mode`` (base_mode has MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
+and are set with MAV_CMD_DO_SET_MODE (param2) or SET_MODE (docs/fc.md):
+
+- MANUAL (0): surfaces at the TRIM_* parameters (no RC on this vehicle: passthrough of trim).
+- COORDINATED (1): the law with CO_ENABLE = 1.
+- UNCOORDINATED (2): the law with CO_ENABLE = 0.
+- FAILSAFE (3): surfaces at trim. Entered on plant-data loss (automatic) or on request.
+
+The law runs only when armed and in COORDINATED/UNCOORDINATED; disarmed = surfaces at trim.
+This module holds no clock: the caller passes wall times in seconds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+__all__ = ["FlightMode", "ModeManager", "FS_NONE", "FS_DATA", "FS_REQUESTED"]
+
+
+class FlightMode(IntEnum):
+    MANUAL = 0
+    COORDINATED = 1
+    UNCOORDINATED = 2
+    FAILSAFE = 3
+
+
+LAW_MODES = (FlightMode.COORDINATED, FlightMode.UNCOORDINATED)
+FS_NONE = 0       # not in failsafe
+FS_DATA = 1       # entered because plant data was lost
+FS_REQUESTED = 2  # entered on request from the ground station
+
+
+@dataclass(slots=True)
+class ModeManager:
+    """Mode, arming and failsafe. Methods return ``(ok, text)``; ``text`` is for STATUSTEXT."""
+
+    mode: FlightMode = FlightMode.MANUAL
+    armed: bool = False
+    fs_cause: int = FS_NONE
+    mode_before_fs: FlightMode = FlightMode.MANUAL
+    data_lost: bool = False
+    data_back_since_s: float = -1.0
+    changes: int = 0   # bumped on every mode/arming change (the app resets the law on it)
+
+    @property
+    def law_active(self) -> bool:
+        return self.armed and self.mode in LAW_MODES
+
+    @property
+    def co_enable(self) -> float:
+        return 1.0 if self.mode == FlightMode.COORDINATED else 0.0
+
+    def request_mode(self, mode: int) -> tuple[bool, str]:
+        try:
+            mode = FlightMode(int(mode))
+        except ValueError:
+            return False, f"unknown mode {mode}"
+        if mode == FlightMode.FAILSAFE:
+            if self.mode != FlightMode.FAILSAFE:
+                self.mode_before_fs = self.mode
+                self._set(mode)
+            self.fs_cause = FS_REQUESTED if self.fs_cause == FS_NONE else self.fs_cause
+            return True, "mode FAILSAFE (requested)"
+        if self.data_lost:
+            return False, f"mode {mode.name} refused: plant data lost"
+        self.fs_cause = FS_NONE
+        self._set(mode)
+        return True, f"mode {mode.name}"
+
+    def set_armed(self, armed: bool, data_ok: bool) -> tuple[bool, str]:
+        if armed and not data_ok:
+            return False, "arming refused: no valid plant data"
+        if armed != self.armed:
+            self.armed = armed
+            self.changes += 1
+        return True, "armed" if armed else "disarmed"
+
+    def on_data_lost(self) -> str | None:
+        """Plant data absent beyond FS_TIMEOUT_S. Returns the event text once."""
+        if self.data_lost:
+            return None
+        self.data_lost = True
+        self.data_back_since_s = -1.0
+        if self.mode != FlightMode.FAILSAFE:
+            self.mode_before_fs = self.mode
+            self._set(FlightMode.FAILSAFE)
+            self.fs_cause = FS_DATA
+            return "FAILSAFE: plant data lost, surfaces to trim"
+        return "plant data lost (already in FAILSAFE)"
+
+    def on_data_ok(self, now_s: float, recover: bool, recover_s: float) -> str | None:
+        """Valid plant data arrived at wall time ``now_s``. Returns an event text or None."""
+        if not self.data_lost:
+            return None
+        if self.data_back_since_s < 0.0:
+            self.data_back_since_s = now_s
+        if now_s - self.data_back_since_s < recover_s:
+            return None
+        self.data_lost = False
+        if self.fs_cause == FS_DATA and recover:
+            self.fs_cause = FS_NONE
+            self._set(self.mode_before_fs)
+            return f"plant data back: FAILSAFE -> {self.mode.name}"
+        return "plant data back: staying in FAILSAFE until a mode is set"
+
+    def on_data_gap(self) -> None:
+        """Data stopped again before recovery completed."""
+        self.data_back_since_s = -1.0
+
+    def _set(self, mode: FlightMode) -> None:
+        if mode != self.mode:
+            self.mode = mode
+            self.changes += 1

@@ -1,0 +1,302 @@
+"""fc/params.py - the one parameter table of the flight controller.
+
+The table is the control law's ``LAW_PARAMS`` (fc/control/params.py) followed by the
+process parameters below (attitude commands, failsafe, estimator, trims). It is the single
+source for the MAVLink parameter protocol (names <= 16 characters, uppercase, REAL32 on the
+wire, stable indices), for validation (range, finiteness), for persistence (MAVProxy
+``param save`` format, written atomically) and for ``docs/params.md``
+(``python -m fc.params --write-docs``; a test checks the file is current).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterable
+
+import numpy as np
+
+__all__ = ["ParamDef", "PROCESS_PARAMS", "ParamTable", "ParamFileError", "build_table",
+           "render_markdown", "law_param_defs", "UNITS"]
+
+NAME_MAX = 16
+NAME_RE = re.compile(r"^[A-Z][A-Z0-9_]{0,15}$")
+
+#: Unit vocabulary accepted in the table (PX4 PR #15502: one spelling per unit).
+UNITS = {"deg", "deg/s", "rad", "rad/s", "s", "ms", "us", "Hz", "m", "m/s", "1", "bool",
+         "1/s", "1/s^2", "rad/s^2", "N m", "kg m^2", "%"}
+
+
+@dataclass(frozen=True, slots=True)
+class ParamDef:
+    """One row of the table. Values are in the human units of ``unit`` (degrees at the edge)."""
+
+    name: str
+    default: float
+    min: float
+    max: float
+    unit: str
+    group: str
+    description: str
+    integer: bool = False
+
+
+#: Parameters owned by the fc process (not the law). Order is the wire order after the law's.
+PROCESS_PARAMS: tuple[ParamDef, ...] = (
+    ParamDef("CMD_ALPHA_DEG", 0.0, -10.0, 20.0, "deg", "command",
+             "Commanded angle of attack alpha_c; the range is the command limit."),
+    ParamDef("CMD_BETA_DEG", 0.0, -10.0, 10.0, "deg", "command",
+             "Commanded sideslip beta_c; the range is the command limit."),
+    ParamDef("CMD_MU_DEG", 0.0, -60.0, 60.0, "deg", "command",
+             "Commanded bank angle about the velocity vector mu_c; the range is the command limit."),
+    ParamDef("FS_TIMEOUT_S", 0.5, 0.02, 30.0, "s", "failsafe",
+             "Plant data (valid sensor frames) absent for longer than this, wall clock: FAILSAFE."),
+    ParamDef("FS_RECOVER", 1.0, 0.0, 1.0, "bool", "failsafe",
+             "1: leave FAILSAFE automatically to the previous mode once data has been back "
+             "for FS_RECOVER_S; 0: stay in FAILSAFE until the ground station sets a mode.",
+             integer=True),
+    ParamDef("FS_RECOVER_S", 0.2, 0.0, 10.0, "s", "failsafe",
+             "Time valid plant data must be back before automatic recovery from FAILSAFE."),
+    ParamDef("EST_STALE_S", 0.1, 0.002, 5.0, "s", "estimator",
+             "A measurement whose last valid value is older than this (sensor time) is stale; "
+             "the estimator holds the last good value and flags it."),
+    ParamDef("TRIM_ELEVL_DEG", 0.0, -20.0, 20.0, "deg", "trim",
+             "Left elevon position in MANUAL, FAILSAFE and disarmed (trailing edge up +)."),
+    ParamDef("TRIM_ELEVR_DEG", 0.0, -20.0, 20.0, "deg", "trim",
+             "Right elevon position in MANUAL, FAILSAFE and disarmed (trailing edge up +)."),
+    ParamDef("TRIM_RUD_DEG", 0.0, -20.0, 20.0, "deg", "trim",
+             "Rudder position in MANUAL, FAILSAFE and disarmed (trailing edge left +)."),
+)
+
+#: Law parameters the process drives itself (a PARAM_SET is refused with a hint).
+PROCESS_DRIVEN = {"CO_ENABLE": "CO_ENABLE follows the flight mode: set COORDINATED or UNCOORDINATED"}
+
+
+def law_param_defs(law_params: Iterable) -> list[ParamDef]:
+    """Convert the law's ``Param`` rows (fc/control/params.py) to :class:`ParamDef`."""
+    return [ParamDef(p.name, float(p.default), float(p.min), float(p.max), str(p.unit),
+                     str(p.group), str(p.description), bool(getattr(p, "integer", False)))
+            for p in law_params]
+
+
+def _check_defs(defs: list[ParamDef]) -> None:
+    seen: set[str] = set()
+    for d in defs:
+        if not NAME_RE.match(d.name) or len(d.name) > NAME_MAX:
+            raise ValueError(f"parameter name {d.name!r}: uppercase, <= {NAME_MAX} characters")
+        if d.name in seen:
+            raise ValueError(f"parameter {d.name} defined twice (law and process tables collide?)")
+        seen.add(d.name)
+        if not (math.isfinite(d.min) and math.isfinite(d.max) and d.min <= d.default <= d.max):
+            raise ValueError(f"parameter {d.name}: default {d.default} outside [{d.min}, {d.max}]")
+
+
+class ParamFileError(ValueError):
+    """A parameter file that cannot be read (syntax, non-finite value)."""
+
+
+def _f32(x: float) -> float:
+    """The value as it travels on the wire (REAL32)."""
+    return float(np.float32(x))
+
+
+class ParamTable:
+    """Values of every parameter, in the table order (the MAVLink index).
+
+    ``on_change(name, value)`` is called after every accepted change; it is where the
+    process converts to SI and pushes the value into the law (``law.set_param``).
+    """
+
+    def __init__(self, defs: list[ParamDef]) -> None:
+        _check_defs(defs)
+        self.defs = list(defs)
+        self.names = [d.name for d in defs]
+        self.index = {n: i for i, n in enumerate(self.names)}
+        self.values = np.array([d.default for d in defs], dtype=np.float64)
+        self.on_change: Callable[[str, float], None] | None = None
+        self.validator: Callable[[str, float], str | None] | None = None
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.index
+
+    def get(self, name: str) -> float:
+        return float(self.values[self.index[name]])
+
+    def defn(self, name: str) -> ParamDef:
+        return self.defs[self.index[name]]
+
+    def check(self, name: str, value: float) -> str | None:
+        """None if ``value`` may be set, else the reason (for STATUSTEXT and fc.log)."""
+        if name not in self.index:
+            return f"unknown parameter {name}"
+        if not math.isfinite(value):
+            return f"{name}: non-finite value refused"
+        d = self.defs[self.index[name]]
+        # compare at wire precision so the float32 of a bound is accepted
+        if value < _f32(d.min) or value > _f32(d.max):
+            return f"{name}={value:g} outside [{d.min:g}, {d.max:g}] {d.unit}"
+        if d.integer and value != round(value):
+            return f"{name}={value:g} must be a whole number"
+        if self.validator is not None:
+            return self.validator(name, value)
+        return None
+
+    def set(self, name: str, value: float, notify: bool = True) -> str | None:
+        """Set if valid; returns None on success, else the reason (value unchanged)."""
+        value = float(value)
+        reason = self.check(name, value)
+        if reason is not None:
+            return reason
+        d = self.defs[self.index[name]]
+        value = min(max(value, d.min), d.max)
+        self.values[self.index[name]] = value
+        if notify and self.on_change is not None:
+            self.on_change(name, value)
+        return None
+
+    def force(self, name: str, value: float) -> None:
+        """Set a value the process drives itself (e.g. CO_ENABLE from the mode), no validator."""
+        self.values[self.index[name]] = float(value)
+
+    # ---------------------------------------------------------------- persistence
+    def save(self, path: str) -> None:
+        """Write all values atomically (temp file in the same directory, fsync, rename).
+
+        Format: MAVProxy ``param save`` (``NAME value`` per line, ``#`` comments), which
+        MAVProxy ``param load`` reads back.
+        """
+        directory = os.path.dirname(os.path.abspath(path)) or "."
+        fd, tmp = tempfile.mkstemp(prefix=".params.", dir=directory)
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(f"# hyfc parameters, {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}\n")
+                for n, v in zip(self.names, self.values):
+                    f.write(f"{n:<16.16s} {float(v):.9g}\n")
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            raise
+
+    @staticmethod
+    def read_file(path: str) -> dict[str, float]:
+        """Parse a MAVProxy/Mission Planner parameter file; ParamFileError when malformed."""
+        out: dict[str, float] = {}
+        try:
+            with open(path, "r", encoding="utf-8") as f:
+                lines = f.readlines()
+        except UnicodeDecodeError as exc:
+            raise ParamFileError(f"{path}: not a text file ({exc})") from None
+        for lineno, raw in enumerate(lines, 1):
+            line = raw.split("#", 1)[0].strip().replace(",", " ")
+            if not line:
+                continue
+            parts = line.split()
+            if len(parts) != 2:
+                raise ParamFileError(f"{path}:{lineno}: expected 'NAME VALUE', got {raw.strip()!r}")
+            name, text = parts[0].upper(), parts[1]
+            try:
+                value = float(int(text[2:], 16)) if text.lower().startswith("0x") else float(text)
+            except ValueError:
+                raise ParamFileError(f"{path}:{lineno}: {text!r} is not a number") from None
+            if not math.isfinite(value):
+                raise ParamFileError(f"{path}:{lineno}: non-finite value for {name}")
+            out[name] = value
+        return out
+
+    def load(self, path: str) -> tuple[list[str], list[str]]:
+        """Apply a parameter file. Returns ``(applied_names, warnings)``.
+
+        Unknown names and out-of-range values are skipped with a warning (the default
+        stays). A malformed file raises ParamFileError and changes nothing.
+        """
+        values = self.read_file(path)
+        applied: list[str] = []
+        warnings: list[str] = []
+        for name, value in values.items():
+            if name not in self.index:
+                warnings.append(f"{path}: unknown parameter {name} ignored")
+                continue
+            if name in PROCESS_DRIVEN:
+                continue
+            reason = self.set(name, value)
+            if reason is not None:
+                warnings.append(f"{path}: {reason}; default kept")
+            else:
+                applied.append(name)
+        return applied, warnings
+
+
+def set_aside(path: str) -> str:
+    """Rename a bad parameter file to ``PATH.corrupt-<UTC stamp>`` and return the new name."""
+    dest = f"{path}.corrupt-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
+    n = 0
+    while os.path.exists(dest):
+        n += 1
+        dest = f"{path}.corrupt-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}.{n}"
+    os.replace(path, dest)
+    return dest
+
+
+def build_table(law_params: Iterable | None = None) -> ParamTable:
+    """The full table: law parameters (default: ``fc.control.params.LAW_PARAMS``) + process."""
+    if law_params is None:
+        from fc.control.params import LAW_PARAMS
+        law_params = LAW_PARAMS
+    return ParamTable(law_param_defs(law_params) + list(PROCESS_PARAMS))
+
+
+def render_markdown(table: ParamTable) -> str:
+    """docs/params.md, generated from the table."""
+    lines = [
+        "# Parameters",
+        "",
+        "Generated by `python -m fc.params --write-docs` from the one parameter table",
+        "(`fc/control/params.py` LAW_PARAMS, then `fc/params.py` PROCESS_PARAMS). Do not edit by hand.",
+        "",
+        "Every parameter is REAL32 on the wire (PARAM_VALUE `param_type` 9), index = row number",
+        "below starting at 0. A set outside [min, max] or non-finite is refused: the fc sends",
+        "back PARAM_VALUE with the unchanged value and a STATUSTEXT with the reason.",
+        "",
+        f"{len(table)} parameters.",
+        "",
+        "| index | name | default | min | max | unit | group | description |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for i, d in enumerate(table.defs):
+        desc = d.description.replace("|", "\\|").replace("\n", " ")
+        lines.append(f"| {i} | `{d.name}` | {d.default:g} | {d.min:g} | {d.max:g} | {d.unit} "
+                     f"| {d.group} | {desc} |")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def _main(argv: list[str]) -> int:
+    import argparse
+    ap = argparse.ArgumentParser(prog="python -m fc.params",
+                                 description="Print or write docs/params.md from the table.")
+    ap.add_argument("--write-docs", metavar="PATH", nargs="?", const="docs/params.md",
+                    help="write the Markdown reference (default docs/params.md)")
+    args = ap.parse_args(argv)
+    text = render_markdown(build_table())
+    if args.write_docs:
+        with open(args.write_docs, "w", encoding="utf-8") as f:
+            f.write(text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main(sys.argv[1:]))

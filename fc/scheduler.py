@@ -1,0 +1,167 @@
+"""fc/scheduler.py - the scheduler owns time: deadlines, waiting, lateness statistics.
+
+Real time: absolute deadlines ``t0 + k T`` on CLOCK_MONOTONIC. Waiting is a sleep to the
+deadline (libc ``clock_nanosleep(TIMER_ABSTIME)`` through ctypes, or ``time.sleep``), never a
+socket or epoll timeout, which CPython rounds to whole milliseconds (shared perf anchors,
+section 2); sockets are drained non-blockingly after waking. SCHED_FIFO is requested when the
+OS allows it; a refusal is reported to the caller for the log.
+
+Lockstep: :class:`TickPlanner` turns sensor time stamps into fast/slow ticks, so the
+loops run on sim time and a run is deterministic.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import time
+
+import numpy as np
+
+__all__ = ["monotonic_ns", "sleep_until_ns", "try_realtime", "TickPlanner", "LoopStats"]
+
+monotonic_ns = time.monotonic_ns
+CLOCK_MONOTONIC = 1
+TIMER_ABSTIME = 1
+PR_SET_TIMERSLACK = 29
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+try:
+    _libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+    _clock_nanosleep = _libc.clock_nanosleep
+    _clock_nanosleep.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(_Timespec),
+                                 ctypes.POINTER(_Timespec)]
+    _clock_nanosleep.restype = ctypes.c_int
+except (OSError, AttributeError):  # not Linux/glibc: fall back to time.sleep
+    _libc = None
+    _clock_nanosleep = None
+_ts = _Timespec()
+_ts_ref = ctypes.byref(_ts)
+
+
+def sleep_until_ns(deadline_ns: int, spin_ns: int = 0) -> None:
+    """Sleep until CLOCK_MONOTONIC reaches ``deadline_ns``; spin the last ``spin_ns``."""
+    target = deadline_ns - spin_ns
+    if _clock_nanosleep is not None:
+        _ts.tv_sec, _ts.tv_nsec = divmod(target, 1_000_000_000)
+        while _clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, _ts_ref, None) == 4:  # EINTR
+            pass
+    else:
+        dt = target - time.monotonic_ns()
+        if dt > 0:
+            time.sleep(dt * 1e-9)
+    if spin_ns:
+        while time.monotonic_ns() < deadline_ns:
+            pass
+
+
+def try_realtime(priority: int = 50) -> tuple[bool, str]:
+    """Ask for SCHED_FIFO ``priority`` and 1 ns timer slack. Returns (ok, message for fc.log)."""
+    msgs = []
+    if _libc is not None:
+        try:
+            _libc.prctl(PR_SET_TIMERSLACK, ctypes.c_ulong(1), 0, 0, 0)
+        except (AttributeError, OSError):
+            pass
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True, f"real-time scheduling: SCHED_FIFO priority {priority}"
+    except (AttributeError, PermissionError, OSError) as exc:
+        msgs.append(f"real-time scheduling not available ({exc}); running SCHED_OTHER, "
+                    "expect ms-scale wake-up stalls")
+    return False, "; ".join(msgs)
+
+
+class TickPlanner:
+    """Fast/slow tick bookkeeping on an integer nanosecond time base (sim or wall time).
+
+    The slow loop runs on every ``ratio``-th fast tick (``fast_hz / slow_hz`` must be an
+    integer, checked here). ``due(t_ns)`` returns how many fast ticks are due at time
+    ``t_ns``; more than ``max_catchup`` are skipped and counted as overruns, and the
+    deadlines are re-anchored on ``t_ns``.
+    """
+
+    def __init__(self, fast_hz: float, slow_hz: float, max_catchup: int = 8) -> None:
+        if fast_hz <= 0 or slow_hz <= 0:
+            raise ValueError("loop rates must be positive")
+        ratio = fast_hz / slow_hz
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(f"fast rate {fast_hz} Hz must be an integer multiple of the "
+                             f"slow rate {slow_hz} Hz")
+        self.ratio = int(round(ratio))
+        self.fast_hz = float(fast_hz)
+        self.slow_hz = float(slow_hz)
+        self.period_ns = int(round(1e9 / fast_hz))
+        self.fast_dt_s = self.period_ns * 1e-9
+        self.slow_dt_s = self.fast_dt_s * self.ratio
+        self.max_catchup = max_catchup
+        self.next_ns: int | None = None
+        self.ticks = 0          # fast ticks run
+        self.skipped = 0        # fast deadlines skipped (overruns)
+
+    def anchor(self, t_ns: int) -> None:
+        """Start (or restart) the deadlines at ``t_ns``: the first tick is due at ``t_ns``."""
+        self.next_ns = t_ns
+
+    def due(self, t_ns: int) -> int:
+        if self.next_ns is None:
+            self.anchor(t_ns)
+        if t_ns < self.next_ns:
+            return 0
+        n = (t_ns - self.next_ns) // self.period_ns + 1
+        if n > self.max_catchup:
+            self.skipped += n - 1
+            self.next_ns = t_ns + self.period_ns
+            return 1
+        self.next_ns += n * self.period_ns
+        return int(n)
+
+    def slow_due(self) -> bool:
+        """Call once per fast tick, before running it: True when the slow loop runs too."""
+        due = self.ticks % self.ratio == 0
+        self.ticks += 1
+        return due
+
+
+class LoopStats:
+    """Wake-up lateness and execution time of the fast loop (real time), preallocated.
+
+    A tick is late when it woke more than ``late_frac`` of a period after its deadline.
+    ``window_*`` are over the last ``window`` ticks (for telemetry, reset by ``roll``).
+    """
+
+    def __init__(self, period_ns: int, late_frac: float = 0.2, window: int = 1024) -> None:
+        self.period_ns = period_ns
+        self.late_ns = int(period_ns * late_frac)
+        self.ticks = 0
+        self.late = 0
+        self.overruns = 0           # tick work longer than a period
+        self.buf = np.zeros(window, dtype=np.int64)
+        self.n = 0
+        self.window_max_us = 0.0
+        self.window_p99_us = 0.0
+        self.exec_max_us = 0.0
+
+    def record(self, lateness_ns: int, exec_ns: int) -> None:
+        self.ticks += 1
+        if lateness_ns > self.late_ns:
+            self.late += 1
+        if exec_ns > self.period_ns:
+            self.overruns += 1
+        if self.n < self.buf.shape[0]:
+            self.buf[self.n] = lateness_ns
+            self.n += 1
+        if exec_ns * 1e-3 > self.exec_max_us:
+            self.exec_max_us = exec_ns * 1e-3
+
+    def roll(self) -> None:
+        """Summarise the window (called from the slow housekeeping, ~1 Hz)."""
+        if self.n:
+            w = self.buf[:self.n]
+            self.window_max_us = float(w.max()) * 1e-3
+            self.window_p99_us = float(np.percentile(w, 99)) * 1e-3
+        self.n = 0

@@ -1,0 +1,215 @@
+"""Helpers for the fc HIL tests: the fc as a real process, a scripted plant and a GCS client.
+
+Everything on 127.0.0.1 with free ports; every wait is bounded; processes are stopped by the
+fixtures that start them (``FcProcess`` is a context manager).
+"""
+from __future__ import annotations
+
+import math
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink import mavutil  # noqa: E402
+from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# measurement layout (docs/architecture.md section 4), kept literal here on purpose: the
+# test checks the fc against the contract, not against the fc's own constants.
+M_T_S, M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R, M_AOA, M_SSA = range(9)
+M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING = range(9, 14)
+
+
+def free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def level_meas(t_s: float, alpha_deg: float = 1.0, beta_deg: float = 0.0, roll_deg: float = 0.0,
+               V: float = 2200.0, h: float = 21000.0) -> np.ndarray:
+    """A plausible measurement vector: wings-level-ish flight at pitch = alpha (gamma = 0)."""
+    m = np.zeros(14)
+    m[M_T_S] = t_s
+    m[M_ROLL] = math.radians(roll_deg)
+    m[M_PITCH] = math.radians(alpha_deg)
+    m[M_AOA] = math.radians(alpha_deg)
+    m[M_SSA] = math.radians(beta_deg)
+    m[M_AIRSPEED] = V
+    m[M_ALT] = h
+    m[M_GROUNDSPEED] = V
+    return m
+
+
+class _Null:
+    def write(self, _b):
+        return None
+
+
+class ScriptedPlant:
+    """A plant stand-in: sends one-datagram sensor frames (docs/wire.md 2), reads the answers."""
+
+    def __init__(self, fc_port: int, sysid: int = 2) -> None:
+        self.fc_addr = ("127.0.0.1", fc_port)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.mav = mavlink.MAVLink(_Null(), srcSystem=sysid, srcComponent=1)
+        self.rx = mavlink.MAVLink(_Null())
+        self.rx.robust_parsing = True
+
+    def frame_bytes(self, m: np.ndarray) -> bytes:
+        stamp_us = int(round(m[M_T_S] * 1e6))
+        out = b""
+        for msg in (
+            self.mav.attitude_encode(int(stamp_us // 1000) & 0xFFFFFFFF, m[M_ROLL], m[M_PITCH],
+                                     m[M_YAW], m[M_P], m[M_Q], m[M_R]),
+            self.mav.aoa_ssa_encode(stamp_us, math.degrees(m[M_AOA]), math.degrees(m[M_SSA])),
+            self.mav.vfr_hud_encode(m[M_AIRSPEED], m[M_GROUNDSPEED],
+                                    int(round(math.degrees(m[M_HEADING]))) % 360, 0, m[M_ALT],
+                                    m[M_CLIMB]),
+        ):
+            out += msg.pack(self.mav)
+            self.mav.seq = (self.mav.seq + 1) % 256
+        return out
+
+    def send_raw(self, data: bytes) -> None:
+        self.sock.sendto(data, self.fc_addr)
+
+    def send_frame(self, m: np.ndarray) -> None:
+        self.send_raw(self.frame_bytes(m))
+
+    def recv_servo(self, timeout_s: float):
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            r, _, _ = select.select([self.sock], [], [], left)
+            if not r:
+                return None
+            data, _ = self.sock.recvfrom(4096)
+            msgs = self.rx.parse_buffer(data) or []
+            for msg in msgs:
+                if msg.get_type() == "SERVO_OUTPUT_RAW":
+                    return msg
+
+    def exchange(self, m: np.ndarray, timeout_s: float = 5.0):
+        """Send a frame and return the SERVO_OUTPUT_RAW echoing its stamp (lockstep)."""
+        stamp = int(round(m[M_T_S] * 1e6)) & 0xFFFFFFFF
+        self.send_frame(m)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            msg = self.recv_servo(deadline - time.monotonic())
+            if msg is None:
+                break
+            if msg.time_usec == stamp:
+                return msg
+        raise TimeoutError(f"no SERVO_OUTPUT_RAW for stamp {stamp} within {timeout_s} s")
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class FcProcess:
+    """``python -m fc`` with free ports; waits for READY; SIGINT on exit (kill if stuck)."""
+
+    def __init__(self, out_dir: str, *extra: str, gcs_ports: tuple[int, ...] = (),
+                 ready_timeout_s: float = 90.0) -> None:
+        self.out = out_dir
+        self.plant_port = free_udp_port()
+        self.gcs_bind_port = free_udp_port()
+        self.gcs_ports = gcs_ports or (free_udp_port(),)
+        args = [sys.executable, "-m", "fc", "--out", out_dir,
+                "--plant-bind", f"127.0.0.1:{self.plant_port}",
+                "--gcs-bind", f"127.0.0.1:{self.gcs_bind_port}"]
+        for p in self.gcs_ports:
+            args += ["--gcs", f"127.0.0.1:{p}"]
+        args += list(extra)
+        self.args = args
+        self.ready_timeout_s = ready_timeout_s
+        self.proc: subprocess.Popen | None = None
+        self.stdout_lines: list[str] = []
+        self.returncode: int | None = None
+
+    def __enter__(self) -> "FcProcess":
+        self.proc = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+        ready = threading.Event()
+
+        def _reader():
+            for line in self.proc.stdout:
+                self.stdout_lines.append(line.rstrip("\n"))
+                if line.strip() == "READY":
+                    ready.set()
+            ready.set()
+
+        threading.Thread(target=_reader, daemon=True).start()
+        if not ready.wait(self.ready_timeout_s) or self.proc.poll() is not None:
+            err = self._kill()
+            raise RuntimeError(f"fc did not become READY: rc={self.proc.returncode} {err}")
+        return self
+
+    def _kill(self) -> str:
+        try:
+            self.proc.kill()
+        except ProcessLookupError:
+            pass
+        try:
+            _, err = self.proc.communicate(timeout=10)
+        except (subprocess.TimeoutExpired, ValueError):
+            err = ""
+        return err or ""
+
+    def stop(self, timeout_s: float = 20.0) -> int:
+        if self.proc is None or self.returncode is not None:
+            return self.returncode
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self._kill()
+        self.returncode = self.proc.returncode
+        self.stderr = self.proc.stderr.read() if self.proc.stderr else ""
+        return self.returncode
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+class GcsClient:
+    """A pymavlink ground station listening where the fc sends (``udpin``)."""
+
+    def __init__(self, port: int, sysid: int = 255, compid: int = 190) -> None:
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=sysid,
+                                               source_component=compid, dialect="ardupilotmega")
+
+    def wait(self, mtype, timeout_s: float = 10.0, cond=None):
+        """First message of ``mtype`` (str or list) satisfying ``cond``, or None at timeout."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            m = self.conn.recv_match(type=mtype, blocking=True, timeout=min(left, 0.5))
+            if m is not None and (cond is None or cond(m)):
+                return m
+
+    def command(self, command: int, *params: float, timeout_s: float = 5.0):
+        p = list(params) + [0.0] * (7 - len(params))
+        self.conn.mav.command_long_send(1, 1, command, 0, *p)
+        return self.wait("COMMAND_ACK", timeout_s, lambda m: m.command == command)
+
+    def close(self) -> None:
+        self.conn.close()
