@@ -138,20 +138,19 @@ def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
     have_theta = any(r.get("theta_hat") is not None for r in runs.values())
     nrows = 4 if have_theta else 3
     fig, axes = plt.subplots(nrows, 1, figsize=(9, 2.6 * nrows + 1.0), sharex=True)
-    axis_names = ("roll", "pitch", "yaw")
+    axis_names = ("roll (p)", "pitch (q)", "yaw (r)")
     for i in range(3):
         ax = axes[i]
         true_drawn = False
         for variant, r in runs.items():
             if r.get("dhat") is not None:
-                ax.plot(r["int_t_s"], r["dhat"][:, i], label=f"estimate d_hat ({variant})",
+                ax.plot(r["int_t_s"], r["dhat"][:, i] * R2D, label=f"estimate d_hat ({variant})",
                         **_style(variant))
             if r.get("dtrue") is not None and not true_drawn:
-                ax.plot(r["t_s"], r["dtrue"][:, i], color="black", linewidth=1.0, alpha=0.8,
-                        label="true disturbance")
+                ax.plot(r["t_s"], r["dtrue"][:, i] * R2D, color="black", linewidth=1.0,
+                        alpha=0.8, label="true disturbance (plant)")
                 true_drawn = True
-        unit = next((r.get("dist_unit") for r in runs.values() if r.get("dist_unit")), "")
-        ax.set_ylabel(f"{axis_names[i]} moment [{unit}]" if unit else f"{axis_names[i]} moment")
+        ax.set_ylabel(f"{axis_names[i]} disturbance\n[deg/s^2]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
     if have_theta:
@@ -171,11 +170,12 @@ def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
             for j in range(vals.shape[1]):
                 ax.plot(r["int_t_s"], vals[:, j], color=st["color"], linestyle=st["linestyle"],
                         linewidth=0.8, alpha=0.7, label=variant if j == 0 else None)
-        ax.set_ylabel("theta_hat / nominal [-]")
+        ax.set_ylabel("adaptive estimates\ntheta_hat / nominal [-]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("time [s]")
-    _title(fig, "Disturbance observer and adaptive estimates", meta)
+    _title(fig, "Disturbance observer (angular acceleration, Eq. 37) vs the plant's true "
+                "disturbance; adaptive estimates", meta)
     fig.tight_layout()
     return _save(fig, path)
 

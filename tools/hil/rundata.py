@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import tomllib
 from pathlib import Path
 
@@ -103,7 +104,7 @@ def load_internals(vdir: Path) -> dict | None:
 
 
 def truth_series(truth: dict) -> dict:
-    """Normalised SI arrays from the truth log (column names of docs/plant.md)."""
+    """Normalised SI arrays from the truth log (column names: plant_sim.sim.TRUTH_NAMES)."""
     out = {"t_s": _first(truth, "t_s")}
     for ch in CHANNELS:
         out[f"{ch}_rad"] = _first(truth, f"{ch}_rad")
@@ -115,29 +116,67 @@ def truth_series(truth: dict) -> dict:
         raise RunDataError(f"truth log lacks columns {missing or 'delta_*_rad'}; "
                            f"has {sorted(truth)}")
     out["delta_rad"] = np.column_stack(cols)
-    dist = [_first(truth, f"dist_{ax}_nm") for ax in ("l", "m", "n")]
+    # the true disturbance, as the angular acceleration it causes (rad/s^2)
+    dist = [_first(truth, f"dist_{ax}_rad_s2") for ax in ("p", "q", "r")]
     out["dtrue"] = np.column_stack(dist) if all(d is not None for d in dist) else None
     return out
 
 
 def internals_series(internals: dict | None) -> dict:
-    """d_hat, theta_hat and the shaped command from the fc's internals log, if present."""
-    if not internals:
-        return {"int_t_s": None, "dhat": None, "theta_hat": None, "theta_nominal": None,
-                "shaped_cmd_t_s": None, "shaped_cmd_rad": None}
-    t = _first(internals, "t_s")
-    dh = [_first(internals, f"dhat_{ax}_nm", f"d_hat_{i}") for i, ax in enumerate("lmn")]
-    th_names = sorted(k for k in internals if k.startswith("theta_hat"))
-    shaped = [_first(internals, f"{ch}_ref_rad", f"{ch}_c_filt_rad") for ch in CHANNELS]
+    """d_hat, the relative adaptive estimates and the shaped command from the fc's internals
+    log (columns of fc/app.py: ``law_`` + fc.control STATUS_NAMES), where the law was active."""
+    none = {"int_t_s": None, "dhat": None, "theta_hat": None, "theta_nominal": None,
+            "shaped_cmd_t_s": None, "shaped_cmd_rad": None}
+    if not internals or "t_s" not in internals:
+        return none
+    t = np.asarray(internals["t_s"])
+    active = np.ones(len(t), dtype=bool)
+    if "armed" in internals and "mode" in internals:
+        active = (internals["armed"] > 0.5) & np.isin(internals["mode"], (1.0, 2.0))
+    if not np.any(active):
+        return none
+    dh = [_first(internals, f"law_d_hat_{ax}_rad_s2") for ax in ("p", "q", "r")]
+    rho = [k for k in internals if k.startswith("law_rho_")]
+    shaped = [_first(internals, f"law_{ch}_ref_rad") for ch in CHANNELS]
     return {
-        "int_t_s": t,
-        "dhat": np.column_stack(dh) if all(d is not None for d in dh) else None,
-        "theta_hat": np.column_stack([internals[k] for k in th_names]) if th_names else None,
+        "int_t_s": t[active],
+        "dhat": np.column_stack(dh)[active] if all(d is not None for d in dh) else None,
+        # the law logs its estimates relative to the nominal model (1 = nominal)
+        "theta_hat": np.column_stack([internals[k] for k in rho])[active] if rho else None,
         "theta_nominal": None,
-        "shaped_cmd_t_s": t,
-        "shaped_cmd_rad": (np.column_stack(shaped) if all(s is not None for s in shaped)
-                           else None),
+        "shaped_cmd_t_s": t[active],
+        "shaped_cmd_rad": (np.column_stack(shaped)[active]
+                           if all(x is not None for x in shaped) else None),
     }
+
+
+def timeline_from_internals(internals: dict | None) -> list[dict] | None:
+    """The command timeline as the controller applied it (its ``cmd_*_rad`` columns): one
+    entry at the first row and one at every change. None if the columns are absent."""
+    if not internals or "t_s" not in internals:
+        return None
+    cols = [_first(internals, f"cmd_{ch}_rad") for ch in CHANNELS]
+    if any(c is None for c in cols) or len(internals["t_s"]) == 0:
+        return None
+    c = np.column_stack(cols)
+    t = np.asarray(internals["t_s"])
+    change = np.nonzero(np.any(np.diff(c, axis=0) != 0.0, axis=1))[0] + 1
+    out = []
+    for k in np.concatenate(([0], change)):
+        e = {"t_s": float(t[k])}
+        e.update({f"{ch}_deg": math.degrees(float(c[k, i])) for i, ch in enumerate(CHANNELS)})
+        out.append(e)
+    return out
+
+
+def late_ticks_from_log(path: Path) -> int | None:
+    """The controller's own count of late fast-loop ticks, from its exit line in fc.log."""
+    try:
+        text = Path(path).read_text(errors="replace")
+    except OSError:
+        return None
+    found = re.findall(r"late ticks (\d+)/\d+", text)
+    return int(found[-1]) if found else None
 
 
 def read_json(path: Path) -> dict:
@@ -157,7 +196,6 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     truth = truth_series(load_truth(vdir))
     commands = read_timeline(vdir / TIMELINE_FILE)
     plant = read_json(vdir / "plant_summary.json")
-    fcs = read_json(vdir / "fc_summary.json")
     t = truth["t_s"]
     entry: dict = {}
     plot = dict(truth)
@@ -175,7 +213,10 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     entry["sim_time_s"] = sim_time
     entry["wall_time_s"] = float(plant.get("wall_time_s", math.nan))
     entry["real_time_factor"] = float(plant.get("real_time_factor", math.nan))
-    entry["late_ticks"] = int(fcs.get("late_ticks", 0))
+    late = late_ticks_from_log(vdir / "fc.log")
+    entry["late_ticks"] = int(late) if late is not None else 0
+    if late is None:
+        entry["late_ticks_note"] = "fc.log has no 'late ticks' line (controller did not exit cleanly)"
     short = (requested_duration_s is not None and requested_duration_s > 0
              and sim_time < requested_duration_s - 0.01)
     entry["diverged"] = bool(metrics.is_diverged(*(truth[f"{c}_rad"] for c in CHANNELS))

@@ -264,9 +264,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                     res.fc_rc = rc
         if gcs is not None:
             if realtime:
-                rundata.write_timeline(vdir / rundata.TIMELINE_FILE, sent_timeline(gcs, commands),
-                                       header="timeline as applied by the ground station "
-                                              "(vehicle sim time of each acknowledged command)")
+                _write_applied_timeline(vdir, gcs, commands)
             _save_gcs(gcs, vdir)
             gcs.close()
     res.wall_time_total_s = time.monotonic() - t0
@@ -275,6 +273,23 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             res.error = f"fc exited with code {res.fc_rc} when stopped (see {vdir / 'fc.console.log'})"
     res.ok = res.error is None and not res.interrupted
     return res
+
+
+def _write_applied_timeline(vdir: Path, gcs, commands: list[dict]) -> None:
+    """Realtime: the timeline the metrics use is the one the controller actually applied
+    (its internals log), else the ground station's acknowledged commands."""
+    applied = None
+    try:
+        applied = rundata.timeline_from_internals(rundata.load_internals(vdir))
+    except Exception:  # a missing or truncated log: fall back to what the GCS saw
+        applied = None
+    if applied:
+        header = "timeline as applied by the controller (its cmd_* internals, sensor time)"
+    else:
+        applied = sent_timeline(gcs, commands)
+        header = ("timeline as applied by the ground station "
+                  "(vehicle sim time of each acknowledged command)")
+    rundata.write_timeline(vdir / rundata.TIMELINE_FILE, applied, header=header)
 
 
 def _say(cfg: RunConfig, text: str) -> None:
