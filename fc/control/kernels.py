@@ -301,8 +301,9 @@ def coordinated_factors(est, par, out, o):
 def coordinated_matrix(par, nm, lam, lo):
     """Eq. 45: g_Gamma = g_f_delta + diag(lambda) (normalised per CO_NORM) into nm[NM_GCO].
 
-    Returns 1.0 if the guard rejected it (near-singular or sign-flipped determinant relative
-    to g_f_delta; then g_Gamma = g_f_delta), else 0.0.
+    Returns 1.0 if the guard rejected it (then g_Gamma = g_f_delta), else 0.0. Guard (off
+    with PAPER_LITERAL, which only rejects an exactly singular matrix): det(g_Gamma) /
+    det(g_f_delta) >= CO_DET_MIN and g_Gamma_ii / g_f_delta_ii >= CO_DET_MIN for each i.
     """
     for i in range(9):
         nm[NM_GCO + i] = nm[NM_GFD + i]
@@ -322,7 +323,12 @@ def coordinated_matrix(par, nm, lam, lo):
     if par[P_PAPER_LITERAL] > 0.5:
         ok = abs(det_c) > 1e-9 * abs(det_g)
     else:
-        ok = det_c / det_g >= par[P_CO_DET_MIN]
+        # accept only if det keeps its sign and size, and no diagonal entry flips or vanishes
+        dmin = par[P_CO_DET_MIN]
+        ok = det_c / det_g >= dmin
+        for i in range(3):
+            d = 4 * i
+            ok = ok and nm[NM_GCO + d] / nm[NM_GFD + d] >= dmin
     if not ok:
         for i in range(9):
             nm[NM_GCO + i] = nm[NM_GFD + i]
@@ -411,6 +417,39 @@ def actuator_model_step(par, x, delta_cmd, dt):
 
 
 # ---------------------------------------------------------------------------------------------
+# Disturbance observer (Eq. 37, after the paper's Ref. 33)
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def dob_gain(c, dt):
+    """Discrete observer gain c_d = (1 - exp(-c dt)) / dt (-> c as dt -> 0).
+
+    With Q = c_d omega the discrete observer below is exactly a first-order filter of
+    bandwidth c on the finite-difference measurement of d, stable for any c dt.
+    """
+    return (1.0 - math.exp(-c * dt)) / dt
+
+
+@njit(cache=True, inline="always")
+def dob_estimate(x, c_d, w0, w1, w2):
+    """Eq. 37: d_hat = z + Q(omega), Q = c_d omega (rad/s^2 per axis)."""
+    return x[X_Z] + c_d * w0, x[X_Z + 1] + c_d * w1, x[X_Z + 2] + c_d * w2
+
+
+@njit(cache=True)
+def dob_update(x, c_d, dt, f0, f1, f2, w0, w1, w2):
+    """Eq. 37: z_dot = -L z - L (f + Q(omega)), L = c I, over one step of dt.
+
+    f = Xi^T theta_hat + g_f M is the modelled angular acceleration (rad/s^2) without the
+    disturbance over the step. Discretised as z+ = (1 - c_d dt) z - c_d dt (f + c_d omega),
+    which gives d_hat+ = e^(-c dt) d_hat + (1 - e^(-c dt)) ((omega+ - omega)/dt - f).
+    """
+    a = c_d * dt
+    x[X_Z] = (1.0 - a) * x[X_Z] - a * (f0 + c_d * w0)
+    x[X_Z + 1] = (1.0 - a) * x[X_Z + 1] - a * (f1 + c_d * w1)
+    x[X_Z + 2] = (1.0 - a) * x[X_Z + 2] - a * (f2 + c_d * w2)
+
+
+# ---------------------------------------------------------------------------------------------
 # Fast loop (Eqs. 34-37) + factors + allocation
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
@@ -450,12 +489,10 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
         xy += nm[NM_XI + i] * (1.0 + x[X_RHO_F + i])
 
     # Eq. 37: d_hat = z + Q(e), Q = c omega
-    c_obs = par[P_DOB_C]
+    c_d = dob_gain(par[P_DOB_C], dt)
     dob = par[P_DOB_ENABLE] > 0.5
     if dob:
-        dp = x[X_Z] + c_obs * p
-        dq = x[X_Z + 1] + c_obs * q
-        dr = x[X_Z + 2] + c_obs * r
+        dp, dq, dr = dob_estimate(x, c_d, p, q, r)
     else:
         dp = 0.0
         dq = 0.0
@@ -500,12 +537,7 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
         m1 = mc1
         m2 = mc2
     if dob:
-        # z_dot = -c z - c (Xi^T theta_hat + g_f M + c omega), integrated exactly over dt
-        # for constant input (stable for any c dt)
-        ed = math.exp(-c_obs * dt)
-        x[X_Z] = ed * x[X_Z] - (1.0 - ed) * (xr + m0 / ixx + c_obs * p)
-        x[X_Z + 1] = ed * x[X_Z + 1] - (1.0 - ed) * (xp + m1 / iyy + c_obs * q)
-        x[X_Z + 2] = ed * x[X_Z + 2] - (1.0 - ed) * (xy + m2 / izz + c_obs * r)
+        dob_update(x, c_d, dt, xr + m0 / ixx, xp + m1 / iyy, xy + m2 / izz, p, q, r)
 
     # Eq. 36: rho_omega_dot = Gamma2 (Xi e2 - lambda_omega rho), projected onto the box
     freeze = (par[P_SLW_AW] > 0.5 and not literal) and (sat > 0.5 or x[X_LIM] > 0.5)

@@ -134,8 +134,9 @@ LAW_PARAMS: tuple[Param, ...] = (
        "condition as |Cl_delta_r / Cl_delta_a| (rolling-moment effectiveness ratio, clipped to "
        "[0.01, 1])."),
     _p("CO_DET_MIN", 0.2, 0, 1, "-", "CO",
-       "Guard: the coordinated matrix is used only if det(g_Gamma)/det(g_f_delta) >= CO_DET_MIN "
-       "(not near-singular, no sign flip); otherwise g_f_delta is used and co_fallback is set."),
+       "Guard: the coordinated matrix is used only if det(g_Gamma)/det(g_f_delta) and each "
+       "g_Gamma_ii/g_f_delta_ii are >= CO_DET_MIN (not near-singular, no sign flip); "
+       "otherwise g_f_delta is used and co_fallback is set."),
     _p("SLW_K1", 4, 0, 50, "1/s", "SLW", "K1 of Eq. 27 (alpha channel integral gain of the sliding surface)."),
     _p("SLW_K2", 4, 0, 50, "1/s", "SLW", "K2 of Eq. 27 (beta channel)."),
     _p("SLW_K3", 4, 0, 50, "1/s", "SLW", "K3 of Eq. 27 (mu channel)."),
