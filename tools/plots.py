@@ -73,7 +73,7 @@ def fig_attitude(runs: dict, meta: dict, path: os.PathLike) -> Path:
             os_pct = m.get("overshoot_pct")
             extra = f" (overshoot {os_pct:.1f} %)" if os_pct is not None else ""
             ax.plot(r["t_s"], r[f"{ch}_rad"] * R2D, label=f"{variant}{extra}", **_style(variant))
-            if "shaped_cmd_rad" in r and r["shaped_cmd_rad"] is not None:
+            if meta.get("command_shaping") == "prefilter" and r.get("shaped_cmd_rad") is not None:
                 ti, sc = r["shaped_cmd_t_s"], r["shaped_cmd_rad"]
                 idx = ("alpha", "beta", "mu").index(ch)
                 ax.plot(ti, sc[:, idx] * R2D, color="0.55", linewidth=0.9,
@@ -144,7 +144,7 @@ def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
         true_drawn = False
         for variant, r in runs.items():
             if r.get("dhat") is not None:
-                ax.plot(r["int_t_s"], r["dhat"][:, i] * R2D, label=f"estimate d_hat ({variant})",
+                ax.plot(r["int_t_s"], r["dhat"][:, i] * R2D, label=f"d_hat ({variant}): disturbance + model error",
                         **_style(variant))
             if r.get("dtrue") is not None and not true_drawn:
                 ax.plot(r["t_s"], r["dtrue"][:, i] * R2D, color="black", linewidth=1.0,

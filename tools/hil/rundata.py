@@ -141,8 +141,8 @@ def internals_series(internals: dict | None) -> dict:
     return {
         "int_t_s": t[active],
         "dhat": np.column_stack(dh)[active] if all(d is not None for d in dh) else None,
-        # the law logs its estimates relative to the nominal model (1 = nominal)
-        "theta_hat": np.column_stack([internals[k] for k in rho])[active] if rho else None,
+        # the law logs rho with theta_hat = theta_nominal (1 + rho): plot theta_hat / nominal
+        "theta_hat": (1.0 + np.column_stack([internals[k] for k in rho])[active]) if rho else None,
         "theta_nominal": None,
         "shaped_cmd_t_s": t[active],
         "shaped_cmd_rad": (np.column_stack(shaped)[active]
@@ -189,10 +189,26 @@ def read_json(path: Path) -> dict:
 
 
 # ---- summary ----------------------------------------------------------------------------
+def surface_limit_rad(vdir: Path, default_deg: float = 20.0) -> float:
+    """Deflection limit of the scenario flown (``[actuators] limit_deg`` of the scenario copy
+    in the variant directory or the run directory), rad."""
+    for path in (Path(vdir) / "scenario.toml", Path(vdir).parent / "scenario.toml"):
+        try:
+            with open(path, "rb") as f:
+                data = tomllib.load(f)
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        lim = data.get("actuators", {}).get("limit_deg")
+        if lim is not None:
+            return math.radians(float(lim))
+    return math.radians(default_deg)
+
+
 def variant_summary(vdir: Path, requested_duration_s: float | None = None,
-                    surface_limit_rad: float = math.radians(20.0)) -> tuple[dict, dict]:
+                    surface_limit: float | None = None) -> tuple[dict, dict]:
     """(summary entry, plot data) of one variant directory (docs/metrics.md)."""
     vdir = Path(vdir)
+    surface_limit_rad_ = surface_limit if surface_limit is not None else surface_limit_rad(vdir)
     truth = truth_series(load_truth(vdir))
     commands = read_timeline(vdir / TIMELINE_FILE)
     plant = read_json(vdir / "plant_summary.json")
@@ -206,7 +222,7 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
         entry[ch] = metrics.json_metrics(m)
         plot[f"cmd_{ch}_rad"] = cv
         plot["cmd_t_s"] = ct
-    peak, sat_s = metrics.surface_metrics(t, truth["delta_rad"], surface_limit_rad)
+    peak, sat_s = metrics.surface_metrics(t, truth["delta_rad"], surface_limit_rad_)
     entry["max_surface_deg"] = peak
     entry["saturated_s"] = sat_s
     sim_time = float(t[-1])
@@ -222,7 +238,7 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     entry["diverged"] = bool(metrics.is_diverged(*(truth[f"{c}_rad"] for c in CHANNELS))
                              or short)
     entry["plant"] = {k: plant[k] for k in plant if k not in ("wall_time_s", "real_time_factor")}
-    plot["limit_rad"] = surface_limit_rad
+    plot["limit_rad"] = surface_limit_rad_
     plot["metrics"] = entry
     plot["max_surface_deg"] = peak
     return entry, plot
