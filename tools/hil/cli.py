@@ -86,6 +86,17 @@ def _scenario_file(ref: str) -> Path:
     return cand
 
 
+def _scenario_duration(path: Path) -> float | None:
+    """The scenario's own ``duration_s`` (top level), if any."""
+    import tomllib
+    try:
+        with open(path, "rb") as f:
+            d = tomllib.load(f).get("duration_s")
+        return float(d) if d is not None else None
+    except (OSError, ValueError, TypeError):
+        return None
+
+
 def _new_run_dir(scenario: str) -> Path:
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
     base = Path("runs") / f"{stamp}_{Path(scenario).stem}"
@@ -118,12 +129,14 @@ def build_summary(run_dir: Path, meta: dict, plots: bool = True) -> tuple[dict, 
     errors = []
     for variant in meta["variants"]:
         vdir = run_dir / variant
+        status = meta.get("status", {}).get(variant)
+        # a run cut short on purpose (Ctrl-C, --duration 0) is not a divergence
+        expect_s = meta.get("expected_sim_time_s") if status in (None, "ok") else None
         try:
-            entry, pdata = rundata.variant_summary(vdir, meta.get("duration_s"))
+            entry, pdata = rundata.variant_summary(vdir, expect_s)
         except (rundata.RunDataError, OSError, ValueError, KeyError) as exc:
             errors.append(f"{variant}: {exc}")
             continue
-        status = meta.get("status", {}).get(variant)
         if status is not None:
             entry["status"] = status
         summary["runs"][variant] = entry
@@ -204,7 +217,11 @@ def cmd_run(args) -> int:
                     plant_cmd=tuple(shlex.split(args.plant_cmd or "")),
                     fc_cmd=tuple(shlex.split(args.fc_cmd or "")))
     shutil.copyfile(scen_path, run_dir / "scenario.toml")
+    expected_s = args.duration if args.duration is not None else _scenario_duration(scen_path)
+    if args.mode == "realtime" and args.duration == 0:
+        expected_s = None
     meta = {"scenario": args.scenario, "mode": args.mode, "seed": args.seed,
+            "expected_sim_time_s": expected_s,
             "variants": list(variants), "command_shaping": args.command_shaping,
             "duration_s": args.duration, "scenario_file": str(scen_path),
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

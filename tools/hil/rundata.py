@@ -234,7 +234,7 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     if late is None:
         entry["late_ticks_note"] = "fc.log has no 'late ticks' line (controller did not exit cleanly)"
     short = (requested_duration_s is not None and requested_duration_s > 0
-             and sim_time < requested_duration_s - 0.01)
+             and sim_time < requested_duration_s - 0.05)
     entry["diverged"] = bool(metrics.is_diverged(*(truth[f"{c}_rad"] for c in CHANNELS))
                              or short)
     entry["plant"] = {k: plant[k] for k in plant if k not in ("wall_time_s", "real_time_factor")}
