@@ -1,0 +1,125 @@
+"""fc/link.py: PWM mapping, the never-raising decoder, plant-link filtering (loopback UDP)."""
+from __future__ import annotations
+
+import math
+import os
+import select
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fc.link import (PWM_MAX_US, PWM_MIN_US, PlantLink, UdpEndpoint, decode_datagram,
+                     deflection_to_pwm, load_signing_key, new_codec, parse_hostport,
+                     pwm_to_deflection)
+from tests.fc_harness import ScriptedPlant, level_meas
+
+
+def test_pwm_mapping_matches_wire_md():
+    assert deflection_to_pwm(0.0) == 1500
+    assert deflection_to_pwm(math.radians(20)) == 2000
+    assert deflection_to_pwm(math.radians(-20)) == 1000
+    assert deflection_to_pwm(math.radians(0.04)) == 1501          # 1 us = 0.04 deg
+    assert deflection_to_pwm(math.radians(45)) == PWM_MAX_US       # clipped
+    assert deflection_to_pwm(math.radians(-45)) == PWM_MIN_US
+    assert deflection_to_pwm(math.nan) == 1500                     # never a garbage PWM
+    for us in (1000, 1234, 1500, 1777, 2000):
+        assert deflection_to_pwm(pwm_to_deflection(us)) == us
+
+
+def test_parse_hostport():
+    assert parse_hostport("127.0.0.1:14550") == ("127.0.0.1", 14550)
+    for bad in ("14550", "host:", "host:x", "host:70000"):
+        with pytest.raises(ValueError):
+            parse_hostport(bad)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=300))
+def test_decoder_never_raises_on_garbage(data):
+    msgs, n_bad = decode_datagram(new_codec(1), data)
+    assert isinstance(msgs, list) and n_bad >= 0
+
+
+def test_decoder_counts_corrupted_frame_and_recovers():
+    plant = ScriptedPlant(9)   # only used to build bytes
+    good = plant.frame_bytes(level_meas(1.0))
+    mav = new_codec(1)
+    bad = bytearray(good)
+    bad[20] ^= 0xFF                          # CRC now wrong in the first frame
+    msgs, n_bad = decode_datagram(mav, bytes(bad))
+    assert n_bad >= 1
+    msgs, n_bad = decode_datagram(mav, good[:-3])   # last frame (VFR_HUD) truncated
+    assert n_bad == 1 and [m.get_type() for m in msgs] == ["ATTITUDE", "AOA_SSA"]
+    msgs, n_bad = decode_datagram(mav, good)        # the parser state was reset
+    assert n_bad == 0 and [m.get_type() for m in msgs] == ["ATTITUDE", "AOA_SSA", "VFR_HUD"]
+    plant.close()
+
+
+def _wait_readable(sock, timeout=2.0):
+    r, _, _ = select.select([sock], [], [], timeout)
+    return bool(r)
+
+
+def test_plant_link_accepts_configured_sysid_then_only_that_address():
+    ep = UdpEndpoint("127.0.0.1", 0)
+    link = PlantLink(ep, plant_sysid=2)
+    port = ep.address[1]
+    meas = np.zeros(14)
+    intruder_id = ScriptedPlant(port, sysid=7)
+    intruder_id.send_frame(level_meas(0.5))
+    assert _wait_readable(ep.sock)
+    assert link.read_frame(meas) == -1 and link.counters.rejected_sysid == 1
+    plant = ScriptedPlant(port, sysid=2)
+    plant.send_frame(level_meas(1.0, alpha_deg=3.0))
+    assert _wait_readable(ep.sock)
+    assert link.read_frame(meas) == 1_000_000
+    assert meas[7] == pytest.approx(math.radians(3.0), rel=1e-6)
+    other = ScriptedPlant(port, sysid=2)            # right sysid, other address
+    other.send_frame(level_meas(1.002))
+    assert _wait_readable(ep.sock)
+    assert link.read_frame(meas) == -1 and link.counters.rejected_addr == 1
+    plant.send_raw(b"\xfd\x01\x02garbage")
+    plant.send_raw(plant.mav.attitude_encode(1004, 0, 0, 0, 0, 0, 0).pack(plant.mav))  # incomplete
+    plant.send_frame(level_meas(1.006))
+    assert _wait_readable(ep.sock)
+    got = -1
+    for _ in range(50):
+        got = link.read_frame(meas)
+        if got >= 0:
+            break
+        _wait_readable(ep.sock, 0.1)
+    assert got == 1_006_000
+    assert link.counters.rejected_bad == 1 and link.counters.rejected_incomplete == 1
+    assert link.send_servo(got, (1400, 1500, 1600))
+    ans = plant.recv_servo(2.0)
+    assert ans.time_usec == 1_006_000 and (ans.servo1_raw, ans.servo3_raw) == (1400, 1600)
+    for p in (intruder_id, plant, other):
+        p.close()
+    ep.close()
+
+
+def test_servo_stamp_wraps_modulo_2_32():
+    ep = UdpEndpoint("127.0.0.1", 0)
+    link = PlantLink(ep)
+    plant = ScriptedPlant(ep.address[1])
+    plant.send_frame(level_meas(5000.0))           # 5e9 us > 2^32
+    assert _wait_readable(ep.sock)
+    stamp = link.read_frame(np.zeros(14))
+    assert stamp == 5_000_000_000
+    link.send_servo(stamp, (1500, 1500, 1500))
+    assert plant.recv_servo(2.0).time_usec == stamp % (1 << 32)
+    plant.close()
+    ep.close()
+
+
+def test_signing_key_file_permissions(tmp_path):
+    path = tmp_path / "key"
+    path.write_text("s3cret\n")
+    os.chmod(path, 0o644)
+    with pytest.raises(PermissionError):
+        load_signing_key(str(path))
+    os.chmod(path, 0o600)
+    import hashlib
+    assert load_signing_key(str(path)) == hashlib.sha256(b"s3cret").digest()
