@@ -137,7 +137,7 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
             res.cluster_start_s = time.monotonic() - t_start
             res.nthreads = sum(cl.nthreads().values())
             _drive(cl, cfg, todo, writer, bar, res, on_case,
-                   window or max(8, 4 * max(res.nthreads, 1)))
+                   window or max(32, 8 * max(res.nthreads, 1)))
     finally:
         writer.flush()
         bar.close()
@@ -150,31 +150,31 @@ def _drive(client, cfg, todo, writer, bar, res, on_case, window) -> None:
     nonce = secrets.token_hex(4)
     pending = iter(todo)
     inflight = {}
+    # results come back with the completion notice (no extra round trip per case), in
+    # batches when several finish together
+    ac = as_completed(with_results=True, raise_errors=False)
 
-    def submit_next() -> bool:
-        i = next(pending, None)
-        if i is None:
-            return False
-        fut = client.submit(run_case, cfg, i, key=f"mc-case-{i}-{nonce}", pure=False)
-        inflight[fut.key] = i
-        ac.add(fut)
-        return True
+    def submit(n: int) -> None:
+        idx = [i for _, i in zip(range(n), pending)]
+        if not idx:
+            return
+        futs = client.map(run_case, [cfg] * len(idx), idx, pure=False,
+                          key=[f"mc-case-{i}-{nonce}" for i in idx])
+        for f, i in zip(futs, idx):
+            inflight[f.key] = i
+        ac.update(futs)
 
-    ac = as_completed()
     t0 = time.monotonic()
     bar.t0 = t0  # rate and ETA from the first submission, not from the cluster's start
     try:
-        for _ in range(window):
-            if not submit_next():
-                break
-        for fut in ac:
-            i = inflight.pop(fut.key)
-            try:
-                rows = fut.result()
-            except Exception as exc:  # the task did not return: not written, retried on resume
-                res.lost.append((i, f"{type(exc).__name__}: {exc}"))
-                bar.update(0, failures=1)
-            else:
+        submit(window)
+        for batch in ac.batches():
+            for fut, rows in batch:
+                i = inflight.pop(fut.key)
+                if fut.status != "finished":  # the task did not return: retried on resume
+                    res.lost.append((i, f"{fut.status}: {rows!r}"))
+                    bar.update(0, failures=1)
+                    continue
                 writer.add(rows)
                 nfail = sum(1 for r in rows if r["diverged"] or r["error"])
                 res.ran += 1
@@ -182,8 +182,9 @@ def _drive(client, cfg, todo, writer, bar, res, on_case, window) -> None:
                 bar.update(1, failures=nfail)
                 if on_case is not None:
                     on_case(i, rows)
-            fut.release()
-            submit_next()
+            for fut, _ in batch:
+                fut.release()
+            submit(len(batch))
     except KeyboardInterrupt:
         res.interrupted = True
         for f in list(ac.futures):
