@@ -225,7 +225,8 @@ class FlightController:
         return ok, text
 
     def arm(self, armed: bool) -> tuple[bool, str]:
-        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy)
+        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
+                                        and not self.modes.data_lost)
         self._sync_mode()
         return ok, text
 

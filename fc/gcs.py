@@ -331,7 +331,7 @@ class GcsLink:
         elif iv < 0:
             us = -1
         else:
-            us = int(iv * 1e6)
+            us = int(round(iv * 1e6))
         return self.mav.message_interval_encode(msg_id, us)
 
     def _data_stream(self, m) -> None:

@@ -213,3 +213,49 @@ class GcsClient:
 
     def close(self) -> None:
         self.conn.close()
+
+
+def pwm_to_rad(us: int) -> float:
+    """docs/wire.md section 3, plant side (defaults MIN 1000, TRIM 1500, MAX 2000, 20 deg)."""
+    us = min(max(us, 1000), 2000)
+    return math.radians(20.0) * (us - 1500) / 500.0
+
+
+class ClosedLoop:
+    """The in-process PlantSim flown by the fc over real UDP, lockstep, driven by the test.
+
+    Each ``run`` frame: measure -> sensor frame to the fc -> wait for the SERVO_OUTPUT_RAW
+    echoing the stamp -> apply it -> advance. ``on_frame`` (optional) is called after every
+    frame, so a test can look at the ground-station link meanwhile.
+    """
+
+    def __init__(self, plant_port: int, scenario: str = "paper", seed: int = 1) -> None:
+        from plant_sim.scenario import load
+        from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
+        self.sim = PlantSim(load(scenario), seed=seed)
+        self.col = {n: i for i, n in enumerate(TRUTH_NAMES)}
+        self.row = np.zeros(TRUTH_N)
+        self.meas = np.zeros(14)
+        self.cmd = np.zeros(3)
+        self.plant = ScriptedPlant(plant_port)
+        self.outputs: list[tuple[int, int, int]] = []
+
+    def truth(self, name: str) -> float:
+        return float(self.row[self.col[name]])
+
+    def run(self, n_frames: int, on_frame=None) -> None:
+        for _ in range(n_frames):
+            self.sim.measure(self.meas)
+            ans = self.plant.exchange(self.meas)
+            pwm = (ans.servo1_raw, ans.servo2_raw, ans.servo3_raw)
+            self.outputs.append(pwm)
+            for i in range(3):
+                self.cmd[i] = pwm_to_rad(pwm[i])
+            self.sim.command(self.cmd)
+            self.sim.truth_row(self.row)
+            self.sim.advance()
+            if on_frame is not None and on_frame():
+                return
+
+    def close(self) -> None:
+        self.plant.close()
