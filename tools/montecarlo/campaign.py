@@ -84,6 +84,24 @@ def prepare_dir(cfg: CampaignConfig, runs: int, out_dir: os.PathLike) -> None:
     (out / "dispersions.toml").write_text(cfg.dispersions_text)
 
 
+def check_applicable(cfg: CampaignConfig) -> None:
+    """Fail before starting anything if the dispersions cannot be applied to the scenario.
+
+    Applies case 0's values: a variable the plant's scenario has no key for, or an unknown
+    scenario, stops the campaign here with one clear message instead of one error row per case.
+    """
+    if cfg.backend == "standin":
+        return
+    from plant_sim.scenario import ScenarioError
+    from tools.montecarlo.case import case_values, dispersed_scenario
+    from tools.montecarlo.dispersions import DispersionError
+    values, _ = case_values(cfg, 0)
+    try:
+        dispersed_scenario(cfg, values)
+    except (DispersionError, ScenarioError) as exc:
+        raise CampaignError(str(exc)) from None
+
+
 @contextlib.contextmanager
 def cluster_client(workers: int | None = None, scheduler: str | None = None):
     """A distributed.Client: to ``scheduler`` if given, else to a new LocalCluster."""
@@ -119,6 +137,7 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
     disp = dispersions_of(cfg)  # validates the text before anything starts
+    check_applicable(cfg)
     prepare_dir(cfg, runs, out_dir)
     res = CampaignResult(out_dir=Path(out_dir), runs=runs)
     done = results.finished_cases(out_dir, cfg.variants)
