@@ -1,0 +1,134 @@
+"""python -m plant_sim: the winged-cone plant simulator process (docs/architecture.md s. 10).
+
+    python -m plant_sim run --scenario NAME|PATH [--mode lockstep|realtime] [--fc HOST:PORT]
+                            [--bind HOST:PORT] [--out DIR] [--duration S] [--seed N]
+                            [--sysid 2] [--fc-sysid 1] [--rerequest-timeout S] [--give-up S]
+                            [--progress-every S]
+    python -m plant_sim trim --scenario NAME|PATH
+    python -m plant_sim list
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m plant_sim",
+        description="Winged-cone hypersonic plant simulator speaking MAVLink 2 over UDP "
+                    "(docs/plant.md, docs/wire.md).")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="{run,trim,list}")
+    r = sub.add_parser("run", help="run a scenario against a flight controller",
+                       description="Run a scenario: send sensor frames to the fc, apply its "
+                                   "SERVO_OUTPUT_RAW, write truth.npz, plant.log, "
+                                   "plant_summary.json and scenario.toml into --out.")
+    r.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    r.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                   help="lockstep: wait for the answer to every frame (deterministic); "
+                        "realtime: advance with the wall clock (default: lockstep)")
+    r.add_argument("--fc", default="127.0.0.1:14560", metavar="HOST:PORT",
+                   help="where the fc listens (default 127.0.0.1:14560)")
+    r.add_argument("--bind", default="127.0.0.1:14561", metavar="HOST:PORT",
+                   help="the plant's own socket; port 0 = ephemeral (default 127.0.0.1:14561)")
+    r.add_argument("--out", default=None, metavar="DIR",
+                   help="run directory (default: a new directory under runs/)")
+    r.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="sim time to run (default: the scenario's duration_s)")
+    r.add_argument("--seed", type=int, default=None, metavar="N",
+                   help="sensor-noise seed (default: the scenario's seed)")
+    r.add_argument("--sysid", type=int, default=2, help="the plant's MAVLink system id (default 2)")
+    r.add_argument("--fc-sysid", type=int, default=1,
+                   help="system id servo frames must carry (default 1)")
+    r.add_argument("--rerequest-timeout", type=float, default=0.1, metavar="S",
+                   help="lockstep: re-send a frame not answered within S (default 0.1)")
+    r.add_argument("--give-up", type=float, default=120.0, metavar="S",
+                   help="lockstep: fail when one frame stays unanswered for S (default 120)")
+    r.add_argument("--progress-every", type=float, default=1.0, metavar="S",
+                   help="print 'PROGRESS t_s=.. rtf=..' every S wall seconds; 0 = never")
+    t = sub.add_parser("trim", help="report the trim deflections of a scenario",
+                       description="Surface deflections that balance the moments at the "
+                                   "scenario's initial state and at each commanded attitude "
+                                   "(or the best within the limits and the moment left).")
+    t.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    sub.add_parser("list", help="list the shipped scenarios")
+    return ap
+
+
+def _fail(msg: str) -> int:
+    print(f"plant_sim: error: {msg}", file=sys.stderr, flush=True)
+    return 2
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    from plant_sim.scenario import ScenarioError, list_names, load
+
+    if args.cmd == "list":
+        for n in list_names():
+            try:
+                print(f"{n:10s} {load(n).data['description']}")
+            except ScenarioError as e:
+                print(f"{n:10s} INVALID: {e}")
+        return 0
+    try:
+        sc = load(args.scenario)
+    except ScenarioError as e:
+        return _fail(str(e))
+    if args.cmd == "trim":
+        from plant_sim.trim import trim_report
+        text, ok = trim_report(sc)
+        print(text)
+        if not ok:
+            print("WARNING: not trimmable within the surface limits at every point above")
+        return 0
+
+    from plant_sim.link import parse_hostport
+    from plant_sim.process import RunConfig, _Fatal, run
+    try:
+        fc = parse_hostport(args.fc, "--fc")
+        bind = parse_hostport(args.bind, "--bind")
+    except ValueError as e:
+        return _fail(str(e))
+    duration = sc.duration_s if args.duration is None else args.duration
+    if not duration > 0:
+        return _fail("--duration must be > 0")
+    if args.rerequest_timeout <= 0:
+        return _fail("--rerequest-timeout must be > 0")
+    seed = sc.seed if args.seed is None else args.seed
+    out = Path(args.out) if args.out else Path("runs") / time.strftime(f"plant-%Y%m%d-%H%M%S-{os.getpid()}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return _fail(f"cannot create --out {out}: {e}")
+    sc.data["seed"] = seed
+    sc.data["duration_s"] = duration
+    (out / "scenario.toml").write_text(sc.to_toml())
+    log = logging.getLogger("plant_sim")
+    log.setLevel(logging.INFO)
+    fh = logging.FileHandler(out / "plant.log", mode="w")
+    fh.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    log.addHandler(fh)
+    log.info("plant_sim run: %s", " ".join(sys.argv))
+    cfg = RunConfig(mode=args.mode, fc_addr=fc, bind_addr=bind, out_dir=out, duration_s=duration,
+                    seed=seed, sysid=args.sysid, fc_sysid=args.fc_sysid,
+                    rerequest_timeout_s=args.rerequest_timeout, give_up_s=args.give_up,
+                    progress_every_s=args.progress_every)
+    try:
+        stats = run(sc, cfg, log)
+    except _Fatal as e:
+        log.error("%s", e)
+        return _fail(str(e))
+    except OSError as e:
+        log.error("%s", e)
+        return _fail(f"socket error: {e}")
+    print(f"DONE frames={stats.frames} rerequests={stats.rerequests} out={out}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

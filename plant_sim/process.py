@@ -1,0 +1,291 @@
+"""The plant process: lockstep and real-time frame loops over the MAVLink link.
+
+Lockstep (docs/wire.md section 4): for frame k at t_k the plant measures, sends the sensor
+datagram (stamp t_k in us), waits for the SERVO_OUTPUT_RAW echoing t_k mod 2^32 (re-sending
+the same datagram every ``rerequest_timeout_s`` and counting it; answers with another stamp
+are counted as stale and ignored), latches the command, logs the truth row at t_k and
+advances one frame. No wall clock enters the physics: the same seed gives bit-identical
+truth.
+
+Real time: frame k is due at wall time t0 + k T (absolute deadlines, select() waits with
+microsecond timeouts while receiving). At each deadline the plant applies the newest servo
+command it has (newest by stamp), measures, sends, logs and advances. If no command has been
+accepted for ``no_command_s`` (or none yet) it applies the scenario's ``servo.no_command``:
+``hold`` keeps the last command, ``trim`` goes to the initial-state trim; such frames are
+counted. A frame more than one period late counts as late; more than 50 periods behind, the
+schedule is re-based on the current time (counted as a resync) instead of bursting.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from plant_sim import dynamics as dy
+from plant_sim.link import PlantLink, PwmMap
+from plant_sim.scenario import Scenario
+from plant_sim.sensors import M_N
+from plant_sim.sim import PlantSim
+from plant_sim.trim import trim_report
+from plant_sim.truthlog import TruthWriter
+
+U32 = 1 << 32
+DEG = math.pi / 180.0
+
+
+@dataclass
+class RunConfig:
+    mode: str = "lockstep"
+    fc_addr: tuple = ("127.0.0.1", 14560)
+    bind_addr: tuple = ("127.0.0.1", 14561)
+    out_dir: Path = Path("runs")
+    duration_s: float = 20.0
+    seed: int = 1
+    sysid: int = 2
+    fc_sysid: int = 1
+    rerequest_timeout_s: float = 0.1
+    give_up_s: float = 120.0
+    progress_every_s: float = 1.0
+    quiet: bool = False
+
+
+@dataclass
+class RunStats:
+    frames: int = 0
+    rerequests: int = 0
+    stale_commands: int = 0
+    no_command_frames: int = 0
+    late_frames: int = 0
+    resyncs: int = 0
+    aero_clip_frames: int = 0
+    wall_time_s: float = 0.0
+    exit_reason: str = "completed"
+    extra: dict = field(default_factory=dict)
+
+
+class _Stop:
+    def __init__(self):
+        self.requested = False
+        self.signal_name = ""
+
+    def __call__(self, signum, frame):
+        self.requested = True
+        self.signal_name = signal.Signals(signum).name
+
+
+def _throttle_pct(sim: PlantSim) -> float:
+    tmax = sim.p[dy.P_TMAX]
+    if tmax <= 0.0:
+        return 0.0
+    return 100.0 * sim.x[dy.X_THRUST] / tmax
+
+
+def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
+    """Run one scenario over the link; returns the statistics (also written as JSON)."""
+    out = Path(cfg.out_dir)
+    sim = PlantSim(sc, seed=cfg.seed)
+    stats = RunStats()
+    # warm the numba kernels (cache load) before the first frame is due
+    m = np.zeros(M_N)
+    row0 = np.zeros(sim.TRUTH_N)
+    sim.measure(m)
+    sim.truth_row(row0)
+    sim.step_frame(sim.trim_rad.copy())
+    sim.reset()
+
+    text, ok = trim_report(sc)
+    for line in text.splitlines():
+        log.info("trim: %s", line)
+    if not ok:
+        msg = (f"WARNING: scenario {sc.name} cannot be trimmed within the surface limits "
+               f"(python -m plant_sim trim --scenario {sc.name})")
+        print(msg, file=sys.stderr, flush=True)
+        log.warning(msg)
+    stats.extra["trim_ok"] = bool(ok)
+
+    sv = sc.data["servo"]
+    pwm = PwmMap(sv["pwm_min_us"], sv["pwm_trim_us"], sv["pwm_max_us"], sim.p[dy.P_ACT_LIMIT])
+    link = PlantLink(cfg.fc_addr, cfg.bind_addr, pwm, sysid=cfg.sysid, fc_sysid=cfg.fc_sysid)
+    link.cmd_rad[:] = list(sim.trim_rad)
+    log.info("link: plant %s:%d -> fc %s:%d (sysid %d, fc sysid %d), mode %s",
+             link.local_addr[0], link.local_addr[1], link.fc_addr[0], link.fc_addr[1],
+             cfg.sysid, cfg.fc_sysid, cfg.mode)
+    writer = TruthWriter(out, sim.TRUTH_NAMES)
+    stop = _Stop()
+    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    n_frames = int(round(cfg.duration_s / sim.frame_dt_s))
+    t_wall0 = time.perf_counter()
+    try:
+        if cfg.mode == "lockstep":
+            _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log)
+        else:
+            _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
+        # the final state, measured but not sent
+        if stats.exit_reason == "completed":
+            meas = np.zeros(M_N)
+            sim.measure(meas)
+            sim.truth_row(writer.row())
+    finally:
+        stats.wall_time_s = time.perf_counter() - t_wall0
+        for s, h in old.items():
+            signal.signal(s, h)
+        writer.close()
+        link.close()
+        if stop.requested and stats.exit_reason == "completed":
+            stats.exit_reason = f"stopped by {stop.signal_name}"
+        stats.aero_clip_frames = sim.clip_frames
+        summary = {
+            "scenario": sc.name,
+            "mode": cfg.mode,
+            "seed": cfg.seed,
+            "sim_time_s": sim.t_s,
+            "wall_time_s": stats.wall_time_s,
+            "real_time_factor": sim.t_s / stats.wall_time_s if stats.wall_time_s > 0 else 0.0,
+            "frames": stats.frames,
+            "frame_hz": 1.0 / sim.frame_dt_s,
+            "physics_hz": 1.0 / sim.physics_dt_s,
+            "rerequests": stats.rerequests,
+            "stale_commands": stats.stale_commands,
+            "no_command_frames": stats.no_command_frames,
+            "late_frames": stats.late_frames,
+            "resyncs": stats.resyncs,
+            "aero_clip_frames": stats.aero_clip_frames,
+            "truth_rows": writer.rows,
+            "exit_reason": stats.exit_reason,
+            **stats.extra,
+            **link.counters(),
+        }
+        (out / "plant_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        log.info("summary: %s", json.dumps(summary))
+    return stats
+
+
+def _progress(cfg, sim, t_wall0, now):
+    el = now - t_wall0
+    rtf = sim.t_s / el if el > 0 else 0.0
+    print(f"PROGRESS t_s={sim.t_s:.3f} rtf={rtf:.1f}", flush=True)
+
+
+def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
+    meas = np.zeros(M_N)
+    cmd = np.zeros(3)
+    frame_dt = sim.frame_dt_s
+    timeout = cfg.rerequest_timeout_s
+    perf = time.perf_counter
+    t_wall0 = perf()
+    next_progress = t_wall0 + cfg.progress_every_s
+    for k in range(n_frames):
+        sim.measure(meas)
+        stamp = int(round(k * frame_dt * 1e6))
+        want = stamp % U32
+        link.build_sensors(stamp, meas, _throttle_pct(sim))
+        link.send_sensors()
+        t_sent = perf()
+        t_first = t_sent
+        while True:
+            acc, match = link.poll_for(want)
+            if match:
+                stats.stale_commands += acc - 1
+                break
+            stats.stale_commands += acc
+            if stop.requested:
+                stats.exit_reason = f"stopped by {stop.signal_name}"
+                return
+            now = perf()
+            rem = t_sent + timeout - now
+            if rem <= 0.0:
+                if now - t_first > cfg.give_up_s:
+                    stats.exit_reason = (f"no SERVO_OUTPUT_RAW answering frame {k} "
+                                         f"(t={k * frame_dt:.3f} s) for {cfg.give_up_s} s")
+                    raise _Fatal(stats.exit_reason)
+                link.send_sensors()
+                stats.rerequests += 1
+                t_sent = now
+                continue
+            link.wait_readable(rem)
+        c = link.cmd_rad
+        cmd[0] = c[0]
+        cmd[1] = c[1]
+        cmd[2] = c[2]
+        sim.command(cmd)
+        sim.truth_row(writer.row())
+        sim.advance()
+        stats.frames += 1
+        if cfg.progress_every_s > 0:
+            now = perf()
+            if now >= next_progress:
+                _progress(cfg, sim, t_wall0, now)
+                next_progress = now + cfg.progress_every_s
+
+
+def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
+    meas = np.zeros(M_N)
+    cmd = np.zeros(3)
+    frame_dt = sim.frame_dt_s
+    perf = time.perf_counter
+    sv = sc.data["servo"]
+    no_cmd_s = sv["no_command_s"]
+    to_trim = sv["no_command"] == "trim"
+    trim = sim.trim_rad.copy()
+    t0 = perf()
+    next_progress = t0 + cfg.progress_every_s
+    last_cmd_wall = -math.inf
+    last_count = 0
+    k = 0
+    base_k = 0
+    while k < n_frames:
+        if stop.requested:
+            stats.exit_reason = f"stopped by {stop.signal_name}"
+            return
+        deadline = t0 + (k - base_k) * frame_dt
+        while True:
+            link.poll_latest()
+            now = perf()
+            rem = deadline - now
+            if rem <= 0.0:
+                break
+            link.wait_readable(rem)
+        if link.cmd_count != last_count:
+            last_count = link.cmd_count
+            last_cmd_wall = now
+        late = now - deadline
+        if late > frame_dt:
+            stats.late_frames += 1
+            if late > 50 * frame_dt:
+                t0 = now
+                base_k = k
+                stats.resyncs += 1
+        if now - last_cmd_wall > no_cmd_s:
+            stats.no_command_frames += 1
+            if to_trim:
+                cmd[:] = trim
+            else:
+                cmd[:] = sim.x[dy.X_CMD_L:dy.X_CMD_L + 3]
+        else:
+            c = link.cmd_rad
+            cmd[0] = c[0]
+            cmd[1] = c[1]
+            cmd[2] = c[2]
+        sim.measure(meas)
+        stamp = int(round(k * frame_dt * 1e6))
+        link.build_sensors(stamp, meas, _throttle_pct(sim))
+        link.send_sensors()
+        sim.command(cmd)
+        sim.truth_row(writer.row())
+        sim.advance()
+        stats.frames += 1
+        k += 1
+        if cfg.progress_every_s > 0 and now >= next_progress:
+            _progress(cfg, sim, t0, now)
+            next_progress = now + cfg.progress_every_s
+
+
+class _Fatal(RuntimeError):
+    """A run cannot complete (message is the one-line reason)."""

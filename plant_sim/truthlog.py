@@ -1,0 +1,87 @@
+"""Plant truth log: full-rate rows of PlantSim.TRUTH_NAMES.
+
+While running, rows go to ``truth.raw`` (little-endian float64, row-major, no header) in
+blocks of ``block_rows`` rows, flushed to the OS after each block, with the column names in
+``truth.raw.json`` written first: a crash loses at most one block. ``close()`` converts the raw
+file to ``truth.npz`` (one float64 array per column, keyed by column name) and removes the raw
+pair. ``load(path)`` reads a run directory, a ``truth.npz`` or a left-over ``truth.raw``.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+
+class TruthWriter:
+    """Block-buffered, crash-safe writer. ``row()`` returns the next row buffer to fill."""
+
+    def __init__(self, out_dir: str | os.PathLike, names, block_rows: int = 500):
+        self.dir = Path(out_dir)
+        self.names = tuple(names)
+        self.n = len(self.names)
+        self.raw_path = self.dir / "truth.raw"
+        self.meta_path = self.dir / "truth.raw.json"
+        self.npz_path = self.dir / "truth.npz"
+        self.meta_path.write_text(json.dumps({"columns": list(self.names), "dtype": "<f8"}))
+        self._f = open(self.raw_path, "wb")
+        self.block = np.zeros((block_rows, self.n))
+        self.block_rows = block_rows
+        self.fill = 0
+        self.rows = 0
+
+    def row(self) -> np.ndarray:
+        """The buffer for the next row (fill it completely); flushes full blocks."""
+        if self.fill == self.block_rows:
+            self.flush()
+        r = self.block[self.fill]
+        self.fill += 1
+        self.rows += 1
+        return r
+
+    def flush(self) -> None:
+        if self.fill:
+            self._f.write(self.block[:self.fill].astype("<f8", copy=False).tobytes())
+            self._f.flush()
+            self.fill = 0
+
+    def close(self) -> Path:
+        """Flush, write truth.npz, remove the raw pair; returns the npz path."""
+        self.flush()
+        self._f.close()
+        data = _read_raw(self.raw_path, self.names)
+        tmp = self.dir / "truth.tmp.npz"
+        np.savez(tmp, **data)
+        os.replace(tmp, self.npz_path)
+        self.raw_path.unlink(missing_ok=True)
+        self.meta_path.unlink(missing_ok=True)
+        return self.npz_path
+
+
+def _read_raw(raw: Path, names) -> dict[str, np.ndarray]:
+    flat = np.fromfile(raw, dtype="<f8")
+    n = len(names)
+    rows = flat.size // n
+    arr = flat[:rows * n].reshape(rows, n)
+    return {name: np.ascontiguousarray(arr[:, i]) for i, name in enumerate(names)}
+
+
+def load(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Truth log as {column name: float64 array}; ``path``: run dir, truth.npz or truth.raw."""
+    p = Path(path)
+    if p.is_dir():
+        if (p / "truth.npz").is_file():
+            p = p / "truth.npz"
+        elif (p / "truth.raw").is_file():
+            p = p / "truth.raw"
+        else:
+            raise FileNotFoundError(f"no truth.npz or truth.raw in {p}")
+    if p.suffix == ".npz":
+        with np.load(p) as z:
+            return {k: z[k] for k in z.files}
+    if p.suffix == ".raw":
+        meta = json.loads((p.parent / (p.name + ".json")).read_text())
+        return _read_raw(p, meta["columns"])
+    raise ValueError(f"not a truth log: {p}")
