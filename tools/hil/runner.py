@@ -19,6 +19,8 @@ FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}
 CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
 #: first start of numba-compiled processes on a loaded 2-core machine can be slow
 READY_TIMEOUT_S = 180.0
+#: the controller's data-loss failsafe timeout in lockstep runs (s; see write_params)
+LOCKSTEP_FS_TIMEOUT_S = 30.0
 #: lockstep duration used for "--duration 0" in realtime (until Ctrl-C)
 FOREVER_S = 1.0e7
 
@@ -78,6 +80,12 @@ def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
         values.update(ParamTable.read_file(str(cfg.params_file)))
         lines.append(f"# from {cfg.params_file}")
     values.update(shaping_params(cfg.command_shaping))
+    if cfg.mode == "lockstep":
+        # In lockstep the plant waits for the controller and may itself pause (JIT compile,
+        # a loaded CPU); a pause of the sim is not a loss of plant data. The controller's
+        # wall-clock data-loss failsafe would otherwise fire mid-run and make the run depend
+        # on the machine's load (docs/hil.md). 30 s is the parameter's maximum.
+        values.setdefault("FS_TIMEOUT_S", LOCKSTEP_FS_TIMEOUT_S)
     lines += [f"{k:<16s} {v:.9g}" for k, v in values.items()]
     Path(path).write_text("\n".join(lines) + "\n")
     return values
