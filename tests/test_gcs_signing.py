@@ -1,0 +1,82 @@
+"""HIL tier: MAVLink 2 signing on the ground-station link (--signing-key-file)."""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+
+import pytest
+
+from tests.fc_harness import REPO, FcProcess, GcsClient, free_udp_port, mavlink as ML
+
+pytestmark = pytest.mark.hil
+
+PASSPHRASE = b"correct horse battery staple"
+
+
+@pytest.fixture()
+def signed_fc(tmp_path):
+    key_file = tmp_path / "gcs.key"
+    key_file.write_bytes(PASSPHRASE + b"\n")
+    os.chmod(key_file, 0o600)
+    gcs_port = free_udp_port()
+    out = str(tmp_path / "run")
+    with FcProcess(out, "--signing-key-file", str(key_file), gcs_ports=(gcs_port,)) as fc:
+        gcs = GcsClient(gcs_port)
+        try:
+            assert gcs.wait("HEARTBEAT", 10) is not None
+            yield fc, gcs
+        finally:
+            gcs.close()
+
+
+def _read(gcs, name):
+    gcs.conn.mav.param_request_read_send(1, 1, name.encode(), -1)
+    return gcs.wait("PARAM_VALUE", 5, lambda m: m.param_id == name)
+
+
+def test_unsigned_writes_are_rejected_and_counted_signed_accepted(signed_fc):
+    fc, gcs = signed_fc
+    # read-only requests work unsigned
+    assert _read(gcs, "TRIM_RUD_DEG").param_value == 0.0
+    # unsigned PARAM_SET: no effect
+    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 3.0, ML.MAV_PARAM_TYPE_REAL32)
+    assert gcs.wait("PARAM_VALUE", 1.5, lambda m: m.param_id == "TRIM_RUD_DEG") is None
+    assert _read(gcs, "TRIM_RUD_DEG").param_value == 0.0
+    # unsigned commands (arm, mode) get no ACK and change nothing
+    gcs.conn.mav.command_long_send(1, 1, ML.MAV_CMD_DO_SET_MODE, 0, 1, 1, 0, 0, 0, 0, 0)
+    assert gcs.wait("COMMAND_ACK", 1.5) is None
+    gcs.conn.mav.set_mode_send(1, 1, 2)
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_SIGN" and m.value >= 3)
+    assert rej is not None, "rejected unsigned input must be visible in telemetry"
+    assert gcs.wait("HEARTBEAT", 3).custom_mode == 0
+    # a wrong key is as bad as none
+    gcs.conn.setup_signing(hashlib.sha256(b"wrong").digest(), sign_outgoing=True)
+    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 4.0, ML.MAV_PARAM_TYPE_REAL32)
+    assert gcs.wait("PARAM_VALUE", 1.5, lambda m: m.param_id == "TRIM_RUD_DEG") is None
+    # the right key: accepted
+    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
+    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 3.0, ML.MAV_PARAM_TYPE_REAL32)
+    reply = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_id == "TRIM_RUD_DEG")
+    assert reply is not None and reply.param_value == 3.0
+    assert gcs.command(ML.MAV_CMD_DO_SET_MODE, 1, 2).result == ML.MAV_RESULT_ACCEPTED
+    # outgoing frames are signed
+    hb = gcs.wait("HEARTBEAT", 3)
+    assert hb.get_signed()
+    assert fc.stop() == 0
+    with open(os.path.join(fc.out, "fc.log")) as f:
+        log = f.read()
+    assert PASSPHRASE.decode() not in log and hashlib.sha256(PASSPHRASE).hexdigest() not in log
+
+
+def test_key_file_readable_by_others_is_refused(tmp_path):
+    key_file = tmp_path / "gcs.key"
+    key_file.write_bytes(PASSPHRASE)
+    os.chmod(key_file, 0o644)
+    res = subprocess.run([sys.executable, "-m", "fc", "--out", str(tmp_path / "run"),
+                          "--plant-bind", "127.0.0.1:0", "--gcs-bind", "127.0.0.1:0",
+                          "--signing-key-file", str(key_file)],
+                         cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert res.returncode != 0 and "READY" not in res.stdout
+    assert "chmod 600" in res.stderr
