@@ -1,0 +1,64 @@
+"""HIL tier: stock MAVProxy, headless, against the fc (shared docs mavlink.md section 5).
+
+MAVProxy finds the vehicle, downloads every parameter, sets one, sends the documented
+attitude COMMAND_LONG (``long USER_1 ...``), saves the parameters to a file and loads a file.
+Its exit code is always 1, so the output is checked instead.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+
+import pytest
+
+from fc.params import ParamTable, build_table
+from tests.fc_harness import FcProcess, free_udp_port
+
+pytestmark = pytest.mark.hil
+
+
+def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
+    exe = shutil.which("mavproxy.py")
+    if exe is None:
+        pytest.skip("MAVProxy is not installed (pip install -e .[test])")
+    n_params = len(build_table())
+    saved = tmp_path / "saved.parm"
+    to_load = tmp_path / "load.parm"
+    to_load.write_text("TRIM_RUD_DEG 1.5\n")
+    gcs_port = free_udp_port()
+    steps = "; ".join([
+        "set param_ftp 0", "set requireexit 1",
+        "repeat add 2 param set FS_TIMEOUT_S 2.5",
+        "repeat add 3 param fetch FS_TIMEOUT_S",
+        "repeat add 3 long USER_1 5 0 4",
+        f"repeat add 3 param save {saved}",
+        f"repeat add 3 param load {to_load}",
+        "repeat add 5 exit",
+    ])
+    with FcProcess(str(tmp_path / "run"), gcs_ports=(gcs_port,)) as fc:
+        res = subprocess.run(
+            [exe, f"--master=udpin:127.0.0.1:{gcs_port}", "--non-interactive", "--no-state",
+             "--default-modules=link,param,misc,cmdlong", f"--cmd={steps}"],
+            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+            cwd=str(tmp_path))
+        out = res.stdout
+        # MAVProxy ran its last step 2 s before exiting: everything reached the fc by now
+        assert fc.stop() == 0
+    log_path = os.path.join(fc.out, "fc.log")
+    assert "Detected vehicle 1:1" in out, out
+    assert f"Received {n_params} parameters" in out, out
+    assert "FS_TIMEOUT_S = 2.5" in out, out
+    assert "USER_1: ACCEPTED" in out, out
+    with open(log_path) as f:
+        log = f.read()
+    assert "param TRIM_RUD_DEG = 1.5" in log, "MAVProxy param load did not reach the fc"
+    assert "param CMD_ALPHA_DEG = 5" in log and "param CMD_MU_DEG = 4" in log
+    # MAVProxy's saved file is a complete parameter file our table reads back
+    values = ParamTable.read_file(str(saved))
+    assert set(values) == set(build_table().names)
+    assert values["FS_TIMEOUT_S"] == pytest.approx(2.5)
+    # and the fc persisted the set it received
+    persisted = ParamTable.read_file(os.path.join(fc.out, "params.parm"))
+    assert persisted["FS_TIMEOUT_S"] == pytest.approx(2.5)
+    assert persisted["TRIM_RUD_DEG"] == pytest.approx(1.5)
