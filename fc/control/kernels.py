@@ -30,10 +30,10 @@ from fc.control.layout import (
     NM_E, NM_G, NM_GCO, NM_GFD, NM_MACH, NM_PSI, NM_QBAR, NM_XI,
     S_ALLOC_SCALE, S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E1, S_E2,
     S_E_COUP, S_FROZEN, S_LAMBDA, S_M_C, S_M_UNALLOC, S_MACH, S_OMC_LIM, S_OMEGA_C,
-    S_OMEGA_CF, S_OMEGA_REF, S_QBAR, S_RHO_F, S_RHO_S, S_SAT, S_SAT_ANY, S_SIGMA,
+    S_OMEGA_CF, S_OMEGA_REF, S_QBAR, S_RHO_F, S_RHO_S, S_SAT, S_SAT_ANY, S_SIGMA, S_XI,
     TH_F_N, TH_F_PITCH, TH_F_YAW, TH_S_N,
     X_CF, X_CF_DOT, X_DCMD, X_DM, X_INT_E1, X_LIM, X_OMC, X_PF, X_PF_DOT, X_RHO_F,
-    X_RHO_S, X_SAT, X_SIGMA, X_Z,
+    X_RHO_S, X_SAT, X_SIGMA, X_XI, X_Z,
 )
 from fc.control.nominal import B_REF_M, C_REF_M, S_REF_M2, V_MIN_M_S, COS_MIN, eval_model
 from fc.control.params import (
@@ -42,8 +42,14 @@ from fc.control.params import (
     P_DOB_C, P_DOB_ENABLE, P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK,
     P_FST_TH_BND, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN,
     P_REF_PF_ZETA, P_SLW_AW, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX,
-    P_SLW_TH_BND,
+    P_SLW_TH_BND, P_SLW_CFB,
 )
+
+from fc.control import layout as _layout, nominal as _nominal, params as _params
+from fc.control.numba_cache import drop_stale
+
+# this module's kernels freeze the constants of layout/params and inline nominal's functions
+drop_stale(__file__, [_layout.__file__, _params.__file__, _nominal.__file__])
 
 PI = math.pi
 
@@ -110,6 +116,18 @@ def gs_inv_apply(alpha, beta, v0, v1, v2, out, o):
     out[o] = sa * v1 + ca * cb * v2
     out[o + 1] = v0 + sb * v2
     out[o + 2] = -ca * v1 + sa * cb * v2
+
+
+@njit(cache=True)
+def gs_apply(alpha, beta, w0, w1, w2, out, o):
+    """out[o:o+3] = g_s w (Eq. 3)."""
+    sa = math.sin(alpha)
+    ca = math.cos(alpha)
+    cb = max(math.cos(beta), COS_MIN)
+    tb = math.sin(beta) / cb
+    out[o] = -ca * tb * w0 + w1 - sa * tb * w2
+    out[o + 1] = sa * w0 - ca * w2
+    out[o + 2] = (ca * w0 + sa * w2) / cb
 
 
 @njit(cache=True)
@@ -180,9 +198,6 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     sa_ = e1a + k1 * x[X_INT_E1]
     sb_ = e1b + k2 * x[X_INT_E1 + 1]
     sm_ = e1m + k3 * x[X_INT_E1 + 2]
-    x[X_SIGMA] = sa_
-    x[X_SIGMA + 1] = sb_
-    x[X_SIGMA + 2] = sm_
 
     # Eq. 26: f1
     g = nm[NM_G]
@@ -208,15 +223,47 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     # limit on omega_c (deviation, SLW_OMC_MAX): scale the vector, keep its direction
     lim = par[P_SLW_OMC_MAX]
     limited = 0.0
+    s = 1.0
     if lim > 0.0 and not literal:
         big = max(abs(x[X_OMC]), max(abs(x[X_OMC + 1]), abs(x[X_OMC + 2])))
         if big > lim:
             s = lim / big
-            x[X_OMC] *= s
-            x[X_OMC + 1] *= s
-            x[X_OMC + 2] *= s
             limited = 1.0
+    # command-filtered backstepping compensation (deviation, SLW_CFB):
+    # sigma_bar = sigma - xi, xi_dot = -kappa1 xi + g_s (omega_c_lim - omega_c)
+    cfb = par[P_SLW_CFB] > 0.5 and not literal
+    if cfb:
+        sa_b = sa_ - x[X_XI]
+        sb_b = sb_ - x[X_XI + 1]
+        sm_b = sm_ - x[X_XI + 2]
+    else:
+        sa_b = sa_
+        sb_b = sb_
+        sm_b = sm_
+    if cfb:
+        dp_ = (s - 1.0) * x[X_OMC]
+        dq_ = (s - 1.0) * x[X_OMC + 1]
+        dr_ = (s - 1.0) * x[X_OMC + 2]
+        gs_apply(alpha, beta, dp_, dq_, dr_, st, S_XI)
+        if kap > 0.0:
+            ek = math.exp(-kap * dt)
+            gk = (1.0 - ek) / kap
+        else:
+            ek = 1.0
+            gk = dt
+        for i in range(3):
+            x[X_XI + i] = ek * x[X_XI + i] + gk * st[S_XI + i]
+    else:
+        for i in range(3):
+            x[X_XI + i] = 0.0
+    if limited > 0.5:
+        x[X_OMC] *= s
+        x[X_OMC + 1] *= s
+        x[X_OMC + 2] *= s
     x[X_LIM] = limited
+    x[X_SIGMA] = sa_b
+    x[X_SIGMA + 1] = sb_b
+    x[X_SIGMA + 2] = sm_b
 
     # Eq. 30: rho_Omega_dot = Gamma1 (Psi sigma - lambda_Omega rho), projected onto the box
     freeze = freeze or ((par[P_SLW_AW] > 0.5 and not literal) and limited > 0.5)
@@ -224,10 +271,8 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     if gam1 > 0.0 and not freeze:
         leak = par[P_SLW_LEAK]
         bnd = par[P_SLW_TH_BND]
-        sig_row0 = sa_
-        sig_row1 = sb_
         for i in range(TH_S_N):
-            srow = sig_row0 if i == 0 else (sig_row1 if i == 1 else sm_)
+            srow = sa_b if i == 0 else (sb_b if i == 1 else sm_b)
             r = x[X_RHO_S + i] + dt * gam1 * (nm[NM_PSI + i] * srow - leak * x[X_RHO_S + i])
             x[X_RHO_S + i] = clip(r, -bnd, bnd)
 
@@ -241,6 +286,8 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     for i in range(3):
         st[S_OMEGA_C + i] = x[X_OMC + i]
         st[S_OMEGA_REF + i] = x[X_PF + i]
+    for i in range(3):
+        st[S_XI + i] = x[X_XI + i]
     st[S_OMC_LIM] = limited
     st[S_FROZEN] = 1.0 if freeze else 0.0
     for i in range(TH_S_N):

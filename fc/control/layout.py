@@ -123,7 +123,7 @@ X_SIGMA = 45         # last sliding variable sigma (rad), 3
 X_SAT = 48           # 1 if a surface saturated in the last fast step
 X_LIM = 49           # 1 if omega_c was limited in the last slow step
 X_DCMD = 50          # last surface command (rad), 3
-X_OMC_DOT = 53       # reserved
+X_XI = 53            # command-filter compensation xi of sigma (rad), 3
 X_N = 56
 
 # --- Status record (st array) ------------------------------------------------------------------
@@ -150,7 +150,8 @@ S_MACH = 45
 S_QBAR = 46
 S_RHO_S = 47         # 4 relative estimates of theta_Omega
 S_RHO_F = 51         # 17 relative estimates of theta_omega
-S_N = 68
+S_XI = 68            # 3 compensation xi: sigma_bar = sigma - xi (rad)
+S_N = 71
 
 STATUS_NAMES = (
     "sigma_alpha_rad", "sigma_beta_rad", "sigma_mu_rad",
@@ -175,6 +176,7 @@ STATUS_NAMES = (
     "rho_pitch_CL",
     "rho_yaw_Ixx_Iyy", "rho_yaw_Izzdot", "rho_yaw_Cnb", "rho_yaw_Cnp", "rho_yaw_Cnr",
     "rho_yaw_CYb",
+    "xi_alpha_rad", "xi_beta_rad", "xi_mu_rad",
 )
 
 assert len(STATUS_NAMES) == S_N, (len(STATUS_NAMES), S_N)

@@ -89,7 +89,8 @@ P_MDL_IXX = 44
 P_MDL_IYY = 45
 P_MDL_IZZ = 46
 P_MDL_XCG = 47
-P_N = 48
+P_SLW_CFB = 48
+P_N = 49
 
 LAW_PARAMS: tuple[Param, ...] = (
     _p("PAPER_LITERAL", 0, 0, 1, "-", "LAW",
@@ -124,7 +125,7 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("CO_LAM_MAX", 0.5, 0, 10, "-", "CO",
        "Clamp |lambda_i| <= CO_LAM_MAX (0 = no clamp). With CO_NORM 0 a value < 1 keeps the sign "
        "of every diagonal entry."),
-    _p("CO_SURF", 1, 0, 2, "-", "CO",
+    _p("CO_SURF", 0, 0, 2, "-", "CO",
        "Surface coordination, Eq. 47 with E of Eq. 15: 0 = off; 1 = aileron-rudder interconnect "
        "delta_a_out = delta_a + E delta_r (after the inverse); 2 = literal delta_a = E delta_r. "
        "(A moment-preserving interconnect is identical to 0 with a full 3x3 inverse.)",
@@ -148,7 +149,7 @@ LAW_PARAMS: tuple[Param, ...] = (
        "lambda_Omega of Eq. 30: leakage of theta_hat_Omega toward the nominal model."),
     _p("SLW_TH_BND", 0.5, 0, 5, "-", "SLW",
        "Projection bound of Eq. 30: |theta_hat_i / theta_nom_i - 1| <= SLW_TH_BND."),
-    _p("SLW_OMC_MAX", 10, 0, 180, "deg/s", "SLW",
+    _p("SLW_OMC_MAX", 5, 0, 180, "deg/s", "SLW",
        "Limit on each component of the virtual rate command omega_c (Eq. 29), applied by scaling "
        "the vector (direction kept). 0 = no limit.", si_scale=DEG),
     _p("SLW_AW", 1, 0, 1, "-", "SLW",
@@ -174,9 +175,9 @@ LAW_PARAMS: tuple[Param, ...] = (
        "0 = feed M_c as printed in Eq. 37.", integer=True),
     _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
        "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
-    _p("ACT_RATE", 60, 1, 1000, "deg/s", "ACT",
+    _p("ACT_RATE", 90, 1, 1000, "deg/s", "ACT",
        "Surface rate limit of the controller's actuator model (observer input only).", si_scale=DEG),
-    _p("ACT_TAU", 0.03, 0, 1, "s", "ACT",
+    _p("ACT_TAU", 0.02, 0, 1, "s", "ACT",
        "First-order lag of the controller's actuator model (0 = none)."),
     _p("ALLOC_MODE", 1, 0, 1, "-", "ACT",
        "Saturation of the allocation (Eq. 46): 0 = clip each surface (printed paper); "
@@ -192,6 +193,10 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("MDL_IZZ", 1.36e7, 1e3, 1e9, "kg m^2", "MDL", "Izz of the nominal model (Eq. 4)."),
     _p("MDL_XCG", 0, -10, 10, "m", "MDL",
        "X_cg of Eq. 6: MRC -> c.g., positive aft, of the nominal model."),
+    _p("SLW_CFB", 1, 0, 1, "-", "SLW",
+       "1 = command-filtered backstepping compensation: xi_dot = -kappa1 xi + g_s (omega_c_lim "
+       "- omega_c), and sigma_bar = sigma - xi replaces sigma in Eq. 30 and in the g_s^T sigma "
+       "term of Eq. 35, so the omega_c limit does not feed back through them.", integer=True),
 )
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
@@ -209,7 +214,7 @@ _EXPECTED = {"PAPER_LITERAL": P_PAPER_LITERAL, "CO_ENABLE": P_CO_ENABLE, "CO_FAC
              "ACT_TAU": P_ACT_TAU, "ALLOC_MODE": P_ALLOC_MODE, "REF_PF_EN": P_REF_PF_EN,
              "REF_PF_WN": P_REF_PF_WN, "REF_PF_ZETA": P_REF_PF_ZETA, "MDL_MASS": P_MDL_MASS,
              "MDL_IXX": P_MDL_IXX, "MDL_IYY": P_MDL_IYY, "MDL_IZZ": P_MDL_IZZ,
-             "MDL_XCG": P_MDL_XCG}
+             "MDL_XCG": P_MDL_XCG, "SLW_CFB": P_SLW_CFB}
 for _name, _idx in _EXPECTED.items():
     assert PARAM_INDEX[_name] == _idx, (_name, PARAM_INDEX[_name], _idx)
 assert len(LAW_PARAMS) == P_N
