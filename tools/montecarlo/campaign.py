@@ -13,15 +13,17 @@ configuration runs only the cases not finished yet (it may also ask for more cas
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import os
 import secrets
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from tools.montecarlo import results
-from tools.montecarlo.case import CampaignConfig, dispersions_of, run_case
+from tools.montecarlo.case import CampaignConfig, code_fingerprint, dispersions_of, run_case
 from tools.montecarlo.progress import Progress
 
 MANIFEST = "campaign.json"
@@ -58,7 +60,6 @@ class CampaignResult:
 
 def load_manifest(out_dir: os.PathLike) -> tuple[CampaignConfig, int]:
     """(config, runs) of an existing campaign directory."""
-    import json
     p = Path(out_dir) / MANIFEST
     if not p.is_file():
         raise CampaignError(f"{out_dir} is not a campaign directory (no {MANIFEST})")
@@ -70,6 +71,8 @@ def prepare_dir(cfg: CampaignConfig, runs: int, out_dir: os.PathLike) -> None:
     """Create the campaign directory, or check that it holds this same campaign."""
     out = Path(out_dir)
     man = out / MANIFEST
+    code = code_fingerprint()
+    codes = [code]
     if man.is_file():
         old, old_runs = load_manifest(out)
         if old.identity() != cfg.identity():
@@ -78,9 +81,15 @@ def prepare_dir(cfg: CampaignConfig, runs: int, out_dir: os.PathLike) -> None:
                 f"{out} holds a different campaign (differs in: {', '.join(diff)}); "
                 "use another --out, or the same options to resume it")
         runs = max(runs, old_runs)
+        codes = json.loads(man.read_text()).get("code_fingerprints", [])
+        if code not in codes:
+            warnings.warn(f"{out}: the law/plant code changed since this campaign started "
+                          f"(fingerprint {codes[-1] if codes else '?'} -> {code}); its rows will "
+                          "mix both versions", stacklevel=3)
+            codes.append(code)
     out.mkdir(parents=True, exist_ok=True)
     results.write_json(man, {"config": cfg.to_json(), "runs": runs,
-                             "identity": cfg.identity()})
+                             "identity": cfg.identity(), "code_fingerprints": codes})
     (out / "dispersions.toml").write_text(cfg.dispersions_text)
 
 

@@ -285,3 +285,27 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
     from tools.montecarlo import apply
     t, cmd_rad = apply.command_timeline(_base_scenario(cfg.scenario))
     return np.asarray(t, float), np.degrees(np.asarray(cmd_rad, float))
+
+
+#: the sources whose contents decide a case's result (fingerprinted into campaign.json)
+_CODE_GLOBS = ("fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
+               "tools/closed_loop.py", "tools/metrics.py", "tools/montecarlo/case.py",
+               "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py")
+
+
+def code_fingerprint() -> str:
+    """Hash of the law's, the plant's and the case code's sources (16 hex digits).
+
+    Stored with a campaign: ``rerun`` and a resume compare it, so a difference between a row
+    and its re-run can be told apart from a change of the code in between.
+    """
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    h = hashlib.sha256()
+    for pattern in _CODE_GLOBS:
+        for f in sorted(root.glob(pattern)):
+            if f.is_file():
+                h.update(str(f.relative_to(root)).encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+

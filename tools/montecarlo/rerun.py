@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ import numpy as np
 from tools import metrics as mt
 from tools.montecarlo import results
 from tools.montecarlo.campaign import load_manifest
-from tools.montecarlo.case import CHANNELS, fly_case, flight_metrics
+from tools.montecarlo.case import CHANNELS, code_fingerprint, fly_case, flight_metrics
 
 
 def _row_metrics(out_dir, case: int) -> dict:
@@ -48,10 +49,16 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
     dest = Path(out) if out else Path(out_dir) / f"case-{case}"
     dest.mkdir(parents=True, exist_ok=True)
     stored = _row_metrics(out_dir, case)
+    codes = json.loads((Path(out_dir) / "campaign.json").read_text()).get("code_fingerprints", [])
+    code_now = code_fingerprint()
     report = {"case": case, "campaign": str(out_dir), "campaign_seed": cfg.seed,
-              "backend": cfg.backend, "variants": {}}
+              "backend": cfg.backend, "code_fingerprint": code_now,
+              "campaign_code_fingerprints": codes, "variants": {}}
     runs_for_plots = {}
     lines = [f"case {case} of {out_dir} (campaign seed {cfg.seed}, backend {cfg.backend})"]
+    if codes and code_now not in codes:
+        lines.append(f"  note: the law/plant code changed since the campaign ran (fingerprint "
+                     f"{codes[-1]} -> {code_now}): differences from its rows are expected")
     for v in variants:
         values, sim_seed, fl = fly_case(cfg, case, v, full=True)
         report["values"] = values
@@ -63,8 +70,11 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
                  "metrics": {ch: mt.json_metrics(m["channels"][ch]) for ch in CHANNELS}}
         if v in stored:
             row = stored[v]
-            entry["matches_campaign"] = all(_same(got[k], row.get(k)) for k in got) and \
-                bool(row["diverged"]) == m["diverged"]
+            diffs = {k: [row.get(k), got[k]] for k in got if not _same(got[k], row.get(k))}
+            if bool(row["diverged"]) != m["diverged"]:
+                diffs["diverged"] = [bool(row["diverged"]), m["diverged"]]
+            entry["matches_campaign"] = not diffs
+            entry["differences_campaign_rerun"] = diffs
         report["variants"][v] = entry
         vdir = dest / v
         vdir.mkdir(exist_ok=True)
@@ -135,7 +145,9 @@ def _main_job_plots(runs: dict, cfg, case: int, dest: Path) -> list[Path]:
         name = {"fig_attitude": "fig2_attitude.png", "fig_rates": "fig3_rates.png",
                 "fig_surfaces": "fig4_surfaces.png", "fig_estimates": "estimates.png"}[fn]
         try:
-            out.append(Path(f(runs, meta, dest / name)))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # empty legends of missing data
+                out.append(Path(f(runs, meta, dest / name)))
         except (KeyError, TypeError, ValueError, IndexError):
             # the backend did not log what this figure needs (e.g. the stand-in)
             continue
