@@ -149,7 +149,7 @@ LAW_PARAMS: tuple[Param, ...] = (
        "lambda_Omega of Eq. 30: leakage of theta_hat_Omega toward the nominal model."),
     _p("SLW_TH_BND", 0.5, 0, 5, "-", "SLW",
        "Projection bound of Eq. 30: |theta_hat_i / theta_nom_i - 1| <= SLW_TH_BND."),
-    _p("SLW_OMC_MAX", 5, 0, 180, "deg/s", "SLW",
+    _p("SLW_OMC_MAX", 3, 0, 180, "deg/s", "SLW",
        "Limit on each component of the virtual rate command omega_c (Eq. 29), applied by scaling "
        "the vector (direction kept). 0 = no limit.", si_scale=DEG),
     _p("SLW_AW", 1, 0, 1, "-", "SLW",

@@ -1,0 +1,138 @@
+"""Closed loop in process (no UDP): the control law flies the plant_sim dynamics.
+
+tools.closed_loop.simulate runs the law's kernels and the plant's RK4 frames in one numba
+loop (truth-fed estimated state). Runs are 8 s of sim time: the paper's steps settle in
+about 3-4 s (measured), so the last 1 s window of final_error_deg is well after settling.
+Bounds are justified next to each assertion; the measured figures are in docs/control_law.md.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tools.closed_loop import simulate
+
+DURATION_S = 8.0
+DEG = math.pi / 180.0
+
+
+def _figures(res):
+    m = res.metrics()
+    return m, {ch: m[ch] for ch in ("alpha", "beta", "mu")}
+
+
+@pytest.mark.parametrize("coordinated", [True, False], ids=["co", "unco"])
+@pytest.mark.parametrize("shaping", ["steps", "prefilter"])
+def test_paper_scenario_tracks(coordinated, shaping):
+    # GIVEN the paper's case: +20 % force / -20 % moment coefficients, sinusoidal disturbance
+    res = simulate("paper", coordinated=coordinated, command_shaping=shaping,
+                   duration_s=DURATION_S)
+    m, ch = _figures(res)
+    # THEN no divergence and every channel settles on its command
+    assert not res.diverged
+    for name, c in ch.items():
+        # final error over the last 1 s: the disturbance leaves a sinusoidal residual
+        # (measured ~0.02 deg); 0.1 deg is 2.5 % of the 4 deg steps and 5x the measured value
+        assert c.final_error_deg < 0.1, (name, c)
+        # settled (2 % band) well within the run (measured 2.8-3.7 s)
+        assert c.settling_time_s is not None and c.settling_time_s < 6.0, (name, c)
+    if shaping == "steps":
+        # the paper's gains give ~13 % on an ideal inversion; the omega_c limit (3 deg/s)
+        # slows the steps down, measured 2-8 %; bound 20 % (alpha, beta) and 30 % for mu, whose
+        # step starts with a wrong-way excursion from the initial 5 deg sideslip's roll moment
+        assert ch["alpha"].overshoot_pct < 20.0
+        assert ch["beta"].overshoot_pct < 20.0
+        assert ch["mu"].overshoot_pct < 30.0
+    else:
+        # the prefilter removes the step overshoot (measured < 1 %); 5 % leaves room for the
+        # disturbance and the model error
+        for name, c in ch.items():
+            assert c.overshoot_pct < 5.0, (name, c)
+    # bounded surfaces, and no time spent on a limit (measured 0 s; the allocator's scaling
+    # and the omega_c limit keep every surface inside +-20 deg)
+    for name, peak in m["surfaces"]["peak_deg"].items():
+        assert peak <= 20.0 + 1e-9, name
+    assert m["surfaces"]["saturated_s"] < 0.2
+    # the law's status stays finite
+    assert np.all(np.isfinite(res.status))
+
+
+@pytest.mark.parametrize("coordinated", [True, False], ids=["co", "unco"])
+def test_nominal_scenario_tracks_exactly(coordinated):
+    # GIVEN the nominal vehicle (the controller's own model), no disturbance, no noise
+    res = simulate("nominal", coordinated=coordinated, command_shaping="steps",
+                   duration_s=DURATION_S)
+    _, ch = _figures(res)
+    assert not res.diverged
+    for name, c in ch.items():
+        # nothing to reject: the integral drives the error to ~0 (measured < 0.002 deg)
+        assert c.final_error_deg < 0.01, (name, c)
+        assert c.overshoot_pct < 20.0, (name, c)
+
+
+def test_coordination_changes_the_allocation():
+    # the factors must act (CO_NORM 0: relative to the diagonal), yet both variants fly
+    co = simulate("paper", coordinated=True, duration_s=3.0)
+    un = simulate("paper", coordinated=False, duration_s=3.0)
+    lam_co = co.status[:, co.status_names.index("lambda_e"):
+                       co.status_names.index("lambda_e") + 3]
+    lam_un = un.status[:, un.status_names.index("lambda_e"):
+                       un.status_names.index("lambda_e") + 3]
+    assert np.max(np.abs(lam_un)) == 0.0
+    assert np.max(np.abs(lam_co)) > 0.05          # alpha 5 deg alone gives lambda_e 0.087
+    # the surfaces differ by more than the wire's 0.04 deg quantisation
+    assert np.max(np.abs(co.delta_cmd_rad - un.delta_cmd_rad)) > 0.5 * DEG
+    assert co.status_col("co_fallback").max() == 0.0
+
+
+def test_paper_literal_law_saturates():
+    """The printed law (no omega_c limit, no freeze, observer fed M_c, clipped allocation)
+    saturates the surfaces on the paper's case and diverges (paper_notes, last section)."""
+    res = simulate("paper", coordinated=True, duration_s=DURATION_S,
+                   law_overrides={"PAPER_LITERAL": 1})
+    m, _ = _figures(res)
+    assert res.diverged or m["surfaces"]["saturated_s"] > 0.5
+
+
+def test_eq19_factors_fly():
+    res = simulate("paper", coordinated=True, duration_s=DURATION_S,
+                   law_overrides={"CO_FAC_EQ": 19})
+    _, ch = _figures(res)
+    assert not res.diverged
+    assert all(c.final_error_deg < 0.1 for c in ch.values())
+
+
+def test_cg_aft_scenario():
+    """X_cg 2.90 m (statically unstable in pitch and yaw), started trimmed at beta 1 deg.
+
+    Measured: both variants track (overshoot < 6 %, final error < 0.03 deg); asserted with
+    the same bounds as the paper's case.
+    """
+    for co in (True, False):
+        res = simulate("cg_aft", coordinated=co, duration_s=DURATION_S)
+        _, ch = _figures(res)
+        assert not res.diverged
+        for name, c in ch.items():
+            assert c.final_error_deg < 0.1, (co, name, c)
+
+
+def test_simulate_rejects_bad_options():
+    with pytest.raises(ValueError):
+        simulate("paper", command_shaping="ramp", duration_s=0.1)
+    with pytest.raises(ValueError):
+        simulate("paper", fast_hz=300.0, duration_s=0.1)
+    with pytest.raises(ValueError):
+        simulate("paper", coordinated=True, law_overrides={"CO_ENABLE": 0}, duration_s=0.1)
+    with pytest.raises(KeyError):
+        simulate("paper", law_overrides={"NOPE": 1}, duration_s=0.1)
+
+
+def test_slower_loops_still_fly():
+    # 250 Hz fast / 50 Hz slow (paper_notes: the slow loop was fine down to 20 Hz)
+    res = simulate("paper", coordinated=True, fast_hz=250.0, slow_hz=50.0,
+                   duration_s=DURATION_S)
+    _, ch = _figures(res)
+    assert not res.diverged
+    assert all(c.final_error_deg < 0.1 for c in ch.values())
