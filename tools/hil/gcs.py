@@ -138,7 +138,7 @@ class ScriptedGcs:
             while not pred(self.tel):
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    raise GcsError(f"ground station: {what} not seen within {timeout_s:.0f} s")
+                    raise GcsError(f"{what} not seen within {timeout_s:.0f} s")
                 self._cond.wait(timeout=min(remaining, 0.2))
 
     # ---- send ------------------------------------------------------------------------------
@@ -175,10 +175,10 @@ class ScriptedGcs:
                 continue
             got = self.tel.param_values[name]
             if abs(got - value) > 1e-5 * max(1.0, abs(value)):
-                raise GcsError(f"ground station: vehicle refused {name} = {value} (kept {got})")
+                raise GcsError(f"vehicle refused {name} = {value} (kept {got})")
             self._record(name, value)
             return
-        raise GcsError(f"ground station: no PARAM_VALUE for {name} after 3 tries")
+        raise GcsError(f"no PARAM_VALUE for {name} after 3 tries")
 
     def command_long(self, command: int, *params: float, timeout_s: float = 3.0) -> int:
         """COMMAND_LONG with up to 3 tries; returns the COMMAND_ACK result."""
@@ -195,25 +195,34 @@ class ScriptedGcs:
             result = next(r for c, r in self.tel.acks[n0:] if c == command)
             self._record(f"COMMAND_{command}", result)
             return result
-        raise GcsError(f"ground station: no COMMAND_ACK for command {command}")
+        raise GcsError(f"no COMMAND_ACK for command {command}")
 
-    def arm(self) -> None:
-        r = self.command_long(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
-        if r != mavlink.MAV_RESULT_ACCEPTED:
-            raise GcsError(f"ground station: arming refused (MAV_RESULT {r})")
+    def arm(self, timeout_s: float = 15.0) -> None:
+        """Arm; a refusal (e.g. the vehicle has no valid plant data yet) is retried, as an
+        operator would, each time new telemetry arrives, until ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            r = self.command_long(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+            if r == mavlink.MAV_RESULT_ACCEPTED:
+                return
+            if r != mavlink.MAV_RESULT_DENIED or time.monotonic() > deadline:
+                texts = "; ".join(self.tel.statustext[-3:])
+                raise GcsError(f"arming refused (MAV_RESULT {r}){': ' + texts if texts else ''}")
+            n = len(self.tel.aoa_t_s)
+            self.wait_for(lambda tel: len(tel.aoa_t_s) > n, 5.0, "telemetry after a refused arm")
 
     def set_mode(self, custom_mode: int) -> None:
         r = self.command_long(MAV_CMD_DO_SET_MODE,
                               float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(custom_mode))
         if r != mavlink.MAV_RESULT_ACCEPTED:
-            raise GcsError(f"ground station: mode {custom_mode} refused (MAV_RESULT {r})")
+            raise GcsError(f"mode {custom_mode} refused (MAV_RESULT {r})")
 
     def set_command_deg(self, alpha_deg: float = math.nan, beta_deg: float = math.nan,
                         mu_deg: float = math.nan) -> None:
         """Attitude command in deg (NaN keeps the current value), confirmed by COMMAND_ACK."""
         r = self.command_long(MAV_CMD_USER_1, alpha_deg, beta_deg, mu_deg)
         if r != mavlink.MAV_RESULT_ACCEPTED:
-            raise GcsError(f"ground station: attitude command refused (MAV_RESULT {r})")
+            raise GcsError(f"attitude command refused (MAV_RESULT {r})")
         for what, v in zip(("alpha_deg", "beta_deg", "mu_deg"), (alpha_deg, beta_deg, mu_deg)):
             if math.isfinite(v):
                 self._record(what, v)

@@ -139,8 +139,9 @@ def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Eve
     """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
     from tools.hil.gcs import GcsError
     try:
-        gcs.wait_for(lambda tel: tel.heartbeats > 0 and tel.sim_t_s is not None, 60.0,
-                     "the controller's HEARTBEAT and AOA_SSA (sim time)")
+        # AOA_SSA stamp 0: the controller has no plant frame yet
+        gcs.wait_for(lambda tel: tel.heartbeats > 0 and bool(tel.sim_t_s), 60.0,
+                     "the controller's HEARTBEAT and AOA_SSA with plant data")
         first = {"alpha_deg": 0.0, "beta_deg": 0.0, "mu_deg": 0.0}
         pending = list(commands)
         # entries due at start are merged and set before the law is engaged
