@@ -395,23 +395,12 @@ def advance_frame_latched(x, p, w, n_sub):
 
 
 @njit(cache=True)
-def dcm_from_euler(phi, theta, psi, c):
-    """C_nb (body -> NED, 3x3) from ZYX Euler angles."""
-    cf = math.cos(phi)
-    sf = math.sin(phi)
-    ct = math.cos(theta)
-    st = math.sin(theta)
-    cp = math.cos(psi)
-    sp = math.sin(psi)
-    c[0, 0] = ct * cp
-    c[0, 1] = sf * st * cp - cf * sp
-    c[0, 2] = cf * st * cp + sf * sp
-    c[1, 0] = ct * sp
-    c[1, 1] = sf * st * sp + cf * cp
-    c[1, 2] = cf * st * sp - sf * cp
-    c[2, 0] = -st
-    c[2, 1] = sf * ct
-    c[2, 2] = cf * ct
+def advance_frames(x, cmd_rad, p, w, n_sub, n_frames):
+    """Advance ``n_frames`` frames with a constant command (benchmarks, open-loop runs)."""
+    flags = 0
+    for _ in range(n_frames):
+        flags |= advance_frame(x, cmd_rad, p, w, n_sub)
+    return flags
 
 
 @njit(cache=True)

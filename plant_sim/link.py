@@ -25,6 +25,70 @@ RAD = 180.0 / math.pi
 MSG_ID_SERVO_OUTPUT_RAW = mavlink.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW
 BAD_DATA = mavlink.MAVLink_bad_data
 U32 = 1 << 32
+HDR2 = 10            # MAVLink 2 header length
+MAGIC2 = mavlink.PROTOCOL_MARKER_V2
+
+_mcrf4xx = getattr(mavlink, "mcrf4xx", None)     # fastcrc's CRC-16/MCRF4XX, as the codec uses
+
+
+def _crc16(data, init: int = 0xFFFF) -> int:
+    """X.25 CRC (CRC-16/MCRF4XX) of the codec, starting from ``init``."""
+    if _mcrf4xx is not None:
+        return _mcrf4xx(data, init)
+    c = mavlink.x25crc()
+    c.crc = init
+    c.accumulate(bytes(data))
+    return c.crc
+
+
+class _Packer:
+    """Lean MAVLink 2 framing of one message type with the generated codec's own payload
+    struct (wire field order), CRC_EXTRA and message id, written in place into a bytearray.
+    Produces the same bytes as ``msg.pack(mav)`` (checked at link start-up)."""
+
+    def __init__(self, cls, msg_id: int):
+        self.st = cls.unpacker
+        self.size = cls.unpacker.size
+        self.crc_extra = cls.crc_extra
+        self.id_lo = msg_id & 0xFF
+        self.id_mid = (msg_id >> 8) & 0xFF
+        self.id_hi = msg_id >> 16
+
+    def pack_into(self, buf: bytearray, mv: memoryview, pos: int, seq: int, sysid: int,
+                  compid: int, *fields) -> int:
+        """Frame at ``pos``; returns the position after it."""
+        pl = pos + HDR2
+        self.st.pack_into(buf, pl, *fields)
+        n = self.size
+        while n > 1 and buf[pl + n - 1] == 0:       # MAVLink 2 trailing-zero truncation
+            n -= 1
+        buf[pos] = MAGIC2
+        buf[pos + 1] = n
+        buf[pos + 2] = 0
+        buf[pos + 3] = 0
+        buf[pos + 4] = seq
+        buf[pos + 5] = sysid
+        buf[pos + 6] = compid
+        buf[pos + 7] = self.id_lo
+        buf[pos + 8] = self.id_mid
+        buf[pos + 9] = self.id_hi
+        end = pl + n
+        buf[end] = self.crc_extra                   # CRC covers header[1:], payload, CRC_EXTRA
+        crc = _crc16(mv[pos + 1:end + 1])
+        buf[end] = crc & 0xFF
+        buf[end + 1] = crc >> 8
+        return end + 2
+
+
+_P_ATT = _Packer(mavlink.MAVLink_attitude_message, mavlink.MAVLINK_MSG_ID_ATTITUDE)
+_P_AOA = _Packer(mavlink.MAVLink_aoa_ssa_message, mavlink.MAVLINK_MSG_ID_AOA_SSA)
+_P_HUD = _Packer(mavlink.MAVLink_vfr_hud_message, mavlink.MAVLINK_MSG_ID_VFR_HUD)
+_SERVO = mavlink.MAVLink_servo_output_raw_message
+# wire order: time_usec, servo1..8, port, servo9..16
+_P_SERVO = _Packer(_SERVO, MSG_ID_SERVO_OUTPUT_RAW)
+_SERVO_CRC_EXTRA = _SERVO.crc_extra
+_SERVO_SIZE = _SERVO.unpacker.size
+_ZEROS = bytes(_SERVO_SIZE)
 
 
 def parse_hostport(text: str, what: str) -> tuple[str, int]:
@@ -114,6 +178,11 @@ class PlantLink:
         self.rejected_sysid = 0
         self.ignored_messages = 0
         self.send_errors = 0
+        self._crcbuf = bytearray(300)
+        self._crc_mv = memoryview(self._crcbuf)
+        self._pad = bytearray(_SERVO_SIZE)
+        self.lean = True
+        self.lean = self._self_check()     # False: use the codec's message objects throughout
 
     # ---- sending ----
     def _append(self, msg, pos: int) -> int:
@@ -129,6 +198,29 @@ class PlantLink:
 
         meas: float64[14] measurement vector (architecture.md section 4, SI).
         """
+        if not self.lean:
+            self._build_with_codec(stamp_us, meas, throttle_pct)
+            return
+        buf = self._out
+        mv = self._out_mv
+        mav = self.mav
+        seq = mav.seq
+        sy = mav.srcSystem
+        co = mav.srcComponent
+        hdg = int(meas[13] * RAD + 0.5) % 360
+        thr = int(min(100.0, max(0.0, throttle_pct)) + 0.5)
+        pos = _P_ATT.pack_into(buf, mv, 0, seq, sy, co, (stamp_us // 1000) % U32,
+                               meas[1], meas[2], meas[3], meas[4], meas[5], meas[6])
+        pos = _P_AOA.pack_into(buf, mv, pos, (seq + 1) & 0xFF, sy, co, stamp_us,
+                               meas[7] * RAD, meas[8] * RAD)
+        # VFR_HUD wire order: airspeed, groundspeed, alt, climb, heading, throttle
+        pos = _P_HUD.pack_into(buf, mv, pos, (seq + 2) & 0xFF, sy, co, meas[9], meas[12],
+                               meas[10], meas[11], hdg, thr)
+        mav.seq = (seq + 3) & 0xFF
+        self._out_len = pos
+
+    def _build_with_codec(self, stamp_us: int, meas, throttle_pct: float) -> None:
+        """The same three frames through pymavlink's message objects (reference path)."""
         mav = self.mav
         pos = self._append(mav.attitude_encode((stamp_us // 1000) % U32, meas[1], meas[2], meas[3],
                                                meas[4], meas[5], meas[6]), 0)
@@ -137,6 +229,26 @@ class PlantLink:
         thr = int(min(100.0, max(0.0, throttle_pct)) + 0.5)
         pos = self._append(mav.vfr_hud_encode(meas[9], meas[12], hdg, thr, meas[10], meas[11]), pos)
         self._out_len = pos
+
+    def _self_check(self) -> bool:
+        """The lean packer and decoder give the codec's bytes and values (start-up check)."""
+        import numpy as np
+        meas = np.array([0.0, 0.1, -0.2, 3.0, 0.01, -0.02, 0.0, 0.05, -0.01, 2200.0, 21000.0,
+                         -1.5, 2199.0, 6.1])
+        seq0 = self.mav.seq
+        self.lean = True
+        self.build_sensors(123456789, meas, 42.0)
+        lean = bytes(self._out_mv[:self._out_len])
+        self.mav.seq = seq0
+        self._build_with_codec(123456789, meas, 42.0)
+        ref = bytes(self._out_mv[:self._out_len])
+        self.mav.seq = seq0
+        if lean != ref:
+            return False
+        m = mavlink.MAVLink(None, srcSystem=self.fc_sysid, srcComponent=1)
+        frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 0, 0, 0, 0, 0).pack(m)
+        got = self._decode_servo_fast(frame, len(frame))
+        return got == (self.fc_sysid, 987654, 1234, 1766, 0)
 
     def send_sensors(self) -> bool:
         """Send the last built sensor frame (again). Returns False if the OS refused it."""
@@ -188,6 +300,23 @@ class PlantLink:
             if addr[0] != self.fc_addr[0] or addr[1] != self.fc_addr[1]:
                 self.rejected_source += 1
                 continue
+            fast = self._decode_servo_fast(self._rxbuf, n) if self.lean else None
+            if fast is not None:
+                sysid, stamp, s1, s2, s3 = fast
+                if sysid != self.fc_sysid:
+                    self.rejected_sysid += 1
+                    continue
+                accepted += 1
+                self.cmd_count += 1
+                if want >= 0:
+                    if stamp != want:
+                        continue
+                    self._apply(stamp, s1, s2, s3)
+                    return accepted, True     # lockstep: the rest waits for the next drain
+                if self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
+                    continue
+                self._apply(stamp, s1, s2, s3)
+                continue
             try:
                 msgs = mav.parse_buffer(self._rx_mv[:n])
             except Exception:       # never die on input; pymavlink may raise on odd bytes
@@ -219,16 +348,48 @@ class PlantLink:
                     match = True
                 elif self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
                     continue        # older than the command already applied
-                pwm = self.pwm
-                c = self.cmd_rad
-                if m.servo1_raw:
-                    c[0] = pwm.to_rad(m.servo1_raw)
-                if m.servo2_raw:
-                    c[1] = pwm.to_rad(m.servo2_raw)
-                if m.servo3_raw:
-                    c[2] = pwm.to_rad(m.servo3_raw)
-                self.cmd_stamp_u32 = stamp
-                self.applied_count += 1
+                self._apply(stamp, m.servo1_raw, m.servo2_raw, m.servo3_raw)
+
+    def _apply(self, stamp: int, s1: int, s2: int, s3: int) -> None:
+        """Latch a servo frame: PWM -> rad per channel; a channel value 0 keeps its command."""
+        pwm = self.pwm
+        c = self.cmd_rad
+        if s1:
+            c[0] = pwm.to_rad(s1)
+        if s2:
+            c[1] = pwm.to_rad(s2)
+        if s3:
+            c[2] = pwm.to_rad(s3)
+        self.cmd_stamp_u32 = stamp
+        self.applied_count += 1
+
+    def decode_servo(self, data) -> tuple | None:
+        """(sysid, time_usec, servo1, servo2, servo3) of a one-frame SERVO_OUTPUT_RAW datagram
+        (lean path), or None if the datagram needs the general parser."""
+        return self._decode_servo_fast(data, len(data))
+
+    def _decode_servo_fast(self, buf, n: int):
+        """Decode a datagram that is exactly one unsigned MAVLink 2 SERVO_OUTPUT_RAW with a good
+        CRC: returns (sysid, time_usec, servo1, servo2, servo3), else None (the caller then
+        takes the codec's general parser, which also counts malformed input)."""
+        if n < HDR2 + 3 or buf[0] != MAGIC2 or buf[2] != 0:
+            return None
+        mlen = buf[1]
+        if n != HDR2 + mlen + 2 or mlen > _SERVO_SIZE:
+            return None
+        if buf[7] != MSG_ID_SERVO_OUTPUT_RAW or buf[8] != 0 or buf[9] != 0:
+            return None
+        end = HDR2 + mlen
+        cb = self._crcbuf
+        cb[0:end - 1] = buf[1:end]
+        cb[end - 1] = _SERVO_CRC_EXTRA
+        if _crc16(self._crc_mv[:end]) != buf[end] | (buf[end + 1] << 8):
+            return None
+        pad = self._pad
+        pad[0:mlen] = buf[HDR2:end]
+        pad[mlen:] = _ZEROS[mlen:]
+        v = _SERVO.unpacker.unpack_from(pad, 0)
+        return buf[5], v[0], v[1], v[2], v[3]
 
     def counters(self) -> dict:
         return {
@@ -264,6 +425,9 @@ class ServoResponder:
         self.pwm = pwm or PwmMap(1000, 1500, 2000, 20.0 * DEG)
         self.answered = 0
         self.peer = None
+        self._rx = bytearray(2048)
+        self._tx = bytearray(128)
+        self._tx_mv = memoryview(self._tx)
 
     def serve_one(self, fn, timeout_s: float = 1.0) -> bool:
         """Wait for one sensor datagram and answer it; False on timeout."""
@@ -298,6 +462,37 @@ class ServoResponder:
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.sock.sendto(b, addr)
         self.peer = addr
+        self.answered += 1
+        return True
+
+    def serve_fast(self, timeout_s: float = 1.0) -> bool:
+        """Benchmark responder: answer one frame with a neutral PWM. Reads the stamp straight
+        from the AOA_SSA frame (second in the datagram) and frames the reply with the lean
+        packer: a few microseconds, so the exchange rate measures the plant and the network."""
+        r, _, _ = select.select((self.sock,), (), (), timeout_s)
+        if not r:
+            return False
+        try:
+            n, addr = self.sock.recvfrom_into(self._rx)
+        except BlockingIOError:
+            return False
+        b = self._rx
+        if n < 2:
+            return False
+        pos = HDR2 + b[1] + 2                      # skip ATTITUDE
+        if n < pos + HDR2 + 1:
+            return False
+        mlen = b[pos + 1]
+        pay = bytearray(16)
+        pay[0:min(mlen, 16)] = b[pos + HDR2:pos + HDR2 + min(mlen, 16)]
+        stamp = int.from_bytes(pay[0:8], "little")
+        end = _P_SERVO.pack_into(self._tx, self._tx_mv, 0, self.mav.seq, self.mav.srcSystem,
+                                 self.mav.srcComponent, stamp % U32, 1500, 1500, 1500,
+                                 0, 0, 0, 0, 0,         # servo4..8
+                                 0,                     # port
+                                 0, 0, 0, 0, 0, 0, 0, 0)  # servo9..16
+        self.mav.seq = (self.mav.seq + 1) & 0xFF
+        self.sock.sendto(self._tx_mv[:end], addr)
         self.answered += 1
         return True
 

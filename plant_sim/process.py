@@ -80,13 +80,6 @@ class _Stop:
         self.signal_name = signal.Signals(signum).name
 
 
-def _throttle_pct(sim: PlantSim) -> float:
-    tmax = sim.p[dy.P_TMAX]
-    if tmax <= 0.0:
-        return 0.0
-    return 100.0 * sim.x[dy.X_THRUST] / tmax
-
-
 def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     """Run one scenario over the link; returns the statistics (also written as JSON)."""
     out = Path(cfg.out_dir)
@@ -98,6 +91,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     sim.measure(m)
     sim.truth_row(row0)
     sim.step_frame(sim.trim_rad.copy())
+    sim.frame(sim.trim_rad.copy(), row0)
     sim.reset()
 
     text, ok = trim_report(sc)
@@ -129,9 +123,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
             _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
         # the final state, measured but not sent
         if stats.exit_reason == "completed":
-            meas = np.zeros(M_N)
-            sim.measure(meas)
-            sim.truth_row(writer.row())
+            sim.truth_row(writer.row())      # t_end: state and the measurement taken there
     finally:
         stats.wall_time_s = time.perf_counter() - t_wall0
         for s, h in old.items():
@@ -174,22 +166,26 @@ def _progress(cfg, sim, t_wall0, now):
 
 
 def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
-    meas = np.zeros(M_N)
+    meas = sim.last_meas
     cmd = np.zeros(3)
     frame_dt = sim.frame_dt_s
     timeout = cfg.rerequest_timeout_s
     perf = time.perf_counter
+    x = sim.x
+    tmax = float(sim.p[dy.P_TMAX])
+    thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t_wall0 = perf()
-    next_progress = t_wall0 + cfg.progress_every_s
+    next_progress = t_wall0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
+    sim.measure(meas)
     for k in range(n_frames):
-        sim.measure(meas)
         stamp = int(round(k * frame_dt * 1e6))
         want = stamp % U32
-        link.build_sensors(stamp, meas, _throttle_pct(sim))
+        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
         link.send_sensors()
         t_sent = perf()
         t_first = t_sent
         while True:
+            link.wait_readable(t_sent + timeout - perf())
             acc, match = link.poll_for(want)
             if match:
                 stats.stale_commands += acc - 1
@@ -199,8 +195,7 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
                 stats.exit_reason = f"stopped by {stop.signal_name}"
                 return
             now = perf()
-            rem = t_sent + timeout - now
-            if rem <= 0.0:
+            if now >= t_sent + timeout:
                 if now - t_first > cfg.give_up_s:
                     stats.exit_reason = (f"no SERVO_OUTPUT_RAW answering frame {k} "
                                          f"(t={k * frame_dt:.3f} s) for {cfg.give_up_s} s")
@@ -208,17 +203,13 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
                 link.send_sensors()
                 stats.rerequests += 1
                 t_sent = now
-                continue
-            link.wait_readable(rem)
         c = link.cmd_rad
         cmd[0] = c[0]
         cmd[1] = c[1]
         cmd[2] = c[2]
-        sim.command(cmd)
-        sim.truth_row(writer.row())
-        sim.advance()
+        sim.frame(cmd, writer.row())
         stats.frames += 1
-        if cfg.progress_every_s > 0:
+        if k & 63 == 0:
             now = perf()
             if now >= next_progress:
                 _progress(cfg, sim, t_wall0, now)
@@ -226,7 +217,7 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
 
 
 def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
-    meas = np.zeros(M_N)
+    meas = sim.last_meas
     cmd = np.zeros(3)
     frame_dt = sim.frame_dt_s
     perf = time.perf_counter
@@ -234,12 +225,16 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     no_cmd_s = sv["no_command_s"]
     to_trim = sv["no_command"] == "trim"
     trim = sim.trim_rad.copy()
+    x = sim.x
+    tmax = float(sim.p[dy.P_TMAX])
+    thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t0 = perf()
-    next_progress = t0 + cfg.progress_every_s
+    next_progress = t0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
     last_cmd_wall = -math.inf
     last_count = 0
     k = 0
     base_k = 0
+    sim.measure(meas)
     while k < n_frames:
         if stop.requested:
             stats.exit_reason = f"stopped by {stop.signal_name}"
@@ -267,22 +262,19 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             if to_trim:
                 cmd[:] = trim
             else:
-                cmd[:] = sim.x[dy.X_CMD_L:dy.X_CMD_L + 3]
+                cmd[:] = x[dy.X_CMD_L:dy.X_CMD_L + 3]
         else:
             c = link.cmd_rad
             cmd[0] = c[0]
             cmd[1] = c[1]
             cmd[2] = c[2]
-        sim.measure(meas)
         stamp = int(round(k * frame_dt * 1e6))
-        link.build_sensors(stamp, meas, _throttle_pct(sim))
+        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
         link.send_sensors()
-        sim.command(cmd)
-        sim.truth_row(writer.row())
-        sim.advance()
+        sim.frame(cmd, writer.row())
         stats.frames += 1
         k += 1
-        if cfg.progress_every_s > 0 and now >= next_progress:
+        if now >= next_progress:
             _progress(cfg, sim, t0, now)
             next_progress = now + cfg.progress_every_s
 

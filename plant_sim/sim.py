@@ -101,6 +101,20 @@ def truth_kernel(x, p, w, meas, out):
         out[35 + i] = meas[i]
 
 
+@njit(cache=True)
+def frame_kernel(x, p, w, ring, ring_count, rng_state, meas_work, meas, cmd_rad, row, n_sub):
+    """One frame of the process loop in one call: latch ``cmd_rad``, write the truth row at t_k
+    (with ``meas``, the measurement sent at t_k), advance to t_k+1 and measure into ``meas``.
+    Returns the aero clip flags of the frame."""
+    x[X_CMD_L] = cmd_rad[0]
+    x[X_CMD_L + 1] = cmd_rad[1]
+    x[X_CMD_L + 2] = cmd_rad[2]
+    truth_kernel(x, p, w, meas, row)
+    flags = dy.advance_frame_latched(x, p, w, n_sub)
+    se.measure(x, p, ring, ring_count, rng_state, meas_work, meas)
+    return flags
+
+
 def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
     """Parameter vector (SI) and physics steps per frame from a validated scenario."""
     d = sc.data
@@ -283,3 +297,14 @@ class PlantSim:
         """
         return (self.x, self.p, self.w, self.n_sub, self.ring, self.ring_count, self.rng_state,
                 self.meas_work)
+
+    def frame(self, cmd_rad, row) -> int:
+        """The process loop's frame in one compiled call (see ``frame_kernel``): latch
+        ``cmd_rad``, truth row at t_s into ``row``, advance, measure into ``self.last_meas``.
+        Call ``measure`` once before the first frame."""
+        flags = frame_kernel(self.x, self.p, self.w, self.ring, self.ring_count, self.rng_state,
+                             self.meas_work, self.last_meas, cmd_rad, row, self.n_sub)
+        self.frames += 1
+        if flags:
+            self.clip_frames += 1
+        return flags

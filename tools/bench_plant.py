@@ -1,0 +1,131 @@
+"""Plant benchmark: cost per RK4 step, plant-side cost per frame, lockstep exchanges per second.
+
+    python -m tools.bench_plant [--scenario paper] [--seconds 20] [--lockstep-seconds 10]
+
+Prints (medians of repeated batches; the machine is shared, so read the spread too):
+1. RK4 step (us): the whole loop inside numba (dynamics.advance_frames), and one
+   PlantSim.step_frame call from Python per frame divided by the steps per frame.
+2. The plant's per-frame path without the network (us): pack the three sensor messages,
+   decode one SERVO_OUTPUT_RAW datagram, PWM -> rad, then PlantSim.frame (latch, truth row,
+   advance, measure), as the lockstep loop does.
+3. Lockstep: `python -m plant_sim run --mode lockstep` as a process against a trivial
+   responder in this process (decode the stamp, answer with a fixed PWM); exchanges per second
+   and the real-time factor from plant_summary.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from plant_sim import dynamics as dy
+from plant_sim.link import PlantLink, PwmMap, ServoResponder
+from plant_sim.scenario import load
+from plant_sim.sim import PlantSim
+
+
+def _median_spread(vals):
+    vals = sorted(vals)
+    return statistics.median(vals), vals[0], vals[-1]
+
+
+def bench_rk4(sc_name: str, sim_seconds: float, batches: int = 7):
+    sim = PlantSim(load(sc_name))
+    x, p, w, n_sub = sim.x, sim.p, sim.w, sim.n_sub
+    cmd = np.array([0.02, 0.03, 0.0])
+    dy.advance_frames(x, cmd, p, w, n_sub, 10)          # compile / cache load
+    n_frames = int(sim_seconds / sim.frame_dt_s / batches)
+    kernel, python = [], []
+    for _ in range(batches):
+        sim.reset()
+        t = time.perf_counter()
+        dy.advance_frames(x, cmd, p, w, n_sub, n_frames)
+        kernel.append((time.perf_counter() - t) / (n_frames * n_sub) * 1e6)
+        sim.reset()
+        t = time.perf_counter()
+        for _ in range(n_frames):
+            sim.step_frame(cmd)
+        python.append((time.perf_counter() - t) / (n_frames * n_sub) * 1e6)
+    return _median_spread(kernel), _median_spread(python), n_sub
+
+
+def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
+    sc = load(sc_name)
+    sim = PlantSim(sc)
+    sv = sc.data["servo"]
+    pwm = PwmMap(sv["pwm_min_us"], sv["pwm_trim_us"], sv["pwm_max_us"], sim.p[dy.P_ACT_LIMIT])
+    resp = ServoResponder()
+    link = PlantLink(("127.0.0.1", resp.addr[1]), ("127.0.0.1", 0), pwm)
+    row = np.zeros(sim.TRUTH_N)
+    cmd = np.zeros(3)
+    servo = resp.servo_frame(0, (1510, 1490, 1500))
+    res = []
+    x = sim.x
+    for _ in range(batches):
+        sim.reset()
+        sim.measure(sim.last_meas)
+        t = time.perf_counter()
+        for k in range(frames):
+            link.build_sensors(k * 2000, sim.last_meas, x[dy.X_THRUST] * 1e-4)
+            _, _, s1, s2, s3 = link.decode_servo(servo)
+            cmd[0] = pwm.to_rad(s1)
+            cmd[1] = pwm.to_rad(s2)
+            cmd[2] = pwm.to_rad(s3)
+            sim.frame(cmd, row)
+        res.append((time.perf_counter() - t) / frames * 1e6)
+    link.close()
+    resp.close()
+    return _median_spread(res)
+
+
+def bench_lockstep(sc_name: str, sim_seconds: float):
+    resp = ServoResponder()
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "plant_sim", "run", "--scenario", sc_name, "--mode", "lockstep",
+             "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0", "--out", tmp,
+             "--duration", str(sim_seconds), "--progress-every", "0"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 300.0
+            while proc.poll() is None and time.monotonic() < deadline:
+                resp.serve_fast(timeout_s=0.5)
+            _, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+            resp.close()
+        if proc.returncode != 0:
+            raise SystemExit(f"plant failed: {err.strip()}")
+        return json.loads((Path(tmp) / "plant_summary.json").read_text())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.bench_plant", description=__doc__.split("\n")[0])
+    ap.add_argument("--scenario", default="paper")
+    ap.add_argument("--seconds", type=float, default=20.0, help="sim seconds for the RK4 batches")
+    ap.add_argument("--lockstep-seconds", type=float, default=10.0, help="sim seconds of the lockstep run")
+    args = ap.parse_args(argv)
+    (k_med, k_lo, k_hi), (p_med, p_lo, p_hi), n_sub = bench_rk4(args.scenario, args.seconds)
+    print(f"rk4_step_us (loop inside numba)      median {k_med:.3f}  min {k_lo:.3f}  max {k_hi:.3f}")
+    print(f"rk4_step_us (step_frame from Python, /{n_sub}) median {p_med:.3f}  min {p_lo:.3f}  max {p_hi:.3f}")
+    f_med, f_lo, f_hi = bench_frame_path(args.scenario)
+    print(f"plant_frame_path_us (no network)     median {f_med:.1f}  min {f_lo:.1f}  max {f_hi:.1f}")
+    s = bench_lockstep(args.scenario, args.lockstep_seconds)
+    ex = s["frames"] / s["wall_time_s"]
+    print(f"lockstep_exchanges_per_s             {ex:.0f}  ({1e6 / ex:.0f} us per exchange, "
+          f"rtf {s['real_time_factor']:.1f} at {s['frame_hz']:.0f} Hz frames, "
+          f"{s['frames']} frames, rerequests {s['rerequests']})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
