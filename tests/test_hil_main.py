@@ -242,7 +242,8 @@ def test_realtime_run_with_live_gcs_telemetry_matches_truth(tmp_path):
 
 
 @pytest.mark.hil
-def test_killed_process_ends_run_with_clear_error_and_no_orphans(tmp_path):
+@pytest.mark.parametrize("victim", ["fc", "plant"])
+def test_killed_process_ends_run_with_clear_error_and_no_orphans(tmp_path, victim):
     out = tmp_path / "killed"
     proc = subprocess.Popen(
         [sys.executable, "-m", "tools.hil", "run", "--scenario", "paper", "--mode", "lockstep",
@@ -266,11 +267,11 @@ def test_killed_process_ends_run_with_clear_error_and_no_orphans(tmp_path):
             if "sim t" in line and len(pids) == 2:
                 break
         assert len(pids) == 2, "".join(stderr_lines)
-        os.kill(pids["fc"], signal.SIGKILL)
+        os.kill(pids[victim], signal.SIGKILL)
         rest_out, rest_err = proc.communicate(timeout=90)
         err = "".join(stderr_lines) + rest_err
         assert proc.returncode == 1, err
-        assert re.search(r"fc \(pid \d+\) was killed by signal 9", err), err
+        assert re.search(rf"{victim} \(pid {pids[victim]}\) was killed by signal 9", err), err
         for name, pid in pids.items():
             assert not _pid_alive(pid), f"{name} (pid {pid}) left running"
     finally:
