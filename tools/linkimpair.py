@@ -19,6 +19,7 @@ same traffic give the same decisions. Per datagram, in this order:
 - **delay** ``delay_s`` plus **jitter** ``jitter_s`` (uniform in [0, jitter_s]); delivery keeps
   the arrival order (a later datagram is never released before an earlier one of the same
   direction), so jitter alone never reorders;
+- **blackout** (``set_blackout``, tests only): the link is cut, every datagram dropped;
 - **reorder** ``reorder``: the datagram is held back and released right after the *next*
   datagram of the same direction (the two swap), or after ``reorder_hold_s`` if no other comes.
 
@@ -60,7 +61,8 @@ from dataclasses import asdict, dataclass
 __all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "COUNTER_NAMES"]
 
 MAX_DATAGRAM_B = 65535
-COUNTER_NAMES = ("received", "dropped", "duplicated", "reordered", "delivered", "send_errors")
+COUNTER_NAMES = ("received", "dropped", "duplicated", "reordered", "delivered", "send_errors",
+                 "blackout")
 
 
 def parse_hostport(text: str) -> tuple[str, int]:
@@ -112,6 +114,7 @@ class _Direction:
         self.last_due = 0.0          # FIFO: no datagram leaves before the previous one
         self.held: tuple | None = None   # (data, release_deadline) waiting to be overtaken
         self.counters = {n: 0 for n in COUNTER_NAMES}
+        self.blackout = False        # link cut: every datagram is dropped (counted apart)
 
     def decide(self, now: float) -> tuple[list[float] | None, bool]:
         """(due times of the copies of one datagram or None when dropped, hold-for-reorder).
@@ -123,6 +126,9 @@ class _Direction:
         r_loss, r_dup, r_jit, r_reo = (self.rng.random(), self.rng.random(),
                                         self.rng.random(), self.rng.random())
         self.counters["received"] += 1
+        if self.blackout:
+            self.counters["blackout"] += 1
+            return None, False
         reorder = r_reo < imp.reorder
         if r_loss < imp.loss:
             self.counters["dropped"] += 1
@@ -186,6 +192,12 @@ class LinkImpair:
     def counters(self) -> dict[str, dict[str, int]]:
         with self._lock:
             return {k: dict(d.counters) for k, d in self._dirs.items()}
+
+    def set_blackout(self, on: bool, direction: str = "both") -> None:
+        """Cut (``on``) or restore one direction (``up``/``down``) or ``both``: a lost link."""
+        with self._lock:
+            for name in (("up", "down") if direction == "both" else (direction,)):
+                self._dirs[name].blackout = bool(on)
 
     def start(self) -> "LinkImpair":
         self._bind()
