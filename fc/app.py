@@ -274,6 +274,8 @@ class FlightController:
         """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
         self.meas[:] = self.meas_scratch
         self.est.update(self.meas)
+        if self.plant.relock_allowed and not self.modes.data_lost:
+            self.plant.relock_allowed = False
         if self.est.healthy:
             self.seen_data = True
             self.last_good_wall_s = now_s
@@ -331,6 +333,7 @@ class FlightController:
         if (self.seen_data and not self.modes.data_lost
                 and now_s - self.last_good_wall_s > self.fs_timeout_s):
             text = self.modes.on_data_lost()
+            self.plant.relock_allowed = True   # a restarted plant may come from a new port
             if text:
                 self.log.warning(text)
                 self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, text)

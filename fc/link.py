@@ -206,6 +206,7 @@ class LinkCounters:
     rejected_bad: int = 0         # malformed MAVLink (CRC, length, prefix)
     rejected_incomplete: int = 0  # datagram without the ATTITUDE+AOA_SSA+VFR_HUD triple
     outputs: int = 0
+    relocks: int = 0              # new source address accepted after a data loss
 
     @property
     def rejected(self) -> int:
@@ -219,7 +220,9 @@ class PlantLink:
 
     ``poll`` drains the socket without blocking and keeps the newest complete frame; the
     caller answers with ``send_servo``. Only frames from ``plant_sysid`` are accepted and,
-    after the first accepted frame, only from that source address.
+    after the first accepted frame, only from that source address. After a plant-data loss the
+    caller may set ``relock_allowed``: the next valid frame from ``plant_sysid`` then fixes a
+    new source address (a restarted plant on another port), counted in ``relocks``.
     """
 
     endpoint: UdpEndpoint
@@ -228,6 +231,7 @@ class PlantLink:
     compid: int = 1
     codec: mavlink.MAVLink = None
     peer: tuple | None = None
+    relock_allowed: bool = False
     counters: LinkCounters = field(default_factory=LinkCounters)
     _tx_codec: mavlink.MAVLink = None
 
@@ -247,14 +251,20 @@ class PlantLink:
                 return -1
             data, addr = got
             self.counters.datagrams += 1
+            relock = False
             if self.peer is not None and addr != self.peer:
-                self.counters.rejected_addr += 1
-                continue
+                if not self.relock_allowed:
+                    self.counters.rejected_addr += 1
+                    continue
+                relock = True
             stamp = self._decode(data, meas_out)
             if stamp < 0:
                 continue
-            if self.peer is None:
+            if self.peer is None or relock:
+                if relock:
+                    self.counters.relocks += 1
                 self.peer = addr
+                self.relock_allowed = False
             self.counters.frames += 1
             return stamp
         return -1

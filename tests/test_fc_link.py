@@ -95,6 +95,12 @@ def test_plant_link_accepts_configured_sysid_then_only_that_address():
     assert link.send_servo(got, (1400, 1500, 1600))
     ans = plant.recv_servo(2.0)
     assert ans.time_usec == 1_006_000 and (ans.servo1_raw, ans.servo3_raw) == (1400, 1600)
+    # after a data loss the fc allows a restarted plant (new port) to take over once
+    link.relock_allowed = True
+    other.send_frame(level_meas(0.002))
+    assert _wait_readable(ep.sock)
+    assert link.read_frame(meas) == 2000 and link.counters.relocks == 1
+    assert link.peer == other.sock.getsockname() and not link.relock_allowed
     for p in (intruder_id, plant, other):
         p.close()
     ep.close()
