@@ -29,11 +29,16 @@ def test_first_order_step_matches_closed_form():
     y = A * (1.0 - np.exp(-t / tau))
     # WHEN
     m = M.channel_metrics(t, y, [0.0], [A])
-    # THEN rise 10-90 % = tau ln 9, 2 % settling = tau ln 50 (band 0.08 deg > floor)
+    # THEN rise 10-90 % = tau ln 9, settling into the band b = tau ln(1 / b) (b above the floor)
+    frac = M.SETTLE_BAND_FRAC
+    assert 4.0 * frac > M.SETTLE_BAND_FLOOR_DEG
     assert m.overshoot_pct == 0.0
     assert m.rise_time_s == pytest.approx(tau * math.log(9.0), abs=2e-6)
-    assert m.settling_time_s == pytest.approx(tau * math.log(50.0), abs=2e-6)
-    assert m.band_deg == pytest.approx(0.08)
+    assert m.settling_time_s == pytest.approx(tau * math.log(1.0 / frac), abs=2e-6)
+    assert m.band_deg == pytest.approx(4.0 * frac)
+    # the 2 % criterion on request
+    m2 = M.channel_metrics(t, y, [0.0], [A], band_frac=0.02, band_floor_deg=0.0)
+    assert m2.settling_time_s == pytest.approx(tau * math.log(50.0), abs=2e-6)
     assert m.step_deg == pytest.approx(4.0)
     assert m.final_error_deg == pytest.approx(4.0 * math.exp(-(T - 1.0) / tau), rel=1e-3)
     rms = 4.0 * math.sqrt(tau / 2.0 * (1.0 - math.exp(-2.0 * T / tau)) / T)
@@ -55,9 +60,11 @@ def test_second_order_overshoot_rise_settling(zeta):
     t_pk = math.pi / (wn * math.sqrt(1 - zeta**2))
     rise = brentq(f, 1e-9, t_pk, args=(0.9,)) - brentq(f, 1e-9, t_pk, args=(0.1,))
     assert m.rise_time_s == pytest.approx(rise, abs=1e-5)
-    # settling: last time |1 - y| = 2 % (band 0.08 deg), from the closed form on a fine grid
+    # settling: last time |1 - y| leaves the band (5 % of the 4 deg step = 0.2 deg), from the
+    # closed form on a fine grid
+    frac = M.SETTLE_BAND_FRAC
     tf = np.linspace(0.0, T, 2_000_001)
-    out = np.nonzero(np.abs(1.0 - _second_order_unit(tf, zeta, wn)) > 0.02)[0]
+    out = np.nonzero(np.abs(1.0 - _second_order_unit(tf, zeta, wn)) > frac)[0]
     assert m.settling_time_s == pytest.approx(tf[out[-1]], abs=2e-5)
 
 
@@ -84,7 +91,7 @@ def test_mid_run_command_change_measured_from_last_step():
     m = M.channel_metrics(t, y, [0.0, 2.0], [0.0, A])
     # THEN times count from the step at t = 2 s
     assert m.t_step_s == pytest.approx(2.0)
-    assert m.settling_time_s == pytest.approx(tau * math.log(50.0), abs=2e-6)
+    assert m.settling_time_s == pytest.approx(tau * math.log(1.0 / M.SETTLE_BAND_FRAC), abs=2e-6)
     assert m.rise_time_s == pytest.approx(tau * math.log(9.0), abs=2e-6)
     # a timeline entry that repeats the value is not a step
     m2 = M.channel_metrics(t, y, [0.0, 2.0, 5.0], [0.0, A, A])
@@ -102,8 +109,10 @@ def test_command_equal_to_initial_value_has_no_overshoot_or_rise():
     assert m.overshoot_pct is None
     assert m.rise_time_s is None
     assert m.peak_error_deg == pytest.approx(0.3, rel=1e-6)
-    # settling uses the absolute floor (0.05 deg): last time t e^(1-t) = 1/6 after the peak
-    t_settle = brentq(lambda s: 0.3 * s * math.exp(1.0 - s) - 0.05, 1.0, 5.0)
+    # settling uses the absolute floor: last time 0.3 t e^(1-t) = floor, after the peak
+    floor = M.SETTLE_BAND_FLOOR_DEG
+    assert floor < 0.3
+    t_settle = brentq(lambda s: 0.3 * s * math.exp(1.0 - s) - floor, 1.0, 5.0)
     assert m.band_deg == pytest.approx(M.SETTLE_BAND_FLOOR_DEG)
     assert m.settling_time_s == pytest.approx(t_settle, abs=1e-5)
 

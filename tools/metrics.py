@@ -19,10 +19,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-#: Settling band as a fraction of the step size |A| (2 % criterion).
-SETTLE_BAND_FRAC = 0.02
-#: Absolute floor of the settling band, deg. See docs/metrics.md ("Settling band").
-SETTLE_BAND_FLOOR_DEG = 0.05
+#: Settling band as a fraction of the step size |A| (5 % criterion; docs/metrics.md).
+SETTLE_BAND_FRAC = 0.05
+#: Absolute floor of the settling band, deg (2 sigma of the air-data noise; docs/metrics.md).
+SETTLE_BAND_FLOOR_DEG = 0.1
 #: A step smaller than this (deg) counts as "command equals initial value": overshoot and
 #: rise time are undefined (reported as None / JSON null).
 MIN_STEP_DEG = 0.1
