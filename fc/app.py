@@ -125,6 +125,7 @@ class FlightController:
         self._exec_n = 0
         self._load_permille = 0
         self._named_cache: list = []
+        self._relocks_seen = 0
         self._dbg_cache: list = []
 
         # --- links and logs (bind last: READY means everything is in place)
@@ -340,6 +341,10 @@ class FlightController:
                 self._sync_mode()
         elif self.modes.data_lost and now_s - self.last_good_wall_s > 0.05:
             self.modes.on_data_gap()
+        if self.plant.counters.relocks != self._relocks_seen:
+            self._relocks_seen = self.plant.counters.relocks
+            self._event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
+                        ML.MAV_SEVERITY_WARNING)
         if now_s >= self._next_1hz:
             self._next_1hz = now_s + 1.0
             self.stats.roll()
@@ -515,10 +520,10 @@ class FlightController:
             self._save_params()
         c = self.plant.counters
         self.log.info(
-            "exit: frames %d, outputs %d, duplicates %d, rejected plant %d "
+            "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
             "late ticks %d/%d, overruns %d, skipped %d, law errors %d",
-            c.frames, c.outputs, self.duplicate_frames, c.rejected, c.rejected_sysid,
+            c.frames, c.outputs, self.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
             c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
             self.planner.skipped, self.law_errors)
