@@ -99,7 +99,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
         log.info("trim: %s", line)
     if not ok:
         msg = (f"WARNING: scenario {sc.name} cannot be trimmed within the surface limits "
-               f"(python -m plant_sim trim --scenario {sc.name})")
+               f"(python -m plant_sim trim --scenario {sc.path})")
         print(msg, file=sys.stderr, flush=True)
         log.warning(msg)
     stats.extra["trim_ok"] = bool(ok)

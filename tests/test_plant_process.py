@@ -1,0 +1,119 @@
+"""The plant process: CLI, real-time mode, SIGTERM, give-up, trim warning (loopback UDP)."""
+import json
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+from plant_sim import truthlog
+from plant_sim.link import ServoResponder
+
+PY = sys.executable
+
+
+def _plant(args, **kw):
+    return subprocess.Popen([PY, "-m", "plant_sim", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _finish(proc, timeout=30):
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    return out, err
+
+
+def test_cli_help_list_trim_and_bad_scenario():
+    r = subprocess.run([PY, "-m", "plant_sim", "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "run" in r.stdout and "trim" in r.stdout
+    r = subprocess.run([PY, "-m", "plant_sim", "list"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and {"paper", "nominal", "cg_aft"} <= {l.split()[0] for l in r.stdout.splitlines()}
+    r = subprocess.run([PY, "-m", "plant_sim", "trim", "--scenario", "cg_aft"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0 and "trimmed" in r.stdout and "-9.5" in r.stdout
+    r = subprocess.run([PY, "-m", "plant_sim", "run", "--scenario", "nosuch"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and "unknown scenario 'nosuch'" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_realtime_run_completes_near_real_time(tmp_path):
+    resp = ServoResponder()
+    out = tmp_path / "rt"
+    proc = _plant(["run", "--scenario", "nominal", "--mode", "realtime", "--fc", f"127.0.0.1:{resp.addr[1]}",
+                   "--bind", "127.0.0.1:0", "--out", str(out), "--duration", "0.6", "--progress-every", "0.2"])
+    try:
+        deadline = time.monotonic() + 60
+        while proc.poll() is None and time.monotonic() < deadline:
+            resp.serve_fast(timeout_s=0.2)
+        stdout, stderr = _finish(proc)
+    finally:
+        resp.close()
+    assert proc.returncode == 0, stderr
+    s = json.loads((out / "plant_summary.json").read_text())
+    assert s["mode"] == "realtime" and s["frames"] == 300 and s["exit_reason"] == "completed"
+    assert 0.3 < s["real_time_factor"] < 1.2
+    assert s["servo_frames_accepted"] > 200
+    assert "PROGRESS t_s=" in stdout
+    assert len(truthlog.load(out)["t_s"]) == 301
+
+
+def test_sigterm_while_waiting_flushes_and_exits_zero(tmp_path):
+    fc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc.bind(("127.0.0.1", 0))
+    fc.settimeout(60.0)
+    out = tmp_path / "term"
+    proc = _plant(["run", "--scenario", "paper", "--fc", f"127.0.0.1:{fc.getsockname()[1]}",
+                   "--bind", "127.0.0.1:0", "--out", str(out), "--rerequest-timeout", "0.05"])
+    try:
+        fc.recvfrom(2048)            # the first frame ...
+        fc.recvfrom(2048)            # ... and its re-send: the plant is waiting for an answer
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = _finish(proc)
+    finally:
+        fc.close()
+    assert proc.returncode == 0, stderr
+    s = json.loads((out / "plant_summary.json").read_text())
+    assert s["exit_reason"] == "stopped by SIGTERM" and s["rerequests"] >= 1 and s["frames"] == 0
+    assert (out / "truth.npz").is_file() and not (out / "truth.raw").exists()
+
+
+def test_give_up_when_no_controller_answers(tmp_path):
+    fc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc.bind(("127.0.0.1", 0))
+    try:
+        proc = _plant(["run", "--scenario", "nominal", "--fc", f"127.0.0.1:{fc.getsockname()[1]}",
+                       "--bind", "127.0.0.1:0", "--out", str(tmp_path / "gu"),
+                       "--rerequest-timeout", "0.05", "--give-up", "0.3"])
+        _, stderr = _finish(proc, timeout=60)
+    finally:
+        fc.close()
+    assert proc.returncode == 2
+    assert "no SERVO_OUTPUT_RAW answering frame 0" in stderr
+    assert len(stderr.strip().splitlines()) == 1
+
+
+def test_untrimmable_scenario_warns_at_start(tmp_path):
+    text = open(__import__("plant_sim.scenario", fromlist=["load"]).load("paper").path).read()
+    bad = tmp_path / "hard.toml"
+    bad.write_text(text.replace("x_cg_m = 0.0", "x_cg_m = 2.90"))
+    fc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc.bind(("127.0.0.1", 0))
+    fc.settimeout(60.0)
+    try:
+        proc = _plant(["run", "--scenario", str(bad), "--fc", f"127.0.0.1:{fc.getsockname()[1]}",
+                       "--bind", "127.0.0.1:0", "--out", str(tmp_path / "w")])
+        fc.recvfrom(2048)            # started: the warning was printed before the first frame
+        proc.send_signal(signal.SIGINT)
+        _, stderr = _finish(proc)
+    finally:
+        fc.close()
+    assert proc.returncode == 0
+    assert "WARNING: scenario paper cannot be trimmed" in stderr and str(bad) in stderr
+    assert "NOT trimmable" in (tmp_path / "w" / "plant.log").read_text()
