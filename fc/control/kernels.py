@@ -54,13 +54,13 @@ drop_stale(__file__, [_layout.__file__, _params.__file__, _nominal.__file__])
 PI = math.pi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def wrap_pi(a):
     """Angle wrapped into [-pi, pi)."""
     return (a + PI) % (2.0 * PI) - PI
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def clip(v, lo, hi):
     if v < lo:
         return lo
@@ -72,14 +72,14 @@ def clip(v, lo, hi):
 # ---------------------------------------------------------------------------------------------
 # 3x3 helpers on flat row-major storage a[off : off + 9]
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def det3(a, o):
     return (a[o] * (a[o + 4] * a[o + 8] - a[o + 5] * a[o + 7])
             - a[o + 1] * (a[o + 3] * a[o + 8] - a[o + 5] * a[o + 6])
             + a[o + 2] * (a[o + 3] * a[o + 7] - a[o + 4] * a[o + 6]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve3(a, o, b0, b1, b2, out, oo):
     """Solve A u = b for the 3x3 A = a[o:o+9] (row-major) by cofactors; writes out[oo:oo+3].
 
@@ -106,7 +106,7 @@ def solve3(a, o, b0, b1, b2, out, oo):
 # ---------------------------------------------------------------------------------------------
 # Eq. 3: g_s and its inverse (det g_s = -sec(beta))
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gs_inv_apply(alpha, beta, v0, v1, v2, out, o):
     """out[o:o+3] = g_s^-1 v, with g_s^-1 = [[0, sa, ca cb], [1, 0, sb], [0, -ca, sa cb]]."""
     sa = math.sin(alpha)
@@ -118,7 +118,7 @@ def gs_inv_apply(alpha, beta, v0, v1, v2, out, o):
     out[o + 2] = -ca * v1 + sa * cb * v2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gs_apply(alpha, beta, w0, w1, w2, out, o):
     """out[o:o+3] = g_s w (Eq. 3)."""
     sa = math.sin(alpha)
@@ -130,7 +130,7 @@ def gs_apply(alpha, beta, w0, w1, w2, out, o):
     out[o + 2] = (ca * w0 + sa * w2) / cb
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gs_t_apply(alpha, beta, s0, s1, s2, out, o):
     """out[o:o+3] = g_s^T s (g_s of Eq. 3), the cross term of Eq. 35."""
     sa = math.sin(alpha)
@@ -145,7 +145,7 @@ def gs_t_apply(alpha, beta, s0, s1, s2, out, o):
 # ---------------------------------------------------------------------------------------------
 # Reference prefilter and command filter (the paper leaves Omega_c_dot, omega_c_dot undefined)
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def second_order_step(u, dt, wn, zeta, x, ix, ixd):
     """One semi-implicit Euler step of y'' = wn^2 (u - y) - 2 zeta wn y' on x[ix], x[ixd]."""
     acc = wn * wn * (u - x[ix]) - 2.0 * zeta * wn * x[ixd]
@@ -156,7 +156,7 @@ def second_order_step(u, dt, wn, zeta, x, ix, ixd):
 # ---------------------------------------------------------------------------------------------
 # Slow loop (Eqs. 26-30)
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     """Slow loop: Omega_c shaping, sigma (Eq. 27), omega_c (Eq. 29), theta_Omega (Eq. 30)."""
     eval_model(est, par, tab, atm, grid, nm)
@@ -299,7 +299,7 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
 # ---------------------------------------------------------------------------------------------
 # Coordinated factors (Eqs. 10-14, 19)
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coordinated_factors(est, par, out, o):
     """lambda_e, lambda_a, lambda_r into out[o:o+3] (0 when CO_ENABLE = 0)."""
     if par[P_CO_ENABLE] < 0.5:
@@ -344,7 +344,7 @@ def coordinated_factors(est, par, out, o):
     out[o + 2] = lr
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coordinated_matrix(par, nm, lam, lo):
     """Eq. 45: g_Gamma = g_f_delta + diag(lambda) (normalised per CO_NORM) into nm[NM_GCO].
 
@@ -367,7 +367,9 @@ def coordinated_matrix(par, nm, lam, lo):
             nm[d] += lam[lo + i]
     det_g = det3(nm, NM_GFD)
     det_c = det3(nm, NM_GCO)
-    if par[P_PAPER_LITERAL] > 0.5:
+    if not abs(det_g) > 0.0:
+        ok = False
+    elif par[P_PAPER_LITERAL] > 0.5:
         ok = abs(det_c) > 1e-9 * abs(det_g)
     else:
         # accept only if det keeps its sign and size, and no diagonal entry flips or vanishes
@@ -386,14 +388,26 @@ def coordinated_matrix(par, nm, lam, lo):
 # ---------------------------------------------------------------------------------------------
 # Allocation (Eqs. 44-47) with saturation
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
     """delta = g_Gamma^-1 M_c (Eq. 46), Eq. 47 surface coordination, position saturation.
 
     Writes delta[0:3] (rad), the saturation flags and the unallocated moment into st;
     returns 1.0 if any surface was requested beyond its limit.
     """
-    solve3(nm, NM_GCO, mc0, mc1, mc2, delta, 0)
+    det = solve3(nm, NM_GCO, mc0, mc1, mc2, delta, 0)
+    if not (abs(det) > 0.0 and math.isfinite(delta[0]) and math.isfinite(delta[1])
+            and math.isfinite(delta[2])):
+        # no control authority (qbar ~ 0) or non-finite input: neutral surfaces, all flagged
+        for i in range(3):
+            delta[i] = 0.0
+            st[S_SAT + i] = 1.0
+        st[S_M_UNALLOC] = mc0
+        st[S_M_UNALLOC + 1] = mc1
+        st[S_M_UNALLOC + 2] = mc2
+        st[S_ALLOC_SCALE] = 0.0
+        st[S_SAT_ANY] = 1.0
+        return 1.0
     d0 = delta[0]
     d1 = delta[1]
     d2 = delta[2]
@@ -447,7 +461,7 @@ def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
     return sat_any
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def actuator_model_step(par, x, delta_cmd, dt):
     """The controller's model of the actuators: position limit, first-order lag, rate limit.
 
@@ -466,7 +480,7 @@ def actuator_model_step(par, x, delta_cmd, dt):
 # ---------------------------------------------------------------------------------------------
 # Disturbance observer (Eq. 37, after the paper's Ref. 33)
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def dob_gain(c, dt):
     """Discrete observer gain c_d = (1 - exp(-c dt)) / dt (-> c as dt -> 0).
 
@@ -476,13 +490,13 @@ def dob_gain(c, dt):
     return (1.0 - math.exp(-c * dt)) / dt
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def dob_estimate(x, c_d, w0, w1, w2):
     """Eq. 37: d_hat = z + Q(omega), Q = c_d omega (rad/s^2 per axis)."""
     return x[X_Z] + c_d * w0, x[X_Z + 1] + c_d * w1, x[X_Z + 2] + c_d * w2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dob_update(x, c_d, dt, f0, f1, f2, w0, w1, w2):
     """Eq. 37: z_dot = -L z - L (f + Q(omega)), L = c I, over one step of dt.
 
@@ -499,7 +513,7 @@ def dob_update(x, c_d, dt, f0, f1, f2, w0, w1, w2):
 # ---------------------------------------------------------------------------------------------
 # Fast loop (Eqs. 34-37) + factors + allocation
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
     """Fast loop: M_c (Eq. 35), theta_omega (Eq. 36), observer (Eq. 37), allocation (44-47)."""
     eval_model(est, par, tab, atm, grid, nm)
@@ -626,7 +640,7 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
 # ---------------------------------------------------------------------------------------------
 # Reset
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset_kernel(est, par, x, st, delta0):
     """Start every integrator, filter and estimate at the current estimated state.
 
@@ -648,7 +662,7 @@ def reset_kernel(est, par, x, st, delta0):
     st[S_ALLOC_SCALE] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cycle_kernel(est, cmd, dt_slow, dt_fast, n_fast, par, x, nm, st, tab, atm, grid,
                  delta_out):
     """One slow step followed by ``n_fast`` fast steps (benchmarks, in-numba closed loops)."""

@@ -65,7 +65,7 @@ def load_tables(path: Path | str = TABLE_PATH):
     return tab, atm, grid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _frac_index(x, x0, dx, n):
     """Clamped cell index and fraction of x on the uniform grid x0 + k dx, k < n."""
     u = (x - x0) / dx
@@ -78,7 +78,7 @@ def _frac_index(x, x0, dx, n):
     return k, u - k
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def interp_table(mach, alpha_rad, tab, grid, out, off):
     """Bilinear interpolation of all T_N columns at (mach, alpha); writes out[off:off+T_N]."""
     i, fm = _frac_index(mach, grid[G_MACH0], grid[G_DMACH], grid[G_NMACH])
@@ -92,7 +92,7 @@ def interp_table(mach, alpha_rad, tab, grid, out, off):
                         + w10 * tab[i + 1, j, k] + w11 * tab[i + 1, j + 1, k])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def interp_atmosphere(h_m, atm, grid, out, off):
     """Linear interpolation of rho, speed of sound, g at altitude h; writes out[off:off+3]."""
     i, f = _frac_index(h_m, grid[G_H0], grid[G_DH], grid[G_NH])
@@ -100,7 +100,7 @@ def interp_atmosphere(h_m, atm, grid, out, off):
         out[off + k] = (1.0 - f) * atm[i, k] + f * atm[i + 1, k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def eval_model(est, par, tab, atm, grid, nm):
     """Evaluate the nominal model at the estimated state ``est``; fills ``nm`` (NM_*)."""
     alpha = est[E_ALPHA]
