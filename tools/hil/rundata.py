@@ -25,8 +25,10 @@ TIMELINE_FILE = "timeline.toml"
 CHANNELS = ("alpha", "beta", "mu")
 #: default command of a channel before the first timeline entry sets it (fc CMD_*_DEG default)
 DEFAULT_CMD_DEG = 0.0
-#: names that must never be compared between two runs of the same seed
-WALL_CLOCK_KEYS = ("wall_time_s", "real_time_factor", "created_utc", "wall_time_total_s")
+#: keys that depend on the wall clock or on packet timing, never compared between two runs of
+#: the same seed ("link": the plant's link counters such as re-requested frames)
+WALL_CLOCK_KEYS = ("wall_time_s", "real_time_factor", "created_utc", "wall_time_total_s",
+                   "link")
 
 
 class RunDataError(RuntimeError):
@@ -237,7 +239,8 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
              and sim_time < requested_duration_s - 0.05)
     entry["diverged"] = bool(metrics.is_diverged(*(truth[f"{c}_rad"] for c in CHANNELS))
                              or short)
-    entry["plant"] = {k: plant[k] for k in plant if k not in ("wall_time_s", "real_time_factor")}
+    # the plant's own counters (frames, re-requests, ...): timing-dependent, for diagnosis
+    entry["link"] = {k: plant[k] for k in plant if k not in ("wall_time_s", "real_time_factor")}
     plot["limit_rad"] = surface_limit_rad_
     plot["metrics"] = entry
     plot["max_surface_deg"] = peak
