@@ -99,6 +99,11 @@ def main(argv=None) -> int:
         return _fail("--duration must be > 0")
     if args.rerequest_timeout <= 0:
         return _fail("--rerequest-timeout must be > 0")
+    for flag, v in (("--sysid", args.sysid), ("--fc-sysid", args.fc_sysid)):
+        if not 1 <= v <= 255:
+            return _fail(f"{flag} must be 1..255, got {v}")
+    if args.give_up <= 0:
+        return _fail("--give-up must be > 0")
     seed = sc.seed if args.seed is None else args.seed
     out = Path(args.out) if args.out else Path("runs") / time.strftime(f"plant-%Y%m%d-%H%M%S-{os.getpid()}")
     try:
@@ -126,6 +131,9 @@ def main(argv=None) -> int:
     except OSError as e:
         log.error("%s", e)
         return _fail(f"socket error: {e}")
+    except Exception as e:          # one line on stderr, the traceback in plant.log
+        log.exception("internal error")
+        return _fail(f"internal error: {type(e).__name__}: {e} (traceback in {out / 'plant.log'})")
     print(f"DONE frames={stats.frames} rerequests={stats.rerequests} out={out}", flush=True)
     return 0
 
