@@ -179,3 +179,17 @@ def test_json_metrics_has_the_summary_keys_first():
     m = M.channel_metrics(t, np.zeros_like(t), [0.0], [1.0 * D2R])
     d = M.json_metrics(m)
     assert list(d)[:5] == list(M.METRIC_KEYS)
+
+
+def test_undershoot_is_the_wrong_way_move_as_percent_of_step():
+    # GIVEN mu commanded 0 -> 4 deg that first dips to -1 deg (non-minimum-phase-like)
+    t = _t(6.0)
+    y = D2R * (4.0 * (1.0 - np.exp(-2.0 * t)) - 5.0 * t * np.exp(-4.0 * t) * 4.0 * math.e / 4.0)
+    dip = float(np.min(y)) / D2R
+    m = M.channel_metrics(t, y, [0.0], [4.0 * D2R])
+    assert dip < 0.0
+    assert m.undershoot_pct == pytest.approx(100.0 * -dip / 4.0, rel=1e-9)
+    # a monotone response has none; an undefined step has None
+    m2 = M.channel_metrics(t, 4.0 * D2R * (1.0 - np.exp(-t)), [0.0], [4.0 * D2R])
+    assert m2.undershoot_pct == 0.0
+    assert M.channel_metrics(t, np.zeros_like(t), [0.0], [0.0]).undershoot_pct is None

@@ -59,6 +59,8 @@ class ChannelMetrics:
     t_step_s : time of the last step, s.
     peak_error_deg : max |error| after the step, deg (always defined).
     band_deg : half-width of the settling band used, deg.
+    undershoot_pct : largest move in the *wrong* direction (away from the command, beyond the
+        value at the step) as % of |A|; None when the step is undefined.
     """
 
     overshoot_pct: float | None
@@ -70,6 +72,7 @@ class ChannelMetrics:
     t_step_s: float
     peak_error_deg: float
     band_deg: float
+    undershoot_pct: float | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -167,12 +170,14 @@ def channel_metrics(t_s, y_rad, cmd_t_s, cmd_rad, *, wrap: bool = False,
         past = float(np.max(direction * err))  # excursion beyond the command
         overshoot = 100.0 * max(past, 0.0) / abs(step)
         progress = 1.0 + err / step  # 0 at the start, 1 at the command
+        undershoot = 100.0 * max(0.0, -float(np.min(progress)))
         t_lo = _first_crossing(t, progress, RISE_LO)
         t_hi = _first_crossing(t, progress, RISE_HI)
         rise = (t_hi - t_lo) if (t_lo is not None and t_hi is not None) else None
     else:
         overshoot = None
         rise = None
+        undershoot = None
 
     outside = np.nonzero(abs_err > band)[0]
     if len(outside) == 0:
@@ -194,7 +199,7 @@ def channel_metrics(t_s, y_rad, cmd_t_s, cmd_rad, *, wrap: bool = False,
     return ChannelMetrics(overshoot_pct=overshoot, settling_time_s=settling, rise_time_s=rise,
                           final_error_deg=final_err, rms_error_deg=rms, step_deg=step_deg,
                           t_step_s=t_step, peak_error_deg=math.degrees(float(abs_err.max())),
-                          band_deg=band_deg)
+                          band_deg=band_deg, undershoot_pct=undershoot)
 
 
 def surface_metrics(t_s, delta_rad, limit_rad: float | np.ndarray,

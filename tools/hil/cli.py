@@ -169,6 +169,7 @@ def format_table(summary: dict) -> str:
     rows = []
     for ch in ("alpha", "beta", "mu"):
         for key, label, fmt in (("overshoot_pct", "overshoot %", "{:.1f}"),
+                                ("undershoot_pct", "wrong-way %", "{:.1f}"),
                                 ("settling_time_s", "settling s", "{:.2f}"),
                                 ("rise_time_s", "rise s", "{:.2f}"),
                                 ("final_error_deg", "final err deg", "{:.3f}")):
