@@ -190,3 +190,14 @@ def test_metrics_are_the_main_jobs(campaign):
     ct, cd = command_timeline_deg(cfg)
     m = mt.channel_metrics(tt, np.radians(r["trace.alpha_deg"]), ct, np.radians(cd[:, 0]))
     assert m.final_error_deg == pytest.approx(r["alpha.final_error_deg"], abs=0.05)
+
+
+def test_existing_cluster_by_scheduler_address(client, tmp_path):
+    # GIVEN a running cluster known only by its address (as --scheduler tcp://host:port)
+    addr = client.scheduler.address
+    assert addr.startswith("tcp://127.0.0.1:")
+    # WHEN a campaign is sent to it THEN every case lands, as on a private LocalCluster
+    cfg = _cfg(seed=21)
+    res = run_campaign(cfg, 4, tmp_path, scheduler=addr, progress_stream=_Null())
+    assert (res.ran, res.lost, res.nthreads) == (4, [], 2)
+    assert results.finished_cases(tmp_path, cfg.variants) == {0, 1, 2, 3}
