@@ -1,0 +1,1 @@
+"""tools.bench: one benchmark command for hyfc (docs/performance.md)."""

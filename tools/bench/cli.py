@@ -1,0 +1,343 @@
+"""``python -m tools.bench [--quick] [--json FILE] [--only PARTS] [--keep DIR]``
+
+Measures, in one run, every figure of docs/performance.md and prints a table with the target
+and the ratio to each peer or floor measured in the same run (JSBSim X-15 step, the loopback
+UDP ping-pong between two processes); with ``--json`` it also writes the same figures:
+
+    {"meta": {...}, "figures": {name: number}, "rows": [...], "details": {...}, "skipped": {...}}
+
+``figures`` holds only finite numbers; a figure that could not be measured (e.g. jsbsim not
+installed, or the cold start-up, which compiles for tens of seconds and is left out of
+``--quick``) is listed in ``skipped`` with the reason instead. ``--quick`` shortens every
+measurement to a smoke level (well under a minute). Nothing is asserted: this prints figures.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+
+PARTS = ("law", "plant", "pingpong", "lockstep", "realtime", "startup", "inproc")
+
+# Targets (issue 7) and the reference figures taken on this machine before the code existed
+# (../shared/docs/perf_anchors.md): printed next to the measurement, never used to compute it.
+ANCHOR = {
+    "law": "pure Python 6.5, numpy 3x3 30, numba scalar 0.77 us (anchors s.1)",
+    "rk4": "numba per call 1.5 us, in numba loop 0.96 us (anchors s.3)",
+    "lockstep": "ArduPilot SITL ~25x typical (anchors s.6)",
+    "rt": "plain sleep p99 180 us, 0.8 % late; SCHED_FIFO p99 111 us (anchors s.2)",
+    "inproc": "numba RK4 loop ~1000x (anchors s.3)",
+}
+
+
+def _load():
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+
+
+class Report:
+    def __init__(self) -> None:
+        self.figures: dict[str, float] = {}
+        self.rows: list[dict] = []
+        self.details: dict = {}
+        self.skipped: dict[str, str] = {}
+        self.load: dict[str, float] = {}
+
+    def fig(self, name: str, value) -> float:
+        v = float(value)
+        if math.isfinite(v):
+            self.figures[name] = v
+        else:
+            self.skipped[name] = "not measured (non-finite result)"
+        return v
+
+    def row(self, figure: str, measured: str, target: str = "", peer: str = "",
+            ratio: str = "", part: str = "") -> None:
+        self.rows.append({"part": part, "figure": figure, "measured": measured,
+                          "target": target, "peer": peer, "ratio": ratio})
+
+
+def _f(v, fmt=".2f", unit="") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{format(v, fmt)}{unit}"
+
+
+def _ok(cond: bool) -> str:
+    return "met" if cond else "MISSED"
+
+
+# ---------------------------------------------------------------------------------------------
+def part_law(rep: Report, quick: bool) -> None:
+    from tools.bench.inproc import law_figures
+    r = law_figures(quick)
+    rep.details["law"] = r
+    med = rep.fig("law_cycle_fc_median_us", r["cycle_fc_path"]["median_us"])
+    p99 = rep.fig("law_cycle_fc_p99_us", r["cycle_fc_path"]["p99_us"])
+    rep.row("1 law cycle, fc path (Estimator.update + law.slow_step/5 + law.fast_step)",
+            f"median {_f(med)} us, p99 {_f(p99)} us", f"<= 2 us median: {_ok(med <= 2.0)}",
+            ANCHOR["law"], f"{6.5 / med:.1f}x faster than pure Python (anchor)", "law")
+    km = rep.fig("law_cycle_kernels_median_us", r["cycle_kernels"]["median_us"])
+    kp = rep.fig("law_cycle_kernels_p99_us", r["cycle_kernels"]["p99_us"])
+    rep.row("1 law cycle, kernels called directly", f"median {_f(km)} us, p99 {_f(kp)} us",
+            f"<= 2 us median: {_ok(km <= 2.0)}", "", "", "law")
+    for key, label in (("estimator", "estimator"), ("slow_step", "slow loop"),
+                       ("fast_step", "fast loop"), ("nominal_model", "  fast: nominal model"),
+                       ("factors", "  fast: coordination factors"),
+                       ("coord_matrix", "  fast: coordinated matrix"),
+                       ("allocate", "  fast: allocation"),
+                       ("actuator_model", "  fast: actuator model")):
+            m = rep.fig(f"law_{key}_median_us", r[key]["median_us"])
+            p = rep.fig(f"law_{key}_p99_us", r[key]["p99_us"])
+            rep.row(f"1 {label}", f"median {_f(m)} us, p99 {_f(p)} us", "", "", "", "law")
+    rep.fig("timer_overhead_ns", r["timer_overhead_ns"])
+
+
+def part_plant(rep: Report, quick: bool) -> None:
+    from tools.bench.inproc import jsbsim_figures, plant_figures
+    r = plant_figures(quick)
+    rep.details["plant"] = r
+    med = rep.fig("plant_rk4_step_median_us", r["rk4_step_per_call"]["median_us"])
+    rep.fig("plant_rk4_step_p99_us", r["rk4_step_per_call"]["p99_us"])
+    loop = rep.fig("plant_rk4_step_in_loop_us", r["rk4_step_in_loop_us"])
+    j = jsbsim_figures(r["dt_s"], quick)
+    rep.details["jsbsim"] = j
+    if j.get("available"):
+        js = rep.fig("jsbsim_x15_step_us", j["x15_run_step_us"])
+        rep.fig("plant_rk4_over_jsbsim", med / js)
+        peer = f"JSBSim {j.get('version')} X-15 run() at dt {r['dt_s']:g} s: {_f(js)} us"
+        ratio = f"{js / med:.1f}x faster than JSBSim"
+        tgt = f"<= 5 us and <= JSBSim: {_ok(med <= 5.0 and med <= js)}"
+    else:
+        rep.skipped["jsbsim_x15_step_us"] = j["note"]
+        peer = j["note"]
+        ratio = ""
+        tgt = f"<= 5 us: {_ok(med <= 5.0)} (JSBSim row skipped)"
+    rep.row(f"2 plant RK4 step (dt {r['dt_s']:g} s), per call from Python",
+            f"median {_f(med)} us, p99 {_f(r['rk4_step_per_call']['p99_us'])} us", tgt, peer,
+            ratio, "plant")
+    rep.row("2 plant RK4 step, whole batch inside numba", f"{_f(loop)} us", "",
+            ANCHOR["rk4"], "", "plant")
+
+
+def part_pingpong(rep: Report, quick: bool) -> None:
+    from tools.udp_pingpong import run_pingpong
+    n = 2000 if quick else 20000
+    m = run_pingpong(n, "mavlink")
+    raw = run_pingpong(n, "raw")
+    rep.details["pingpong"] = {"mavlink": m, "raw": raw}
+    rep.fig("pingpong_mavlink_median_us", m["median_us"])
+    rep.fig("pingpong_mavlink_p99_us", m["p99_us"])
+    rep.fig("pingpong_raw_median_us", raw["median_us"])
+    rep.fig("pingpong_raw_p99_us", raw["p99_us"])
+    rep.row("3 floor: UDP ping-pong, wire frame + SERVO echo, both decoded",
+            f"median {_f(m['median_us'], '.1f')} us, p99 {_f(m['p99_us'], '.1f')} us", "",
+            "anchors s.5: 106-115 / p99 205-263 us", "", "pingpong")
+    rep.row("3 floor: UDP ping-pong, 64 raw bytes",
+            f"median {_f(raw['median_us'], '.1f')} us, p99 {_f(raw['p99_us'], '.1f')} us",
+            "", "", "", "pingpong")
+
+
+def part_lockstep(rep: Report, quick: bool, keep) -> None:
+    from tools.bench.procs import lockstep
+    floor = rep.figures.get("pingpong_mavlink_median_us")
+    for hz, sim_s in ((500, 2.0 if quick else 60.0), (1000, 1.0 if quick else 20.0)):
+        r = lockstep(hz, sim_s, keep, real_plant=not quick)
+        rep.details[f"lockstep_{hz}"] = r
+        rtf = rep.fig(f"lockstep_{hz}_rtf", r["real_time_factor"])
+        sd = r["standin"]
+        rtf_s = rep.fig(f"lockstep_{hz}_rtf_standin", sd["real_time_factor"])
+        ex = rep.fig(f"lockstep_{hz}_exchange_median_us", sd["exchange"]["median_us"])
+        rep.fig(f"lockstep_{hz}_exchange_p99_us", sd["exchange"]["p99_us"])
+        rep.fig(f"fc_peak_rss_mb_lockstep_{hz}", r["fc_peak_rss_mb"])
+        if "plant" in r:
+            rep.fig("plant_peak_rss_mb", r["plant"]["peak_rss_mb"])
+        rep.fig("standin_peak_rss_mb", sd["peak_rss_mb"])
+        g = r["fc_rss_standin"]
+        if hz == 500:
+            rep.details["heap_growth_run"] = g
+            rep.fig("fc_rss_growth_mb_per_min", g["rss_growth_mb_per_min"])
+            rep.fig("fc_rss_growth_mb", g["rss_growth_mb"])
+        tgt = f">= 20x: {_ok(rtf >= 20.0)}" if hz == 500 else ""
+        if floor:
+            limit = 1e6 / (floor * hz)
+            peer = (f"floor: ping-pong {floor:.0f} us/exchange -> at most {limit:.1f}x "
+                    f"at {hz} Hz")
+            ratio = f"{rtf / limit * 100:.0f} % of the floor's limit"
+            rep.fig(f"lockstep_{hz}_floor_rtf", limit)
+        else:
+            peer = ratio = ""
+        rep.row(f"3 lockstep RTF at {hz} Hz ({r['rtf_source']})", f"{_f(rtf, '.1f')}x", tgt,
+                peer + "; " + ANCHOR["lockstep"], ratio, "lockstep")
+        rep.row(f"3 lockstep at {hz} Hz, measuring stand-in plant",
+                f"{_f(rtf_s, '.1f')}x; exchange median {_f(ex, '.0f')} us, p99 "
+                f"{_f(sd['exchange']['p99_us'], '.0f')} us", "",
+                f"ping-pong median {_f(floor, '.0f')} us" if floor else "",
+                f"{ex / floor:.1f}x the ping-pong" if floor else "", "lockstep")
+
+
+def part_realtime(rep: Report, quick: bool, keep) -> None:
+    from tools.bench.procs import realtime
+    pp99 = rep.figures.get("pingpong_mavlink_p99_us")
+    for hz in (1000, 500):
+        r = realtime(hz, 2.5 if quick else 15.0, keep)
+        rep.details[f"realtime_{hz}"] = r
+        lm = rep.fig(f"rt_{hz}_lateness_median_us", r["lateness_median_us"])
+        lp = rep.fig(f"rt_{hz}_lateness_p99_us", r["lateness_p99_us"])
+        lx = rep.fig(f"rt_{hz}_lateness_max_us", r["lateness_max_us"])
+        ls = rep.fig(f"rt_{hz}_late_20pct_pct", r["late_20pct_share_pct"])
+        sm = rep.fig(f"rt_{hz}_latency_median_us", r["latency_median_us"])
+        sp = rep.fig(f"rt_{hz}_latency_p99_us", r["latency_p99_us"])
+        rep.fig(f"rt_{hz}_tick_exec_median_us", r["tick_exec_median_us"])
+        rep.fig(f"rt_{hz}_tick_exec_p99_us", r["tick_exec_p99_us"])
+        rep.fig(f"fc_peak_rss_mb_rt_{hz}", r["fc_peak_rss_mb"])
+        rep.fig(f"rt_{hz}_gcs_msgs_per_s", r["gcs"]["msgs_per_s"])
+        tgt = (f"p99 <= 100 us: {_ok(lp <= 100)}; late < 0.1 %: {_ok(ls < 0.1)}"
+               if hz == 1000 else "")
+        rep.row(f"4 real time {hz} Hz: wake-up lateness ({r['ticks']} ticks, plant + GCS "
+                f"streaming {r['gcs']['msgs_per_s']:.0f} msg/s)",
+                f"median {_f(lm, '.0f')}, p99 {_f(lp, '.0f')}, max {_f(lx, '.0f')} us; "
+                f"{_f(ls, '.2f')} % > 20 % late", tgt, ANCHOR["rt"], "", "realtime")
+        tgt = f"p99 <= 300 us: {_ok(sp <= 300)}" if hz == 1000 else ""
+        rep.row(f"4 real time {hz} Hz: sensor-to-servo latency at the plant",
+                f"median {_f(sm, '.0f')} us, p99 {_f(sp, '.0f')} us "
+                f"({r['answered_share'] * 100:.0f} % of frames echoed)", tgt,
+                f"ping-pong p99 {_f(pp99, '.0f')} us" if pp99 else "",
+                f"{sp / pp99:.1f}x the ping-pong p99" if pp99 else "", "realtime")
+        rep.row(f"4 real time {hz} Hz: fc tick work (wake to send)",
+                f"median {_f(r['tick_exec_median_us'], '.0f')} us, p99 "
+                f"{_f(r['tick_exec_p99_us'], '.0f')} us", "", "", "", "realtime")
+
+
+def part_startup(rep: Report, quick: bool, keep) -> None:
+    from tools.bench.procs import startup
+    startup(False, keep)                     # make sure the cache matches the current code
+    warm = [startup(False, keep) for _ in range(1 if quick else 3)]
+    w = sorted(x["first_servo_s"] for x in warm)[len(warm) // 2]
+    rd = sorted(x["ready_s"] for x in warm)[len(warm) // 2]
+    rep.details["startup_warm"] = warm
+    rep.fig("startup_warm_first_servo_s", w)
+    rep.fig("startup_warm_ready_s", rd)
+    rep.row("5 start-up, warm: process start -> first SERVO_OUTPUT_RAW", f"{_f(w)} s "
+            f"(READY at {_f(rd)} s)", f"<= 1 s: {_ok(w <= 1.0)}", "", "", "startup")
+    if quick:
+        rep.skipped["startup_cold_first_servo_s"] = ("left out of --quick (compiles every "
+                                                      "kernel: tens of seconds)")
+        return
+    c = startup(True, keep)
+    rep.details["startup_cold"] = c
+    rep.fig("startup_cold_first_servo_s", c["first_servo_s"])
+    rep.row("5 start-up, cold (empty NUMBA_CACHE_DIR)", f"{_f(c['first_servo_s'])} s "
+            f"(READY at {_f(c['ready_s'])} s)", "", "", "", "startup")
+
+
+def part_inproc(rep: Report, quick: bool) -> None:
+    from tools.bench.inproc import closed_loop_figures
+    r = closed_loop_figures(quick)
+    rep.details["closed_loop"] = r
+    x = rep.fig("closed_loop_sim_s_per_wall_s", r["sim_s_per_wall_s"])
+    xc = rep.fig("closed_loop_sim_s_per_cpu_s", r["sim_s_per_cpu_s"])
+    loop_us = rep.figures.get("plant_rk4_step_in_loop_us")
+    peer = ANCHOR["inproc"]
+    ratio = ""
+    if loop_us:
+        plant_only = 1e6 / (loop_us * 1000.0)
+        peer = f"plant alone in numba (this run): {plant_only:.0f}x; " + peer
+        ratio = f"{x / plant_only * 100:.0f} % of the plant alone"
+    rep.row(f"7 in-process closed loop, one thread ({r.get('source', '')})",
+            f"{_f(x, '.0f')}x real time per wall s ({_f(xc, '.0f')}x per CPU s)",
+            f">= 500x: {_ok(x >= 500)}", peer, ratio, "inproc")
+
+
+def memory_rows(rep: Report) -> None:
+    f = rep.figures
+    fc = [v for k, v in f.items() if k.startswith("fc_peak_rss_mb")]
+    if fc:
+        rep.fig("fc_peak_rss_mb", max(fc))
+    parts = []
+    if fc:
+        parts.append(f"fc {max(fc):.0f} MB")
+    if "plant_peak_rss_mb" in f:
+        parts.append(f"plant {f['plant_peak_rss_mb']:.0f} MB")
+    if "standin_peak_rss_mb" in f:
+        parts.append(f"stand-in plant {f['standin_peak_rss_mb']:.0f} MB")
+    if parts:
+        rep.row("6 peak RSS per process", ", ".join(parts), "", "", "", "memory")
+    g = rep.details.get("heap_growth_run")
+    if g:
+        rep.row("6 fc RSS growth, 2nd half of the 500 Hz lockstep run",
+                f"{_f(g['rss_growth_mb'], '.2f')} MB over {g['window_s']:.0f} s "
+                f"({_f(g['rss_growth_mb_per_min'], '.2f')} MB/min)", "none expected", "", "",
+                "memory")
+
+
+def print_table(rep: Report, out=sys.stdout) -> None:
+    cols = ("figure", "measured", "target", "peer", "ratio")
+    print("| " + " | ".join(cols) + " |", file=out)
+    print("|" + "---|" * len(cols), file=out)
+    for r in rep.rows:
+        print("| " + " | ".join(str(r[c]) for c in cols) + " |", file=out)
+    for k, v in rep.skipped.items():
+        print(f"| {k} | skipped: {v} | | | |", file=out)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.bench",
+                                 description="hyfc benchmarks: prints a table of figures with "
+                                             "targets and peers (docs/performance.md).")
+    ap.add_argument("--quick", action="store_true",
+                    help="smoke level: every measurement shortened (well under a minute)")
+    ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    ap.add_argument("--only", default=",".join(PARTS),
+                    help=f"comma-separated parts (default all: {','.join(PARTS)})")
+    ap.add_argument("--keep", metavar="DIR", help="keep the process runs' directories under DIR")
+    args = ap.parse_args(argv)
+    parts = [p.strip() for p in args.only.split(",") if p.strip()]
+    bad = [p for p in parts if p not in PARTS]
+    if bad:
+        ap.error(f"unknown part(s) {bad}; choose from {PARTS}")
+    if args.keep:
+        os.makedirs(args.keep, exist_ok=True)
+    rep = Report()
+    t0 = time.perf_counter()
+    print(f"tools.bench{' --quick' if args.quick else ''}: {os.cpu_count()} cores, "
+          f"load {_load():.2f}, python {platform.python_version()}", file=sys.stderr)
+    runners = {"law": lambda: part_law(rep, args.quick),
+               "plant": lambda: part_plant(rep, args.quick),
+               "pingpong": lambda: part_pingpong(rep, args.quick),
+               "lockstep": lambda: part_lockstep(rep, args.quick, args.keep),
+               "realtime": lambda: part_realtime(rep, args.quick, args.keep),
+               "startup": lambda: part_startup(rep, args.quick, args.keep),
+               "inproc": lambda: part_inproc(rep, args.quick)}
+    failed = {}
+    for p in PARTS:
+        if p not in parts:
+            continue
+        tp = time.perf_counter()
+        rep.load[p] = _load()
+        print(f"  {p} ...", file=sys.stderr, flush=True)
+        try:
+            runners[p]()
+        except Exception as exc:  # noqa: BLE001 - one broken part must not hide the others
+            failed[p] = f"{type(exc).__name__}: {exc}"
+            print(f"  {p} FAILED: {failed[p]}", file=sys.stderr)
+        print(f"  {p} done in {time.perf_counter() - tp:.1f} s (load {_load():.2f})",
+              file=sys.stderr)
+    memory_rows(rep)
+    print_table(rep)
+    meta = {"command": "python -m tools.bench" + (" --quick" if args.quick else ""),
+            "quick": args.quick, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "cores": os.cpu_count(), "python": platform.python_version(),
+            "load_avg_1min_at_part_start": rep.load, "wall_s": time.perf_counter() - t0,
+            "failed": failed}
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump({"meta": meta, "figures": rep.figures, "rows": rep.rows,
+                       "skipped": rep.skipped, "details": rep.details}, f, indent=2,
+                      default=float)
+    print(f"tools.bench: {time.perf_counter() - t0:.0f} s, {len(rep.figures)} figures"
+          + (f", FAILED parts: {', '.join(failed)}" if failed else ""), file=sys.stderr)
+    return 1 if failed else 0
