@@ -5,6 +5,7 @@
                                [--out DIR] [--seed S] [--hil] [--duration S] [--spec FILE]
     python -m tools.montecarlo rerun OUT_DIR --case I [--variant V] [--out DIR]
     python -m tools.montecarlo summary OUT_DIR [--spec FILE] [--no-plots]
+    python -m tools.montecarlo compare DIR_A DIR_B
 """
 from __future__ import annotations
 
@@ -63,7 +64,7 @@ def _run_parser() -> argparse.ArgumentParser:
         description="Monte Carlo robustness campaign: dispersed cases of a scenario flown by "
                     "the coordinated and/or uncoordinated controller, as tasks on Dask "
                     "distributed. Other commands: 'rerun OUT_DIR --case I', "
-                    "'summary OUT_DIR'.")
+                    "'summary OUT_DIR', 'compare DIR_A DIR_B'.")
     p.add_argument("--scenario", default="paper", help="plant scenario name or path "
                    "(default paper)")
     p.add_argument("--runs", type=_positive_int, required=True, help="number of cases")
@@ -203,8 +204,28 @@ def main_rerun(argv) -> int:
     return 0
 
 
+def main_compare(argv) -> int:
+    from tools.montecarlo.campaign import CampaignError
+    from tools.montecarlo.compare import compare, table
+    p = argparse.ArgumentParser(prog="python -m tools.montecarlo compare",
+                                description="Compare two campaigns case by case (e.g. a --hil "
+                                            "subset against the in-process campaign).")
+    p.add_argument("dir_a")
+    p.add_argument("dir_b")
+    args = p.parse_args(argv)
+    try:
+        c = compare(args.dir_a, args.dir_b)
+    except CampaignError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(table(c))
+    return 0
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "compare":
+        return main_compare(argv[1:])
     if argv and argv[0] == "rerun":
         return main_rerun(argv[1:])
     if argv and argv[0] == "summary":
