@@ -61,6 +61,19 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+def _finish_axis(ax, ylabel: str) -> None:
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+
+
+def _finish(fig, axes, title: str, meta: dict, path: os.PathLike) -> Path:
+    axes[-1].set_xlabel("time [s]")
+    _title(fig, title, meta)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def fig_attitude(runs: dict, meta: dict, path: os.PathLike) -> Path:
     """alpha, beta, mu (deg) against time for each variant, with the command drawn."""
     fig, axes = plt.subplots(3, 1, figsize=(9, 8.5), sharex=True)
@@ -81,13 +94,9 @@ def fig_attitude(runs: dict, meta: dict, path: os.PathLike) -> Path:
         first = next(iter(runs.values()))
         xs, ys = _stairs(first["cmd_t_s"], first[f"cmd_{ch}_rad"], t_end)
         ax.plot(xs, ys * R2D, label="command", **CMD_STYLE)
-        ax.set_ylabel(f"{label} [deg]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("time [s]")
-    _title(fig, "Attitude tracking (cf. paper Fig. 2): coordinated vs uncoordinated", meta)
-    fig.tight_layout()
-    return _save(fig, path)
+        _finish_axis(ax, f"{label} [deg]")
+    return _finish(fig, axes, "Attitude tracking (cf. paper Fig. 2): coordinated vs "
+                   "uncoordinated", meta, path)
 
 
 def fig_rates(runs: dict, meta: dict, path: os.PathLike) -> Path:
@@ -98,13 +107,8 @@ def fig_rates(runs: dict, meta: dict, path: os.PathLike) -> Path:
         for variant, r in runs.items():
             ax.plot(r["t_s"], r[f"{ch}_rad_s"] * R2D, label=variant, **_style(variant))
         ax.axhline(0.0, color="0.6", linewidth=0.8)
-        ax.set_ylabel(f"{label} [deg/s]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("time [s]")
-    _title(fig, "Body angular rates (cf. paper Fig. 3)", meta)
-    fig.tight_layout()
-    return _save(fig, path)
+        _finish_axis(ax, f"{label} [deg/s]")
+    return _finish(fig, axes, "Body angular rates (cf. paper Fig. 3)", meta, path)
 
 
 def fig_surfaces(runs: dict, meta: dict, path: os.PathLike) -> Path:
@@ -123,14 +127,9 @@ def fig_surfaces(runs: dict, meta: dict, path: os.PathLike) -> Path:
             for s in (1, -1):
                 ax.axhline(s * lim_deg, color="red", linestyle="-.", linewidth=0.9,
                            label="deflection limit" if s == 1 else None)
-        ax.set_ylabel(f"{label} [deg]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("time [s]")
-    _title(fig, "Control surface deflections, actual (cf. paper Fig. 4; "
-                "elevon + = trailing edge up, rudder + = trailing edge left)", meta)
-    fig.tight_layout()
-    return _save(fig, path)
+        _finish_axis(ax, f"{label} [deg]")
+    return _finish(fig, axes, "Control surface deflections, actual (cf. paper Fig. 4; "
+                   "elevon + = trailing edge up, rudder + = trailing edge left)", meta, path)
 
 
 def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
@@ -150,9 +149,7 @@ def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
                 ax.plot(r["t_s"], r["dtrue"][:, i] * R2D, color="black", linewidth=1.0,
                         alpha=0.8, label="true disturbance (plant)")
                 true_drawn = True
-        ax.set_ylabel(f"{axis_names[i]} disturbance\n[deg/s^2]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        _finish_axis(ax, f"{axis_names[i]} disturbance\n[deg/s^2]")
     if have_theta:
         ax = axes[3]
         for variant, r in runs.items():
@@ -170,14 +167,9 @@ def fig_estimates(runs: dict, meta: dict, path: os.PathLike) -> Path:
             for j in range(vals.shape[1]):
                 ax.plot(r["int_t_s"], vals[:, j], color=st["color"], linestyle=st["linestyle"],
                         linewidth=0.8, alpha=0.7, label=variant if j == 0 else None)
-        ax.set_ylabel("adaptive estimates\ntheta_hat / nominal [-]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("time [s]")
-    _title(fig, "Disturbance observer (angular acceleration, Eq. 37) vs the plant's true "
-                "disturbance; adaptive estimates", meta)
-    fig.tight_layout()
-    return _save(fig, path)
+        _finish_axis(ax, "adaptive estimates\ntheta_hat / nominal [-]")
+    return _finish(fig, axes, "Disturbance observer (angular acceleration, Eq. 37) vs the "
+                   "plant's true disturbance; adaptive estimates", meta, path)
 
 
 def write_all(runs: dict, meta: dict, out_dir: os.PathLike) -> list[Path]:
