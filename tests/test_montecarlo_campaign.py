@@ -201,3 +201,12 @@ def test_existing_cluster_by_scheduler_address(client, tmp_path):
     res = run_campaign(cfg, 4, tmp_path, scheduler=addr, progress_stream=_Null())
     assert (res.ran, res.lost, res.nthreads) == (4, [], 2)
     assert results.finished_cases(tmp_path, cfg.variants) == {0, 1, 2, 3}
+
+
+def test_compare_a_campaign_with_itself_finds_no_difference(campaign):
+    from tools.montecarlo.compare import compare
+    cfg, out, _ = campaign
+    c = compare(out, out)
+    assert c["pairs"] == 2 * RUNS and c["warnings"] == [] and c["diverged_mismatch"] == []
+    for v in cfg.variants:
+        assert all(e["max_abs_diff"] == 0.0 for e in c["variants"][v].values())
