@@ -7,8 +7,8 @@ are counted as stale and ignored), latches the command, logs the truth row at t_
 advances one frame. No wall clock enters the physics: the same seed gives bit-identical
 truth.
 
-Real time: frame k is due at wall time t0 + k T (absolute deadlines, select() waits with
-microsecond timeouts while receiving). At each deadline the plant applies the newest servo
+Real time: frame k is due at wall time t0 + k T (absolute deadlines; select() waits with
+microsecond timeouts while receiving, then a busy poll for the last 200 us). At each deadline the plant applies the newest servo
 command it has (newest by stamp), measures, sends, logs and advances. If no command has been
 accepted for ``no_command_s`` (or none yet) it applies the scenario's ``servo.no_command``:
 ``hold`` keeps the last command, ``trim`` goes to the initial-state trim; such frames are
@@ -38,6 +38,7 @@ from plant_sim.truthlog import TruthWriter
 
 U32 = 1 << 32
 DEG = math.pi / 180.0
+SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
 
 
 @dataclass
@@ -133,6 +134,12 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
         if stop.requested and stats.exit_reason == "completed":
             stats.exit_reason = f"stopped by {stop.signal_name}"
         stats.aero_clip_frames = sim.clip_frames
+        lat = stats.extra.pop("lateness_s", None)
+        if lat is not None and stats.frames:
+            lat_us = lat[:stats.frames] * 1e6
+            stats.extra.update(lateness_us_p50=float(np.percentile(lat_us, 50)),
+                               lateness_us_p99=float(np.percentile(lat_us, 99)),
+                               lateness_us_max=float(lat_us.max()))
         summary = {
             "scenario": sc.name,
             "mode": cfg.mode,
@@ -234,6 +241,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     last_count = 0
     k = 0
     base_k = 0
+    lateness = np.zeros(max(n_frames, 1))
+    stats.extra["lateness_s"] = lateness          # summarised and removed by run()
     sim.measure(meas)
     while k < n_frames:
         if stop.requested:
@@ -246,11 +255,15 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             rem = deadline - now
             if rem <= 0.0:
                 break
-            link.wait_readable(rem)
+            if rem > SPIN_S:
+                link.wait_readable(rem - SPIN_S)     # select(): microsecond timeouts
+            # within SPIN_S of the deadline: spin on the socket (timer slack and wake-up latency
+            # are 50-100 us here, perf_anchors.md section 2)
         if link.cmd_count != last_count:
             last_count = link.cmd_count
             last_cmd_wall = now
         late = now - deadline
+        lateness[k] = late
         if late > frame_dt:
             stats.late_frames += 1
             if late > 50 * frame_dt:
