@@ -166,6 +166,20 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     return stats
 
 
+def _warn_clip(sim, stats, log):
+    """Say once when the run first leaves the aerodynamic data's validity (docs/plant.md s. 3)."""
+    from plant_sim.aero import CLIP_ALPHA, CLIP_DEFLECTION, CLIP_MACH
+    f = int(sim.x[dy.X_CLIP])
+    what = [n for b, n in ((CLIP_ALPHA, "alpha outside 0..12 deg"), (CLIP_MACH, "Mach outside 4..24"),
+                           (CLIP_DEFLECTION, "deflection beyond 20 deg")) if f & b]
+    t = sim.t_s - sim.frame_dt_s
+    stats.extra["aero_clip_first_t_s"] = t
+    msg = (f"WARNING: aerodynamic inputs clipped to the fits' validity from t={t:.3f} s "
+           f"({', '.join(what)}); frames counted in plant_summary.json aero_clip_frames")
+    print(msg, file=sys.stderr, flush=True)
+    log.warning(msg)
+
+
 def _progress(cfg, sim, t_wall0, now):
     el = now - t_wall0
     rtf = sim.t_s / el if el > 0 else 0.0
@@ -214,7 +228,8 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
         cmd[0] = c[0]
         cmd[1] = c[1]
         cmd[2] = c[2]
-        sim.frame(cmd, writer.row())
+        if sim.frame(cmd, writer.row()) and "aero_clip_first_t_s" not in stats.extra:
+            _warn_clip(sim, stats, log)
         stats.frames += 1
         if k & 63 == 0:
             now = perf()
@@ -284,7 +299,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
         stamp = int(round(k * frame_dt * 1e6))
         link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
         link.send_sensors()
-        sim.frame(cmd, writer.row())
+        if sim.frame(cmd, writer.row()) and "aero_clip_first_t_s" not in stats.extra:
+            _warn_clip(sim, stats, log)
         stats.frames += 1
         k += 1
         if now >= next_progress:
