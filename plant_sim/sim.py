@@ -215,6 +215,7 @@ class PlantSim:
         self.last_meas = np.zeros(M_N)
         self.cmd_rad = np.zeros(3)
         self.trim_rad = np.zeros(3)        # initial-state trim (set by reset when asked)
+        self._trim_cache = None
         self.clip_frames = 0               # frames in which the aero inputs were clipped
         self.frames = 0
         self.reset()
@@ -227,9 +228,11 @@ class PlantSim:
                          ini["mu_deg"] * DEG, ini["gamma_deg"] * DEG, ini["chi_deg"] * DEG,
                          ini["p_deg_s"] * DEG, ini["q_deg_s"] * DEG, ini["r_deg_s"] * DEG, self.x)
         if self.scenario.data["actuators"]["initial"] == "trim":
-            from plant_sim.trim import trim_at
-            res = trim_at(self.scenario, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG)
-            self.trim_rad[:] = res.deflection_rad
+            if self._trim_cache is None:      # the scenario does not change: solve once
+                from plant_sim.trim import trim_at
+                res = trim_at(self.scenario, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG)
+                self._trim_cache = res.deflection_rad.copy()
+            self.trim_rad[:] = self._trim_cache
         else:
             self.trim_rad[:] = 0.0
         self.x[X_DL:X_DL + 3] = self.trim_rad
