@@ -28,8 +28,11 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim.vehicle import (ALPHA_MAX_DEG, ALPHA_MIN_DEG, B_REF_M, C_REF_M,
                                DEFLECTION_MAX_DEG, MACH_MAX, MACH_MIN, S_REF_M2)
+
+_refresh_jit_cache(__file__)
 
 # Output layout of coefficients().
 C_L = 0

@@ -29,6 +29,10 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_sim._jitcache import refresh as _refresh_jit_cache
+
+_refresh_jit_cache(__file__)
+
 # Constants of the 1976 standard (SI).
 G0_M_S2 = 9.80665
 R_EARTH_M = 6356766.0

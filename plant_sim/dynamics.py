@@ -24,9 +24,12 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim.aero import C_D, C_L, C_N, C_PITCH, C_ROLL, C_Y, C_YAW, coefficients
 from plant_sim.atmosphere import A_G_M_S2, A_N, A_P_PA, A_RHO_KG_M3, A_SOUND_M_S, us76
 from plant_sim.vehicle import B_REF_M, C_REF_M, S_REF_M2
+
+_refresh_jit_cache(__file__)
 
 DEG = math.pi / 180.0
 

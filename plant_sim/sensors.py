@@ -21,8 +21,11 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim.dynamics import (P_BIAS, P_DELAY, P_NOISE, P_DT, P_SENSORS_ON, X_P, X_PD, X_Q,
                                 X_R, X_STEP, euler_from_quat, flight_path)
+
+_refresh_jit_cache(__file__)
 
 M_T_S = 0
 M_ROLL = 1

@@ -20,6 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim import dynamics as dy
 from plant_sim.dynamics import (AX_ALPHA, AX_BETA, AX_L, AX_M, AX_MACH, AX_N, AX_QBAR,
                                 AX_THRUST, AX_V, P_N, W_AUX, W_N, X_CLIP, X_CMD_L, X_DL, X_N,
@@ -29,6 +30,8 @@ from plant_sim.sensors import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED,
                                M_N, M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, MEAS_NAMES,
                                RING_N)
 from plant_sim import sensors as se
+
+_refresh_jit_cache(__file__)
 
 DEG = math.pi / 180.0
 
