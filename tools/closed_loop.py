@@ -320,6 +320,30 @@ def summary_line(res: ClosedLoopResult) -> str:
     return " | ".join(parts)
 
 
+def markdown_table(scenario, duration_s=None, law_overrides=None) -> str:
+    """Markdown table of the figures of both variants with steps and with the prefilter."""
+    def f(v, fmt):
+        return "-" if v is None else format(v, fmt)
+
+    rows = ["| shaping | variant | alpha os % / ts s | beta os % / ts s | mu os % / ts s | "
+            "final err a/b/m deg | peak L/R/rud deg | sat s |",
+            "|---|---|---|---|---|---|---|---|"]
+    for shaping in ("steps", "prefilter"):
+        for co in (True, False):
+            res = simulate(scenario, coordinated=co, duration_s=duration_s,
+                           command_shaping=shaping, law_overrides=law_overrides)
+            m = res.metrics()
+            cells = [f"{f(m[c].overshoot_pct, '.1f')} / {f(m[c].settling_time_s, '.2f')}"
+                     for c in ("alpha", "beta", "mu")]
+            fe = "/".join(f"{m[c].final_error_deg:.3f}" for c in ("alpha", "beta", "mu"))
+            pk = m["surfaces"]["peak_deg"]
+            rows.append(f"| {shaping} | {'coordinated' if co else 'uncoordinated'}"
+                        f"{' (DIVERGED)' if res.diverged else ''} | " + " | ".join(cells)
+                        + f" | {fe} | {pk['left_elevon']:.1f}/{pk['right_elevon']:.1f}/"
+                        f"{pk['rudder']:.1f} | {m['surfaces']['saturated_s']:.2f} |")
+    return "\n".join(rows)
+
+
 def main(argv=None) -> int:
     import argparse
     ap = argparse.ArgumentParser(description="Fly a scenario in process and print the figures.")
@@ -329,12 +353,17 @@ def main(argv=None) -> int:
     ap.add_argument("--variant", choices=("coordinated", "uncoordinated", "both"), default="both")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable")
+    ap.add_argument("--table", action="store_true",
+                    help="print a markdown table (both variants, steps and prefilter)")
     a = ap.parse_args(argv)
     ov = {}
     for s in a.set:
         name, _, val = s.partition("=")
         ov[name.strip()] = float(val)
     variants = (True, False) if a.variant == "both" else (a.variant == "coordinated",)
+    if a.table:
+        print(markdown_table(a.scenario, duration_s=a.duration, law_overrides=ov))
+        return 0
     for co in variants:
         res = simulate(a.scenario, coordinated=co, duration_s=a.duration,
                        command_shaping=a.shaping, law_overrides=ov)
