@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import logging.handlers
 import os
+import queue
 import signal
 import sys
 import time
@@ -63,20 +65,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from fc.app import FcConfig, FlightController   # after --help: imports numba/pymavlink
 
     out = args.out or os.path.join("runs", "fc-" + time.strftime("%Y%m%dT%H%M%SZ", time.gmtime()))
     os.makedirs(out, exist_ok=True)
+    # the loop only enqueues log records; a listener thread writes fc.log and stderr
     log = logging.getLogger("fc")
     log.setLevel(logging.INFO)
     fh = logging.FileHandler(os.path.join(out, "fc.log"))
     fh.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
-    log.addHandler(fh)
     eh = logging.StreamHandler(sys.stderr)
     eh.setLevel(logging.WARNING)
     eh.setFormatter(logging.Formatter("fc: %(levelname)s %(message)s"))
-    log.addHandler(eh)
+    records: queue.SimpleQueue = queue.SimpleQueue()
+    listener = logging.handlers.QueueListener(records, fh, eh, respect_handler_level=True)
+    listener.start()
+    log.addHandler(logging.handlers.QueueHandler(records))
     log.propagate = False
+    try:
+        return _run(args, out, log)
+    finally:
+        listener.stop()
+        fh.close()
+
+
+def _run(args, out: str, log: logging.Logger) -> int:
+    from fc.app import FcConfig, FlightController
 
     cfg = FcConfig(mode=args.mode, plant_bind=args.plant_bind, plant_sysid=args.plant_sysid,
                    gcs=args.gcs or [("127.0.0.1", 14550)], gcs_bind=args.gcs_bind,

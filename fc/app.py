@@ -21,6 +21,7 @@ import numpy as np
 from fc.estimator import E_N, Estimator
 from fc.gcs import GcsLink
 from fc.internals_log import InternalsLog
+from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
 from fc.modes import FlightMode, ModeManager
@@ -100,6 +101,7 @@ class FlightController:
         overrides = {n: self.params.get(n) for n in self.law_names}
         self.law = law_cls(overrides)
         self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
+        self._warm_up_law(law_cls, overrides)
 
         # --- state
         self.meas = np.zeros(M_N)
@@ -117,6 +119,9 @@ class FlightController:
         self.last_stamp_us = -1
         self.answered_stamp_us = -1
         self.law_changes_seen = -1
+        # True while the law is engaged but the estimate is not yet healthy: the law is reset
+        # (integrators, observer, estimates start from the current state) on the first healthy frame.
+        self.law_reset_pending = False
         self.law_errors = 0
         self.duplicate_frames = 0
         self.plant_resets = 0
@@ -132,8 +137,9 @@ class FlightController:
         self.plant = PlantLink(UdpEndpoint(*cfg.plant_bind), plant_sysid=cfg.plant_sysid,
                                sysid=cfg.sysid, compid=cfg.compid)
         key = load_signing_key(cfg.signing_key_file) if cfg.signing_key_file else None
+        self.io = IoThread(self.log)
         self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
-                           signing_key=key, log=self.log)
+                           signing_key=key, log=self.log, io=self.io)
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
@@ -244,14 +250,34 @@ class FlightController:
                 if hasattr(self, "gcs"):
                     self.gcs.announce_param("CO_ENABLE")
         if self.modes.law_active:
-            self.law.reset(self.est.est)
-            self.planner.ticks = 0      # slow loop runs on the first tick after engagement
+            if self.est.healthy:
+                self._engage_law()
+            else:
+                self.law_reset_pending = True   # engaged before data: reset on first healthy frame
         self.log.info("mode %s, %s", self.modes.mode.name,
                       "armed" if self.modes.armed else "disarmed")
 
+    def _engage_law(self) -> None:
+        """Start the law from the current (healthy) estimate."""
+        self.law.reset(self.est.est)
+        self.law_reset_pending = False
+        self.planner.ticks = 0      # slow loop runs on the first tick after engagement
+
+    def _warm_up_law(self, law_cls, overrides: dict) -> None:
+        """Run a throw-away law once so its kernels are loaded before the first real tick."""
+        est = np.zeros(E_N)
+        est[0], est[6], est[7] = 0.02, 2000.0, 20000.0   # alpha rad, V m/s, h m: plausible
+        try:
+            spare = law_cls(overrides)
+            spare.reset(est)
+            spare.slow_step(est, np.zeros(3), self.planner.slow_dt_s)
+            spare.fast_step(est, self.planner.fast_dt_s)
+        except Exception as exc:  # noqa: BLE001 - only a warm-up; the real call will tell
+            self.log.warning("law warm-up failed: %r", exc)
+
     # ------------------------------------------------------------------ the tick
     def _fast_tick(self, slow: bool) -> None:
-        if self.modes.law_active:
+        if self.modes.law_active and not self.law_reset_pending:
             try:
                 if slow:
                     self.law.slow_step(self.est.est, self.cmd_rad, self.planner.slow_dt_s)
@@ -279,6 +305,8 @@ class FlightController:
             self.plant.relock_allowed = False
         if self.est.healthy:
             self.seen_data = True
+            if self.law_reset_pending and self.modes.law_active:
+                self._engage_law()
             self.last_good_wall_s = now_s
             text = self.modes.on_data_ok(now_s, self.fs_recover, self.fs_recover_s)
             if text is not None:
@@ -356,13 +384,14 @@ class FlightController:
             self.gcs.flush()
             if self.params_dirty:
                 self.params_dirty = False
-                self._save_params()
+                self.io.submit(self._save_params, self.params.values.copy())
         self.gcs.service(now_s)
 
-    def _save_params(self) -> None:
+    def _save_params(self, values: np.ndarray | None = None) -> None:
+        """Write the parameter file (runs on the I/O thread; ``values`` is a snapshot)."""
         try:
             saved = ParamTable(self.params.defs)
-            saved.values[:] = self.params.values
+            saved.values[:] = self.params.values if values is None else values
             for i, d in enumerate(saved.defs):     # commands are not settings: defaults on file
                 if d.group == "command":
                     saved.values[i] = d.default
@@ -516,6 +545,7 @@ class FlightController:
     # ------------------------------------------------------------------ shutdown
     def close(self) -> None:
         """Flush and close logs and sockets (SIGINT/SIGTERM path)."""
+        self.io.close()
         if self.params_dirty:
             self._save_params()
         c = self.plant.counters

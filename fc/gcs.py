@@ -68,7 +68,7 @@ class GcsLink:
 
     def __init__(self, vehicle, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
-                 log=None, max_rx: int = 8, max_tx: int = 6) -> None:
+                 log=None, max_rx: int = 8, max_tx: int = 6, io=None) -> None:
         self.v = vehicle
         self.log = log
         self.endpoint = UdpEndpoint(*bind)
@@ -91,7 +91,11 @@ class GcsLink:
         self.rejected_bad = 0
         self.rejected_signing = 0
         self.ignored_target = 0
-        self.tlog = open(tlog_path, "wb", buffering=1 << 16) if tlog_path else None
+        # tlog: frames collect in memory; flush() hands the chunk to the I/O thread (``io``,
+        # fc/iothread.py) so a slow disk never stalls the loop
+        self.tlog = open(tlog_path, "wb") if tlog_path else None
+        self._tlog_buf = bytearray()
+        self.io = io
         self.signing = signing_key is not None
         if signing_key is not None:
             s = self.mav.signing
@@ -108,8 +112,8 @@ class GcsLink:
 
     def _tlog_write(self, buf: bytes) -> None:
         if self.tlog is not None:
-            self.tlog.write(struct.pack(">Q", int(time.time() * 1e6)))
-            self.tlog.write(buf)
+            self._tlog_buf += struct.pack(">Q", int(time.time() * 1e6))
+            self._tlog_buf += buf
 
     def send(self, msg) -> None:
         buf = msg.pack(self.mav)
@@ -131,15 +135,23 @@ class GcsLink:
         return int((time.monotonic() - self.boot_s) * 1000) & 0xFFFFFFFF
 
     def close(self) -> None:
+        """Write what is pending (synchronously: the loop has stopped) and close."""
         if self.tlog is not None:
-            self.tlog.flush()
+            self.tlog.write(self._tlog_buf)
+            self._tlog_buf = bytearray()
             self.tlog.close()
             self.tlog = None
         self.endpoint.close()
 
     def flush(self) -> None:
-        if self.tlog is not None:
-            self.tlog.flush()
+        """Hand the collected tlog frames to the I/O thread (called ~1 Hz)."""
+        if self.tlog is None or not self._tlog_buf:
+            return
+        chunk, self._tlog_buf = self._tlog_buf, bytearray()
+        if self.io is not None:
+            self.io.submit(_write_flush, self.tlog, chunk)
+        else:
+            _write_flush(self.tlog, chunk)
 
     # ------------------------------------------------------------------ receive
     def poll(self, now_s: float) -> int:
@@ -455,3 +467,8 @@ class GcsLink:
                 self.send(msg)
                 sent += 1
         return sent
+
+
+def _write_flush(f, chunk: bytes) -> None:
+    f.write(chunk)
+    f.flush()

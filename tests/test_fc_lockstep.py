@@ -28,6 +28,10 @@ mu_deg = 4.0
 
 
 def _fly(out: str, timeline: str, n_frames: int) -> list:
+    # the wall-clock failsafe must not trip while the test process loads its own kernels
+    os.makedirs(out)
+    with open(os.path.join(out, "params.parm"), "w") as f:
+        f.write("FS_TIMEOUT_S 30\n")
     with FcProcess(out, "--arm", "--flight-mode", "COORDINATED", "--timeline", timeline) as fc:
         loop = ClosedLoop(fc.plant_port, seed=5)
         try:
