@@ -21,7 +21,7 @@ import platform
 import sys
 import time
 
-PARTS = ("law", "plant", "pingpong", "lockstep", "realtime", "startup", "inproc")
+PARTS = ("law", "plant", "pingpong", "fcpath", "lockstep", "realtime", "startup", "inproc")
 
 # Targets (issue 7) and the reference figures taken on this machine before the code existed
 # (../shared/docs/perf_anchors.md): printed next to the measurement, never used to compute it.
@@ -94,6 +94,19 @@ def part_law(rep: Report, quick: bool) -> None:
             p = rep.fig(f"law_{key}_p99_us", r[key]["p99_us"])
             rep.row(f"1 {label}", f"median {_f(m)} us, p99 {_f(p)} us", "", "", "", "law")
     rep.fig("timer_overhead_ns", r["timer_overhead_ns"])
+    try:      # the law engineer's in-numba per-part benchmark (tools/bench_law.py)
+        from tools.bench_law import bench_parts
+        parts = bench_parts(200 if quick else 2000, 50)
+    except (ImportError, AttributeError, TypeError) as exc:
+        rep.skipped["law_parts_in_numba"] = f"tools.bench_law.bench_parts unavailable: {exc}"
+        return
+    rep.details["law_parts_in_numba"] = parts
+    for name, vals in parts.items():
+        key = "law_numba_" + "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_")
+        m = rep.fig(key + "_median_us", vals[0])
+        p = rep.fig(key + "_p99_us", vals[1])
+        rep.row(f"1 inside numba (tools.bench_law): {name}", f"median {_f(m, '.3f')} us, "
+                f"p99 {_f(p, '.3f')} us", "", "", "", "law")
 
 
 def part_plant(rep: Report, quick: bool) -> None:
@@ -121,6 +134,16 @@ def part_plant(rep: Report, quick: bool) -> None:
             ratio, "plant")
     rep.row("2 plant RK4 step, whole batch inside numba", f"{_f(loop)} us", "",
             ANCHOR["rk4"], "", "plant")
+    try:      # the plant engineer's per-frame path benchmark (tools/bench_plant.py)
+        from tools.bench_plant import bench_frame_path
+        med, lo, hi = bench_frame_path("paper", 1000 if quick else 5000, 3 if quick else 5)
+    except (ImportError, AttributeError, TypeError, ValueError) as exc:
+        rep.skipped["plant_frame_path_us"] = f"tools.bench_plant.bench_frame_path: {exc}"
+        return
+    fp = rep.fig("plant_frame_path_us", med)
+    rep.row("2 plant per-frame path, no network (tools.bench_plant: encode sensors, decode "
+            "servo, truth row, advance 2 RK4 steps, measure)", f"{_f(fp, '.1f')} us "
+            f"(batches {_f(lo, '.1f')}-{_f(hi, '.1f')})", "", "", "", "plant")
 
 
 def part_pingpong(rep: Report, quick: bool) -> None:
@@ -139,6 +162,25 @@ def part_pingpong(rep: Report, quick: bool) -> None:
     rep.row("3 floor: UDP ping-pong, 64 raw bytes",
             f"median {_f(raw['median_us'], '.1f')} us, p99 {_f(raw['p99_us'], '.1f')} us",
             "", "", "", "pingpong")
+
+
+def part_fcpath(rep: Report, quick: bool) -> None:
+    from tools.bench.fcpath import fc_frame_path
+    try:
+        r = fc_frame_path(quick)
+    except (AttributeError, TypeError) as exc:   # the fc's loop methods changed
+        rep.skipped["fc_frame_path_us"] = f"fc loop methods changed: {exc}"
+        return
+    rep.details["fc_frame_path"] = r
+    tot = rep.fig("fc_frame_cpu_median_us", r["total"]["median_us"])
+    rd = rep.fig("fc_frame_read_median_us", r["read_frame"]["median_us"])
+    fr = rep.fig("fc_frame_work_median_us", r["frame"]["median_us"])
+    hk = rep.fig("fc_frame_housekeeping_median_us", r["housekeeping"]["median_us"])
+    law = rep.figures.get("law_cycle_fc_median_us")
+    rep.row("3 fc per-frame CPU, in process (recv+decode / frame / GCS housekeeping)",
+            f"median {_f(tot, '.1f')} us = {_f(rd, '.1f')} + {_f(fr, '.1f')} + "
+            f"{_f(hk, '.1f')} us", "", f"law cycle {_f(law)} us" if law else "",
+            f"law = {law / tot * 100:.0f} % of the fc's frame" if law else "", "fcpath")
 
 
 def part_lockstep(rep: Report, quick: bool, keep) -> None:
@@ -172,6 +214,15 @@ def part_lockstep(rep: Report, quick: bool, keep) -> None:
             peer = ratio = ""
         rep.row(f"3 lockstep RTF at {hz} Hz ({r['rtf_source']})", f"{_f(rtf, '.1f')}x", tgt,
                 peer + "; " + ANCHOR["lockstep"], ratio, "lockstep")
+        fcc = rep.figures.get("fc_frame_cpu_median_us")
+        plc = rep.figures.get("plant_frame_path_us")
+        if floor and fcc and plc and hz == 500:
+            budget = floor + fcc + plc
+            rep.fig("lockstep_500_budget_us", budget)
+            rep.row("3 lockstep 500 Hz budget: ping-pong + fc CPU + plant CPU per frame",
+                    f"{floor:.0f} + {fcc:.0f} + {plc:.0f} = {budget:.0f} us -> at most "
+                    f"{1e6 / (budget * hz):.1f}x", "20x needs <= 100 us per exchange", "",
+                    "", "lockstep")
         rep.row(f"3 lockstep at {hz} Hz, measuring stand-in plant",
                 f"{_f(rtf_s, '.1f')}x; exchange median {_f(ex, '.0f')} us, p99 "
                 f"{_f(sd['exchange']['p99_us'], '.0f')} us", "",
@@ -217,12 +268,19 @@ def part_startup(rep: Report, quick: bool, keep) -> None:
     startup(False, keep)                     # make sure the cache matches the current code
     warm = [startup(False, keep) for _ in range(1 if quick else 3)]
     w = sorted(x["first_servo_s"] for x in warm)[len(warm) // 2]
-    rd = sorted(x["ready_s"] for x in warm)[len(warm) // 2]
+    rd = sorted(x["ready_s"] for x in warm)[len(warm) // 2]   # NaN if READY came late
     rep.details["startup_warm"] = warm
+    fl = import_floor()
+    rep.details["startup_import_floor"] = fl
+    for k, v in fl.items():
+        rep.fig(f"startup_import_{k}_s", v)
     rep.fig("startup_warm_first_servo_s", w)
-    rep.fig("startup_warm_ready_s", rd)
     rep.row("5 start-up, warm: process start -> first SERVO_OUTPUT_RAW", f"{_f(w)} s "
-            f"(READY at {_f(rd)} s)", f"<= 1 s: {_ok(w <= 1.0)}", "", "", "startup")
+            f"(READY at {_f(rd)} s)", f"<= 1 s: {_ok(w <= 1.0)}",
+            f"floor: a bare python importing numpy+numba+scipy.linalg+pymavlink dialect "
+            f"{_f(fl['total'])} s (numba {_f(fl['numba'])}, scipy.linalg {_f(fl['scipy_linalg'])}"
+            f", pymavlink {_f(fl['pymavlink'])})",
+            f"{w / fl['total']:.1f}x the import floor", "startup")
     if quick:
         rep.skipped["startup_cold_first_servo_s"] = ("left out of --quick (compiles every "
                                                       "kernel: tens of seconds)")
@@ -232,6 +290,39 @@ def part_startup(rep: Report, quick: bool, keep) -> None:
     rep.fig("startup_cold_first_servo_s", c["first_servo_s"])
     rep.row("5 start-up, cold (empty NUMBA_CACHE_DIR)", f"{_f(c['first_servo_s'])} s "
             f"(READY at {_f(c['ready_s'])} s)", "", "", "", "startup")
+
+
+IMPORT_FLOOR_CODE = """
+import time
+t0 = time.perf_counter()
+import numpy
+t1 = time.perf_counter()
+import numba
+t2 = time.perf_counter()
+import scipy.linalg.cython_blas
+t3 = time.perf_counter()
+import os
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import ardupilotmega
+t4 = time.perf_counter()
+print(t1 - t0, t2 - t1, t3 - t2, t4 - t3)
+"""
+
+
+def import_floor() -> dict:
+    """Wall time of a bare interpreter that only imports what the fc needs (s): numpy,
+    numba, scipy.linalg (numba imports it at its first compile or cache load, to find BLAS),
+    pymavlink's dialect. Median of 3 processes."""
+    import subprocess
+    runs = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, "-c", IMPORT_FLOOR_CODE], capture_output=True,
+                             text=True, timeout=120, check=True).stdout.split()
+        runs.append([time.perf_counter() - t0] + [float(x) for x in out])
+    med = [sorted(r[i] for r in runs)[1] for i in range(5)]
+    return {"total": med[0], "numpy": med[1], "numba": med[2], "scipy_linalg": med[3],
+            "pymavlink": med[4]}
 
 
 def part_inproc(rep: Report, quick: bool) -> None:
@@ -308,6 +399,7 @@ def main(argv=None) -> int:
     runners = {"law": lambda: part_law(rep, args.quick),
                "plant": lambda: part_plant(rep, args.quick),
                "pingpong": lambda: part_pingpong(rep, args.quick),
+               "fcpath": lambda: part_fcpath(rep, args.quick),
                "lockstep": lambda: part_lockstep(rep, args.quick, args.keep),
                "realtime": lambda: part_realtime(rep, args.quick, args.keep),
                "startup": lambda: part_startup(rep, args.quick, args.keep),

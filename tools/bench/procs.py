@@ -20,6 +20,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import select
 import shutil
 import socket
 import sys
@@ -356,14 +357,13 @@ def startup(cold: bool, keep: str | None = None) -> dict:
         k = 0
         deadline = t0 + READY_TIMEOUT_S
         while time.perf_counter() < deadline:
-            if t_ready is None and not fc.lines.empty():
+            while t_ready is None and not fc.lines.empty():
                 if fc.lines.get_nowait().startswith("READY"):
                     t_ready = time.perf_counter()
             k += 1
             stamp = 2000 * k
             meas[0] = stamp * 1e-6
             ep.send(codec.encode(meas, stamp), ("127.0.0.1", port))
-            import select
             r, _, _ = select.select([ep.fileno()], [], [], 0.002)
             if r:
                 got = ep.recv()

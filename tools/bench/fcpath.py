@@ -1,0 +1,97 @@
+"""CPU cost of the fc's per-frame path, in process, without waiting on a peer (tools.bench).
+
+A real ``fc.app.FlightController`` (lockstep, armed, COORDINATED, a ground-station output)
+gets sensor datagrams from a local socket, one at a time, and each step of its lockstep loop
+is timed with ``perf_counter_ns``: ``plant.read_frame`` (recv + MAVLink decode), the frame
+(estimator, law, PWM, SERVO_OUTPUT_RAW encode + send, internals-log row) and the
+housekeeping (ground-station poll and streams). The datagrams come from the measuring
+stand-in's encoder with the plant physics between frames, so the law sees a flight.
+
+This is the fc's share of a lockstep exchange (the rest is the plant's share and the
+two UDP hops: the ping-pong floor). It uses the fc's loop methods (``_lockstep_frame``,
+``_housekeeping``) directly; if those change, the part is reported as skipped.
+"""
+from __future__ import annotations
+
+import logging
+import shutil
+import socket
+import tempfile
+import time
+
+import numpy as np
+
+from tools.bench.inproc import stats_us
+
+__all__ = ["fc_frame_path"]
+
+
+def _drain(*socks) -> None:
+    for s in socks:
+        while True:
+            try:
+                s.recv(4096)
+            except (BlockingIOError, InterruptedError):
+                break
+
+
+def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
+    from fc.app import FcConfig, FlightController
+    from tools.bench.standin import FrameCodec, make_sim
+    n = frames or (1000 if quick else 10000)
+    d = tempfile.mkdtemp(prefix="hyfc-fcpath-")
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    plant = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc = None
+    try:
+        sink.bind(("127.0.0.1", 0))
+        sink.setblocking(False)
+        plant.bind(("127.0.0.1", 0))
+        plant.setblocking(False)
+        log = logging.getLogger("tools.bench.fcpath")
+        log.addHandler(logging.NullHandler())
+        log.propagate = False
+        cfg = FcConfig(mode="lockstep", plant_bind=("127.0.0.1", 0), gcs=[sink.getsockname()],
+                       gcs_bind=("127.0.0.1", 0), out=d, arm=True, flight_mode="COORDINATED")
+        fc = FlightController(cfg, log)
+        fc._next_1hz = 0.0
+        sim = make_sim("paper", 500.0)
+        codec = FrameCodec()
+        meas = np.zeros(14)
+        addr = fc.plant.endpoint.address
+        pc = time.perf_counter_ns
+        mono = time.monotonic
+        t = np.zeros((n, 3), dtype=np.int64)
+        cmd = np.zeros(3)
+        warm = 200
+        for k in range(warm + n):
+            sim.measure(meas)
+            stamp = int(round(sim.t_s * 1e6))
+            plant.sendto(codec.encode(meas, stamp), addr)
+            t0 = pc()
+            st = fc.plant.read_frame(fc.meas_scratch)
+            t1 = pc()
+            if st >= 0:
+                fc._lockstep_frame(st, mono())
+            t2 = pc()
+            fc._housekeeping(mono())
+            t3 = pc()
+            if k >= warm:
+                t[k - warm] = (t1 - t0, t2 - t1, t3 - t2)
+            _drain(plant, sink)
+            cmd[:] = fc.delta_rad
+            sim.step_frame(cmd)
+        return {"frames": n, "read_frame": stats_us(t[:, 0]), "frame": stats_us(t[:, 1]),
+                "housekeeping": stats_us(t[:, 2]), "total": stats_us(t.sum(axis=1)),
+                "note": "in process, one thread, no peer wait; read_frame = recv + decode of "
+                        "ATTITUDE+AOA_SSA+VFR_HUD; frame = estimator + law + PWM + "
+                        "SERVO_OUTPUT_RAW encode/send + internals row; housekeeping = GCS"}
+    finally:
+        if fc is not None:
+            try:
+                fc.close()
+            except Exception:  # noqa: BLE001 - measuring tool: closing is best effort
+                pass
+        sink.close()
+        plant.close()
+        shutil.rmtree(d, ignore_errors=True)
