@@ -3,8 +3,11 @@
 At a given alpha and beta (rates zero, the scenario's V, h, mass properties, x_cg and
 uncertainty multipliers; mu does not enter the moments), solve
     l(dL, dR, dU) = m(dL, dR, dU) = n(dL, dR, dU) = 0,  |d| <= limit
-by bounded least squares on the moments scaled by qbar S (b, c, b). If no deflection within
-the limits balances them, the result is the best achievable point and the moment left over.
+by bounded least squares on the moments scaled by qbar S (b, c, b): Gauss-Newton steps whose
+linearised bounded problem is solved exactly by enumerating the 27 free/lower/upper patterns of
+the three surfaces (the moments are close to linear in the deflections, so this converges in a
+few steps; no scipy import, which would cost a second of every plant start). If no deflection
+within the limits balances them, the result is the best achievable point and the moment left.
 The disturbance d(t) is time-varying and is not part of the trim.
 """
 from __future__ import annotations
@@ -12,8 +15,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import itertools
+
 import numpy as np
-from scipy.optimize import least_squares
 
 from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario
@@ -68,17 +72,69 @@ def trim_at(sc: Scenario, alpha_rad: float, beta_rad: float) -> TrimResult:
     scale = np.array([qs * B_REF_M, qs * C_REF_M, qs * B_REF_M])
     m0 = moments(np.zeros(3))
 
-    best = None
-    for start in (np.zeros(3), np.array([0.5, 0.5, 0.0]) * lim, np.array([-0.5, -0.5, 0.0]) * lim):
-        r = least_squares(lambda d: moments(d) / scale, start, bounds=(-lim, lim),
-                          xtol=1e-14, ftol=1e-14, gtol=1e-14, method="trf")
-        if best is None or r.cost < best.cost:
-            best = r
-    d = np.clip(best.x, -lim, lim)
+    d = _bounded_gauss_newton(lambda dd: moments(dd) / scale, lim)
     left = moments(d)
     trimmed = bool(np.all(np.abs(left / scale) < TRIM_TOL_COEF))
     at_limit = tuple(bool(abs(v) >= lim * (1 - 1e-6)) for v in d)
     return TrimResult(alpha_rad, beta_rad, d, left, m0, trimmed, at_limit)
+
+
+_PATTERNS = tuple(itertools.product((0, -1, 1), repeat=3))   # free, at -limit, at +limit
+
+
+def _bounded_linear_ls(r0: np.ndarray, jac: np.ndarray, d0: np.ndarray, lim: float) -> np.ndarray:
+    """argmin |r0 + J (d - d0)| over |d_i| <= lim (exact, by active-set enumeration)."""
+    best_d, best_cost = d0.copy(), float(r0 @ r0)
+    for pat in _PATTERNS:
+        d = np.empty(3)
+        fixed = [i for i in range(3) if pat[i] != 0]
+        free = [i for i in range(3) if pat[i] == 0]
+        for i in fixed:
+            d[i] = pat[i] * lim
+        rhs = r0 - jac @ d0
+        if fixed:
+            rhs = rhs + jac[:, fixed] @ d[fixed]
+        if free:
+            sol, *_ = np.linalg.lstsq(jac[:, free], -rhs, rcond=None)
+            if np.any(np.abs(sol) > lim * (1 + 1e-12)):
+                continue
+            d[free] = sol
+        res = r0 + jac @ (d - d0)
+        cost = float(res @ res)
+        if cost < best_cost - 1e-30:
+            best_d, best_cost = d, cost
+    return best_d
+
+
+def _bounded_gauss_newton(resid, lim: float, iters: int = 30) -> np.ndarray:
+    """Bounded nonlinear least squares of a 3-vector residual in 3 deflections (rad)."""
+    d = np.zeros(3)
+    h = 1e-5                                  # rad; the fits are smooth polynomials in deg
+    cost = float(resid(d) @ resid(d))
+    for _ in range(iters):
+        r0 = resid(d)
+        jac = np.empty((3, 3))
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = h
+            jac[:, j] = (resid(np.clip(d + e, -lim, lim)) - resid(np.clip(d - e, -lim, lim))) / (
+                np.clip(d[j] + h, -lim, lim) - np.clip(d[j] - h, -lim, lim))
+        cand = _bounded_linear_ls(r0, jac, d, lim)
+        step = cand - d
+        # backtrack if the nonlinear cost does not fall
+        for _ in range(20):
+            c = float(resid(d + step) @ resid(d + step))
+            if c <= cost:
+                break
+            step *= 0.5
+        else:
+            break
+        d = np.clip(d + step, -lim, lim)
+        done = np.max(np.abs(step)) < 1e-12 or abs(cost - c) <= 1e-30
+        cost = c
+        if done:
+            break
+    return d
 
 
 def trim_report(sc: Scenario) -> tuple[str, bool]:
