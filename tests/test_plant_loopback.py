@@ -18,6 +18,8 @@ import pytest
 from plant_sim import truthlog
 from plant_sim.link import ServoResponder
 
+pytestmark = pytest.mark.hil
+
 DEG = math.pi / 180.0
 DURATION_S = 1.0
 

@@ -11,6 +11,8 @@ import pytest
 from plant_sim import truthlog
 from plant_sim.link import ServoResponder
 
+pytestmark = pytest.mark.hil
+
 PY = sys.executable
 
 
