@@ -132,9 +132,9 @@ SCHEMA: dict[str, Any] = {
             "climb_m_s": Key("float", 0.0, -1000.0, 1000.0),
         },
         "latency_s": {
-            "ahrs": Key("float", 0.0, 0.0, 0.5, doc="attitude and rates"),
+            "ahrs": Key("float", 0.0, 0.0, 0.5, doc="attitude, rates and heading"),
             "air_data": Key("float", 0.0, 0.0, 0.5, doc="alpha, beta, airspeed, altitude, climb"),
-            "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed, heading"),
+            "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed"),
         },
     },
 }

@@ -1,5 +1,6 @@
-"""Sensor models: AHRS (attitude, body rates), air data (alpha, beta, airspeed, altitude, climb),
-ground speed and heading, each with seeded white noise, a constant bias and a latency.
+"""Sensor models: AHRS (attitude, body rates, heading = yaw), air data (alpha, beta, true
+airspeed, altitude, climb), ground speed, each with seeded white noise, a constant bias and a
+latency.
 
 The measurement vector layout is the contract of docs/architecture.md section 4 (M_* below;
 fc/ defines the same constants and tools/closed_loop.py checks they agree).
@@ -77,7 +78,6 @@ def clean_measurement(x, w, out):
     euler_from_quat(x, w[0:3])
     flight_path(x, w[3:7])
     gamma = w[3]
-    chi = w[4]
     V = w[6]
     u = x[3]
     v = x[4]
@@ -94,7 +94,7 @@ def clean_measurement(x, w, out):
     out[M_ALT] = -x[X_PD]
     out[M_CLIMB] = V * math.sin(gamma)
     out[M_GROUNDSPEED] = V * math.cos(gamma)
-    hd = chi
+    hd = w[2]                      # VFR_HUD.heading: the vehicle's compass heading (yaw)
     if hd < 0.0:
         hd += TWO_PI
     out[M_HEADING] = hd

@@ -173,11 +173,11 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
             M_AIRSPEED: bs["airspeed_m_s"], M_ALT: bs["alt_m"], M_CLIMB: bs["climb_m_s"]}
     frame_hz = tm["frame_hz"]
     delay = {}
-    for ch in (M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R):
+    for ch in (M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R, M_HEADING):
         delay[ch] = lat["ahrs"]
     for ch in (M_AOA, M_SSA, M_AIRSPEED, M_ALT, M_CLIMB):
         delay[ch] = lat["air_data"]
-    for ch in (M_GROUNDSPEED, M_HEADING):
+    for ch in (M_GROUNDSPEED,):
         delay[ch] = lat["gps"]
     for ch, val in noise.items():
         p[dy.P_NOISE + ch] = val

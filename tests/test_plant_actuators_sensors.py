@@ -7,7 +7,7 @@ import pytest
 from plant_sim import dynamics as dy
 from plant_sim.scenario import load, parse
 from plant_sim.sensors import (M_AOA, M_N, M_P, M_PITCH, M_ROLL, M_SSA, M_T_S, M_AIRSPEED,
-                               M_ALT, M_YAW)
+                               M_ALT, M_GROUNDSPEED, M_HEADING, M_YAW)
 from plant_sim.sim import PlantSim
 
 DEG = math.pi / 180.0
@@ -159,3 +159,5 @@ def test_sensors_disabled_gives_exact_values():
     assert m[M_PITCH] == pytest.approx(1.0 * DEG, abs=1e-15)
     assert m[M_AOA] == pytest.approx(1.0 * DEG, abs=1e-15)
     assert m[M_YAW] == pytest.approx(-5.0 * DEG, abs=1e-15)
+    assert m[M_HEADING] == pytest.approx(2 * math.pi - 5.0 * DEG, abs=1e-12)   # yaw, 0..2 pi
+    assert m[M_GROUNDSPEED] == pytest.approx(2200.0, abs=1e-9)
