@@ -303,6 +303,9 @@ class Rig:
         self.write_inputs()
         self.gcs = GroundStation(self.gcs_port, sysid=self.cfg.gcs_sysid)
         self.start_fc()
+        # the ground station can talk once it has heard the fc (udpin replies to the sender)
+        if self.gcs.heartbeat_mode(10.0) is None:
+            raise RuntimeError("no HEARTBEAT from the fc within 10 s")
         target = ("127.0.0.1", self.plant_port)
         if self.cfg.relay:
             self.relay = LinkImpair(target, up=self.cfg.impair_up, down=self.cfg.impair_down,
@@ -344,6 +347,14 @@ class Rig:
             return line.startswith("PROGRESS") and _progress_t(line) >= t_s
         line = self.plant.wait_line(ok, timeout_s)
         return None if line is None else _progress_t(line)
+
+    def plant_time_now(self) -> float:
+        """The plant's latest reported sim time (its last PROGRESS line), 0 before any."""
+        with self.plant.cv:
+            for ln in reversed(self.plant.lines):
+                if ln.startswith("PROGRESS"):
+                    return _progress_t(ln)
+        return 0.0
 
     # ------------------------------------------------------------------ finish
     def finish(self, timeout_s: float | None = None) -> dict:
