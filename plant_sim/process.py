@@ -247,6 +247,10 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     no_cmd_s = sv["no_command_s"]
     to_trim = sv["no_command"] == "trim"
     trim = sim.trim_rad.copy()
+    if to_trim and not trim.any():
+        from plant_sim.trim import trim_at
+        ini = sc.data["initial"]
+        trim[:] = trim_at(sc, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG).deflection_rad
     x = sim.x
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0

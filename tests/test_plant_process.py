@@ -1,5 +1,6 @@
 """The plant process: CLI, real-time mode, SIGTERM, give-up, trim warning (loopback UDP)."""
 import json
+import math
 import signal
 import socket
 import subprocess
@@ -10,6 +11,8 @@ import pytest
 
 from plant_sim import truthlog
 from plant_sim.link import ServoResponder
+from plant_sim.scenario import load
+from plant_sim.trim import trim_at
 
 pytestmark = pytest.mark.hil
 
@@ -102,7 +105,7 @@ def test_give_up_when_no_controller_answers(tmp_path):
 
 
 def test_untrimmable_scenario_warns_at_start(tmp_path):
-    text = open(__import__("plant_sim.scenario", fromlist=["load"]).load("paper").path).read()
+    text = open(load("paper").path).read()
     bad = tmp_path / "hard.toml"
     bad.write_text(text.replace("x_cg_m = 0.0", "x_cg_m = 2.90"))
     fc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -119,3 +122,27 @@ def test_untrimmable_scenario_warns_at_start(tmp_path):
     assert proc.returncode == 0
     assert "WARNING: scenario paper cannot be trimmed" in stderr and str(bad) in stderr
     assert "NOT trimmable" in (tmp_path / "w" / "plant.log").read_text()
+
+
+def test_realtime_without_commands_goes_to_trim(tmp_path):
+    text = open(load("nominal").path).read()
+    sc = tmp_path / "notrim.toml"
+    sc.write_text(text.replace('no_command = "hold"', 'no_command = "trim"'))
+    silent = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)     # receives, never answers
+    silent.bind(("127.0.0.1", 0))
+    out = tmp_path / "nc"
+    try:
+        proc = _plant(["run", "--scenario", str(sc), "--mode", "realtime", "--fc",
+                       f"127.0.0.1:{silent.getsockname()[1]}", "--bind", "127.0.0.1:0",
+                       "--out", str(out), "--duration", "0.3", "--progress-every", "0"])
+        _, stderr = _finish(proc, timeout=60)
+    finally:
+        silent.close()
+    assert proc.returncode == 0, stderr
+    s = json.loads((out / "plant_summary.json").read_text())
+    assert s["no_command_frames"] == s["frames"] == 150
+    t = truthlog.load(out)
+    expect = trim_at(load(sc), math.radians(1.0), math.radians(5.0)).deflection_rad
+    assert abs(expect[0]) > 0.1                      # the nominal initial state needs ~ -10 deg
+    for i, n in enumerate(("delta_cmd_left_rad", "delta_cmd_right_rad", "delta_cmd_rudder_rad")):
+        assert t[n][:-1] == pytest.approx(expect[i], abs=1e-12)
