@@ -160,6 +160,10 @@ def main_run(argv) -> int:
     _finish(out, cfg, spec, not args.no_plots, args.quiet,
             {"wall_s": res.wall_s, "compute_wall_s": res.compute_wall_s,
              "nthreads": res.nthreads})
+    if res.lost:
+        print(f"incomplete: {len(res.lost)} cases lost (see above); run the same command with "
+              f"--out {out} to retry them", file=sys.stderr)
+        return 1
     return 0
 
 

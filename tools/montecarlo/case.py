@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import math
 import os
 import socket
@@ -88,8 +89,8 @@ class CampaignConfig:
 
     def identity(self) -> str:
         """Hash of what decides the rows (a resumed campaign must have the same)."""
-        d = self.to_json()
-        return hashlib.sha256(repr(sorted(d.items())).encode()).hexdigest()[:16]
+        text = json.dumps(self.to_json(), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -136,7 +137,7 @@ def _standin_flight(cfg: CampaignConfig, values: dict, variant: str, sim_seed: i
     sinusoid, sensor noise adds a seeded random walk, so dispersions and seeds visibly change
     the metrics. The coordinated variant has more damping.
     """
-    duration = cfg.duration_s or 20.0
+    duration = cfg.duration_s or nominal_duration_s(cfg)
     dt = 0.01
     n = int(round(duration / dt)) + 1
     t = np.arange(n) * dt
@@ -249,7 +250,7 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
     rows = []
     values, sim_seed = case_values(cfg, index)
     worker = f"{socket.gethostname()}:{os.getpid()}"
-    t_end = cfg.duration_s
+    t_end = cfg.duration_s if cfg.duration_s is not None else nominal_duration_s(cfg)
     for variant in cfg.variants:
         t0 = time.perf_counter()
         row = {"case": int(index), "variant": variant, "campaign_seed": int(cfg.seed),
@@ -263,9 +264,8 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
             for ch, cm in m["channels"].items():
                 for key in mt.METRIC_KEYS:
                     row[f"{ch}.{key}"] = _nan_if_none(getattr(cm, key))
-            end = t_end if t_end is not None else float(fl.t_s[-1])
-            for ch in CHANNELS:
-                tr = resample(fl.t_s, getattr(fl, f"{ch}_rad"), cfg.trace_dt_s, end)
+            for ch in CHANNELS:  # NaN past the end of a run stopped early (diverged)
+                tr = resample(fl.t_s, getattr(fl, f"{ch}_rad"), cfg.trace_dt_s, t_end)
                 row[f"trace.{ch}_deg"] = np.degrees(tr).astype(np.float32)
             row["sim_time_s"] = float(fl.t_s[-1])
         except Exception as exc:  # a case that cannot be flown is a (failed) result
@@ -276,6 +276,13 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
         row["wall_time_s"] = time.perf_counter() - t0
         rows.append(row)
     return rows
+
+
+def nominal_duration_s(cfg: CampaignConfig) -> float:
+    """Simulated time of a case when the campaign does not set one: the scenario's."""
+    if cfg.backend == "standin":
+        return 20.0
+    return float(_base_scenario(cfg.scenario).duration_s)
 
 
 def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
