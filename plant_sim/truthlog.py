@@ -71,6 +71,8 @@ def _read_raw(raw: Path, names) -> dict[str, np.ndarray]:
 def load(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Truth log as {column name: float64 array}; ``path``: run dir, truth.npz or truth.raw."""
     p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"no such truth log or run directory: {p}")
     if p.is_dir():
         if (p / "truth.npz").is_file():
             p = p / "truth.npz"
