@@ -42,7 +42,8 @@ class EchoServer:
                 continue
             data, addr = self.sock.recvfrom(2048)
             with self._cv:
-                self.seen.append((HDR.unpack_from(data)[0], time.monotonic()))
+                seq = HDR.unpack_from(data)[0] if len(data) >= HDR.size else -1
+                self.seen.append((seq, time.monotonic()))
                 self.peers.add(addr)
                 self._cv.notify_all()
             self.sock.sendto(data, addr)
@@ -203,6 +204,34 @@ def test_directions_are_independent():
         assert len(back) == 400 - k["down"]["dropped"]
     finally:
         srv.close()
+
+
+def test_corruption_rate_and_every_corrupted_datagram_differs():
+    n = 600
+    srv = EchoServer()
+    try:
+        with LinkImpair(srv.address, up=Impairment(corrupt=0.2), seed=9) as relay:
+            c = _client()
+            payload = {}
+            for i in range(n):
+                payload[i] = HDR.pack(i, 0.0) + bytes(range(40))
+                c.sendto(payload[i], relay.listen_address)
+            srv.wait_count(n, 5.0)
+            c.close()
+            k = relay.counters["up"]
+    finally:
+        srv.close()
+    assert k["received"] == n and k["delivered"] == n
+    assert _within(k["corrupted"], n, 0.2)
+    assert len(srv.seen) == n
+
+
+def test_mutate_always_changes_the_datagram():
+    import random
+    from tools.linkimpair import mutate
+    rng = random.Random(1)
+    data = bytes(range(60))
+    assert all(mutate(data, rng) != data for _ in range(2000))
 
 
 @pytest.mark.parametrize("kw", [dict(loss=1.5), dict(dup=-0.1), dict(jitter_s=float("nan")),

@@ -19,6 +19,7 @@ same traffic give the same decisions. Per datagram, in this order:
 - **delay** ``delay_s`` plus **jitter** ``jitter_s`` (uniform in [0, jitter_s]); delivery keeps
   the arrival order (a later datagram is never released before an earlier one of the same
   direction), so jitter alone never reorders;
+- **corrupt** ``corrupt``: the datagram is mutated (bit flips, truncation, garbage; fuzzing);
 - **blackout** (``set_blackout``, tests only): the link is cut, every datagram dropped;
 - **reorder** ``reorder``: the datagram is held back and released right after the *next*
   datagram of the same direction (the two swap), or after ``reorder_hold_s`` if no other comes.
@@ -58,11 +59,43 @@ import threading
 import time
 from dataclasses import asdict, dataclass
 
-__all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "COUNTER_NAMES"]
+__all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "mutate",
+           "COUNTER_NAMES"]
 
 MAX_DATAGRAM_B = 65535
 COUNTER_NAMES = ("received", "dropped", "duplicated", "reordered", "delivered", "send_errors",
-                 "blackout")
+                 "blackout", "corrupted")
+
+
+def mutate(data: bytes, rng: random.Random) -> bytes:
+    """One random mutation of a datagram: bit flips, truncation, garbage inserted or appended,
+    a byte run overwritten, or two datagram halves swapped. Never returns the input unchanged
+    unless it is empty."""
+    b = bytearray(data)
+    kind = rng.randrange(6)
+    if not b:
+        return bytes(rng.getrandbits(8) for _ in range(rng.randint(1, 64)))
+    if kind == 0:
+        for _ in range(rng.randint(1, 4)):
+            i = rng.randrange(len(b))
+            b[i] ^= 1 << rng.randrange(8)
+    elif kind == 1:
+        b = b[:rng.randrange(len(b))]
+    elif kind == 2:
+        i = rng.randrange(len(b) + 1)
+        b[i:i] = bytes(rng.getrandbits(8) for _ in range(rng.randint(1, 16)))
+    elif kind == 3:
+        b += bytes(rng.getrandbits(8) for _ in range(rng.randint(1, 64)))
+    elif kind == 4:
+        i = rng.randrange(len(b))
+        n = rng.randint(1, 8)
+        b[i:i + n] = bytes([rng.choice((0x00, 0xFF, 0x7F, 0x80, 0xFD, 0xFE))] * n)
+    else:
+        i = rng.randrange(len(b))
+        b = b[i:] + b[:i]
+    if bytes(b) == data:
+        b.append(rng.getrandbits(8))
+    return bytes(b)
 
 
 def parse_hostport(text: str) -> tuple[str, int]:
@@ -89,9 +122,10 @@ class Impairment:
     dup: float = 0.0
     reorder: float = 0.0
     reorder_hold_s: float = 0.02
+    corrupt: float = 0.0      # probability a datagram is mutated (fuzzing: tools/fuzz.py)
 
     def __post_init__(self) -> None:
-        for name in ("loss", "dup", "reorder"):
+        for name in ("loss", "dup", "reorder", "corrupt"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= 1.0):
                 raise ValueError(f"{name} must be a probability in [0, 1], got {v!r}")
@@ -102,7 +136,8 @@ class Impairment:
 
     @property
     def is_clean(self) -> bool:
-        return not (self.loss or self.delay_s or self.jitter_s or self.dup or self.reorder)
+        return not (self.loss or self.delay_s or self.jitter_s or self.dup or self.reorder
+                    or self.corrupt)
 
 
 class _Direction:
@@ -115,6 +150,7 @@ class _Direction:
         self.held: tuple | None = None   # (data, release_deadline) waiting to be overtaken
         self.counters = {n: 0 for n in COUNTER_NAMES}
         self.blackout = False        # link cut: every datagram is dropped (counted apart)
+        self.corrupt_now = False
 
     def decide(self, now: float) -> tuple[list[float] | None, bool]:
         """(due times of the copies of one datagram or None when dropped, hold-for-reorder).
@@ -123,8 +159,10 @@ class _Direction:
         datagram k depend only on the seed and k.
         """
         imp = self.imp
-        r_loss, r_dup, r_jit, r_reo = (self.rng.random(), self.rng.random(),
-                                        self.rng.random(), self.rng.random())
+        r_loss, r_dup, r_jit, r_reo, r_cor = (self.rng.random(), self.rng.random(),
+                                               self.rng.random(), self.rng.random(),
+                                               self.rng.random())
+        self.corrupt_now = r_cor < imp.corrupt
         self.counters["received"] += 1
         if self.blackout:
             self.counters["blackout"] += 1
@@ -272,6 +310,10 @@ class LinkImpair:
             dues, reorder = d.decide(now)
         if dues is None:
             return
+        if d.corrupt_now:
+            with self._lock:
+                d.counters["corrupted"] += 1
+            data = mutate(data, d.rng)
         held = d.held
         if held is not None:
             # the held datagram is overtaken by this one: release it right after
@@ -369,7 +411,8 @@ class RelayProcess:
                           f"--{prefix}-delay-ms", repr(imp.delay_s * 1e3),
                           f"--{prefix}-jitter-ms", repr(imp.jitter_s * 1e3),
                           f"--{prefix}-dup", repr(imp.dup),
-                          f"--{prefix}-reorder", repr(imp.reorder)]
+                          f"--{prefix}-reorder", repr(imp.reorder),
+                          f"--{prefix}-corrupt", repr(imp.corrupt)]
         self.start_timeout_s = start_timeout_s
         self.proc: subprocess.Popen | None = None
         self.listen_address: tuple[str, int] | None = None
@@ -425,7 +468,8 @@ def _impairment(args, prefix: str) -> Impairment:
         return getattr(args, name) if v is None else v
     return Impairment(loss=pick("loss"), delay_s=pick("delay_ms") * 1e-3,
                       jitter_s=pick("jitter_ms") * 1e-3, dup=pick("dup"),
-                      reorder=pick("reorder"), reorder_hold_s=args.reorder_hold_ms * 1e-3)
+                      reorder=pick("reorder"), corrupt=pick("corrupt"),
+                      reorder_hold_s=args.reorder_hold_ms * 1e-3)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -447,7 +491,8 @@ def build_parser() -> argparse.ArgumentParser:
                             ("delay-ms", float, "fixed delay [ms]"),
                             ("jitter-ms", float, "extra delay uniform in [0, J] ms (order kept)"),
                             ("dup", float, "duplicate probability"),
-                            ("reorder", float, "probability a datagram swaps with the next")):
+                            ("reorder", float, "probability a datagram swaps with the next"),
+                            ("corrupt", float, "probability a datagram is mutated (fuzzing)")):
         ap.add_argument(f"--{name}", type=kind, default=0.0, help=f"{hlp}, both directions (0)")
         for prefix in ("up", "down"):
             ap.add_argument(f"--{prefix}-{name}", type=kind, default=None,
