@@ -276,6 +276,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                 _write_applied_timeline(vdir, gcs, commands)
             _save_gcs(gcs, vdir)
             gcs.close()
+    _write_params_used(vdir, params_path, variant)
     res.wall_time_total_s = time.monotonic() - t0
     if res.error is None and not res.interrupted:
         if res.fc_rc not in (0, None):
@@ -299,6 +300,21 @@ def _write_applied_timeline(vdir: Path, gcs, commands: list[dict]) -> None:
         header = ("timeline as applied by the ground station "
                   "(vehicle sim time of each acknowledged command)")
     rundata.write_timeline(vdir / rundata.TIMELINE_FILE, applied, header=header)
+
+
+def _write_params_used(vdir: Path, params_path: Path, variant: str) -> None:
+    """``params_used.parm``: every controller parameter as flown (the table's defaults with
+    the parameter file applied; the fc saves ground-station changes into that file)."""
+    try:
+        from fc.params import build_table
+        table = build_table()
+        _, warnings = table.load(str(params_path))
+        table.force("CO_ENABLE", 1.0 if variant == "coordinated" else 0.0)
+        table.save(str(vdir / "params_used.parm"))
+        for w in warnings:
+            print(f"tools.hil: {w}", file=sys.stderr)
+    except Exception as exc:  # the run itself is fine; say what is missing
+        print(f"tools.hil: could not write params_used.parm: {exc}", file=sys.stderr)
 
 
 def _say(cfg: RunConfig, text: str) -> None:
