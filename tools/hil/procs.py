@@ -80,13 +80,17 @@ class Child:
     def poll(self) -> int | None:
         return self.proc.poll()
 
-    def wait_for_line(self, prefix: str, timeout_s: float, on_other=None) -> str:
+    def wait_for_line(self, prefix: str, timeout_s: float, on_other=None,
+                      stop: threading.Event | None = None) -> str:
         """Wait until the child prints a stdout line starting with ``prefix``.
 
-        Raises RuntimeError if the child exits first or the timeout passes.
+        Raises RuntimeError if the child exits first or the timeout passes, InterruptedError
+        when ``stop`` is set (Ctrl-C) meanwhile.
         """
         deadline = time.monotonic() + timeout_s
         while True:
+            if stop is not None and stop.is_set():
+                raise InterruptedError(f"interrupted while waiting for {self.name}")
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise RuntimeError(f"{self.name} did not print {prefix!r} within {timeout_s:.0f} s "

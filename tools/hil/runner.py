@@ -212,7 +212,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                         "--flight-mode", FLIGHT_MODE[variant]]
         fc = Child("fc", fc_argv, vdir / "fc.console.log")
         _say(cfg, f"tools.hil: [{variant}] fc pid {fc.pid}")
-        fc.wait_for_line("READY", READY_TIMEOUT_S)
+        fc.wait_for_line("READY", READY_TIMEOUT_S, stop=stop)
         plant_argv = cfg.plant_argv0() + ["run", "--scenario", scenario_ref,
                       "--mode", cfg.mode, "--fc", f"127.0.0.1:{plant_port}",
                       "--bind", "127.0.0.1:0", "--out", str(vdir), "--seed", str(cfg.seed),
@@ -260,6 +260,8 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                 res.error = (fc.death_message() + " before the plant finished")
                 break
         progress.done()
+    except InterruptedError:
+        res.interrupted = True
     except Exception as exc:
         res.error = str(exc)
     finally:
