@@ -8,9 +8,10 @@ recording), so a 20 s flight at 500 Hz takes a fraction of a second once compile
     res = simulate("paper", coordinated=True, command_shaping="steps")
     res.metrics()["alpha"].overshoot_pct
 
-The estimated state the law sees is derived from the plant's truth (alpha, beta, mu, p, q, r,
-V, h, gamma exactly as the plant integrates them): the law is tested here, not the estimator.
-The HIL path (tools.hil) exercises sensors, estimator and wire.
+By default the estimated state the law sees is the plant's truth (alpha, beta, mu, p, q, r,
+V, h, gamma exactly as the plant integrates them): the law is tested, not the estimator.
+``estimate="sensors"`` puts the scenario's sensor model and the fc's estimator in the loop
+instead. The HIL path (tools.hil) adds the wire and the processes.
 
 Timing follows the fc's lockstep schedule (docs/wire.md s. 4): at each frame stamp the slow
 loop runs when due, then the fast loop when due, then the plant advances one frame with the
@@ -32,7 +33,8 @@ from fc.control.kernels import fast_kernel, reset_kernel, slow_kernel
 from fc.control.law import AttitudeLaw
 from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
-from plant_sim.sensors import M_N
+from plant_sim.sensors import M_N, measure
+from fc.estimator import LIMITS_HI, LIMITS_LO, estimate_kernel
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim, truth_kernel
 
 from fc.control.numba_cache import drop_stale
@@ -59,11 +61,15 @@ DIVERGED_RAD = 45.0 * DEG
 def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
          px, pp, pw, n_sub, meas, row, est, cmd,
          par, lx, nm, st, tab, atm, grid, delta,
-         out_truth, out_status):
-    """The closed loop over ``n_frames`` frames; returns the number of frames flown.
+         out_truth, out_status,
+         use_sensors, ring, ring_count, rng_state, meas_work, good, good_t, lo, hi, stale_s,
+         masks):
+    """The closed loop over ``n_frames`` frames; returns (frames flown, samples recorded).
 
-    Records every ``rec_every``-th frame's truth row (before the frame advances) and law
-    status into ``out_truth`` / ``out_status``. Stops early if the state diverges.
+    Per frame (the plant process's order): [sensors.measure], truth row, estimated state
+    (truth, or fc.estimator.estimate_kernel on the measurement), slow loop when due, fast
+    loop when due, record every ``rec_every``-th frame, plant advances one frame. Stops
+    early if the true attitude diverges (|alpha|, |beta| or |mu| > 45 deg, or NaN).
     """
     k_cmd = 0
     n_cmd = cmd_t.shape[0]
@@ -71,9 +77,14 @@ def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
     frame_dt = pp[dy.P_FRAME_DT]
     t0 = px[dy.X_STEP] * pp[dy.P_DT]
     for k in range(n_frames):
+        if use_sensors:
+            measure(px, pp, ring, ring_count, rng_state, meas_work, meas)
         truth_kernel(px, pp, pw, meas, row)
-        for i in range(L.E_N):
-            est[i] = row[1 + i]
+        if use_sensors:
+            estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks)
+        else:
+            for i in range(L.E_N):
+                est[i] = row[1 + i]
         t = t0 + k * frame_dt
         while k_cmd + 1 < n_cmd and cmd_t[k_cmd + 1] <= t + 1e-9:
             k_cmd += 1
@@ -94,7 +105,7 @@ def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
             n_rec += 1
         bad = False
         for i in range(3):
-            v = est[i]
+            v = row[1 + i]
             if not (abs(v) < 0.7853981633974483):     # 45 deg, also catches NaN
                 bad = True
         if bad:
@@ -125,7 +136,7 @@ class ClosedLoopResult:
     diverged : True if the run stopped early (|alpha|, |beta| or |mu| > 45 deg or NaN).
     cmd_t_s, cmd_rad : the command timeline, (k,) s and (k, 3) rad.
     params : the law's parameters as flown (table units).
-    scenario : the scenario name; coordinated, command_shaping as flown.
+    scenario : the scenario name; coordinated, command_shaping, estimate as flown.
     wall_s : wall time of the loop (excluding loading / compiling the code), s.
     """
     t_s: np.ndarray
@@ -157,6 +168,7 @@ class ClosedLoopResult:
     scenario: str
     coordinated: bool
     command_shaping: str
+    estimate: str
     surface_limit_rad: float
     wall_s: float
     status_names: tuple = field(default=L.STATUS_NAMES)
@@ -200,7 +212,7 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
              duration_s: float | None = None, seed: int | None = None,
              law_overrides: dict | None = None, fast_hz: float = 500.0,
              slow_hz: float = 100.0, command_shaping: str = "steps",
-             record_every: int = 1) -> ClosedLoopResult:
+             record_every: int = 1, estimate: str = "truth") -> ClosedLoopResult:
     """Fly ``scenario`` with the control law in process and return the time histories.
 
     Parameters
@@ -216,6 +228,9 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
     command_shaping : "steps" = the paper's step commands (REF_PF_EN 0); "prefilter" = the
         2nd-order reference prefilter (REF_PF_EN 1, REF_PF_WN / REF_PF_ZETA).
     record_every : record one sample every this many frames (1 = every frame).
+    estimate : "truth" = the law sees the plant's true alpha, beta, mu, p, q, r, V, h, gamma;
+        "sensors" = the scenario's sensor model (noise, bias, latency) and the fc's estimator
+        (fc.estimator.estimate_kernel) in the loop, as in the fc process.
 
     Returns
     -------
@@ -229,6 +244,8 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
     sc = scenario if isinstance(scenario, Scenario) else load(scenario)
     if command_shaping not in ("steps", "prefilter"):
         raise ValueError(f"command_shaping must be 'steps' or 'prefilter', got {command_shaping!r}")
+    if estimate not in ("truth", "sensors"):
+        raise ValueError(f"estimate must be 'truth' or 'sensors', got {estimate!r}")
     if int(record_every) < 1:
         raise ValueError("record_every must be >= 1")
     overrides = dict(law_overrides or {})
@@ -253,7 +270,10 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
     n_rec_max = (n_frames + rec - 1) // rec
     out_truth = np.zeros((n_rec_max, TRUTH_N))
     out_status = np.zeros((n_rec_max, L.S_N))
-    x, p, w, n_sub, _ring, _rc, _rng, _mw = sim.kernel_args()
+    x, p, w, n_sub, ring, ring_count, rng_state, meas_work = sim.kernel_args()
+    good = np.zeros(M_N)
+    good_t = np.full(M_N, -np.inf)
+    masks = np.zeros(2, dtype=np.int64)
     k = law.kernel_args()
     meas = np.zeros(M_N)
     row = np.zeros(TRUTH_N)
@@ -262,7 +282,9 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
     args = (n_fast, n_slow, n_fast * sim.frame_dt_s, n_slow * sim.frame_dt_s, rec, cmd_t, cmd_v,
             x, p, w, n_sub, meas, row, est, cmd,
             k["par"], k["x"], k["nm"], k["st"], k["tab"], k["atm"], k["grid"],
-            k["delta"], out_truth, out_status)
+            k["delta"], out_truth, out_status,
+            estimate == "sensors", ring, ring_count, rng_state, meas_work, good, good_t,
+            LIMITS_LO, LIMITS_HI, 0.1, masks)
     _run(0, *args)          # zero frames: loads (or compiles) the machine code, not timed
     t0 = time.perf_counter()
     _frames, n_rec = _run(n_frames, *args)
@@ -287,7 +309,7 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
         omega_c_limited=stt[:, L.S_OMC_LIM], status=stt, truth=tr,
         diverged=bool(_frames < n_frames), cmd_t_s=cmd_t, cmd_rad=cmd_v,
         params=law.params(), scenario=sc.name, coordinated=bool(coordinated),
-        command_shaping=command_shaping,
+        command_shaping=command_shaping, estimate=estimate,
         surface_limit_rad=float(p[dy.P_ACT_LIMIT]), wall_s=wall)
 
 
@@ -320,7 +342,7 @@ def summary_line(res: ClosedLoopResult) -> str:
     return " | ".join(parts)
 
 
-def markdown_table(scenario, duration_s=None, law_overrides=None) -> str:
+def markdown_table(scenario, duration_s=None, law_overrides=None, estimate="truth") -> str:
     """Markdown table of the figures of both variants with steps and with the prefilter."""
     def f(v, fmt):
         return "-" if v is None else format(v, fmt)
@@ -331,7 +353,8 @@ def markdown_table(scenario, duration_s=None, law_overrides=None) -> str:
     for shaping in ("steps", "prefilter"):
         for co in (True, False):
             res = simulate(scenario, coordinated=co, duration_s=duration_s,
-                           command_shaping=shaping, law_overrides=law_overrides)
+                           command_shaping=shaping, law_overrides=law_overrides,
+                           estimate=estimate)
             m = res.metrics()
             cells = [f"{f(m[c].overshoot_pct, '.1f')} / {f(m[c].settling_time_s, '.2f')}"
                      for c in ("alpha", "beta", "mu")]
@@ -353,6 +376,7 @@ def main(argv=None) -> int:
     ap.add_argument("--variant", choices=("coordinated", "uncoordinated", "both"), default="both")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable")
+    ap.add_argument("--estimate", choices=("truth", "sensors"), default="truth")
     ap.add_argument("--table", action="store_true",
                     help="print a markdown table (both variants, steps and prefilter)")
     a = ap.parse_args(argv)
@@ -362,11 +386,12 @@ def main(argv=None) -> int:
         ov[name.strip()] = float(val)
     variants = (True, False) if a.variant == "both" else (a.variant == "coordinated",)
     if a.table:
-        print(markdown_table(a.scenario, duration_s=a.duration, law_overrides=ov))
+        print(markdown_table(a.scenario, duration_s=a.duration, law_overrides=ov,
+                             estimate=a.estimate))
         return 0
     for co in variants:
         res = simulate(a.scenario, coordinated=co, duration_s=a.duration,
-                       command_shaping=a.shaping, law_overrides=ov)
+                       command_shaping=a.shaping, law_overrides=ov, estimate=a.estimate)
         print(summary_line(res) + f" | wall {res.wall_s:.2f}s")
     return 0
 

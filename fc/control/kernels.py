@@ -26,14 +26,14 @@ import math
 from numba import njit
 
 from fc.control.layout import (
-    E_ALPHA, E_BETA, E_GAMMA, E_MU, E_P, E_Q, E_R, E_V,
+    E_N, E_ALPHA, E_BETA, E_GAMMA, E_MU, E_P, E_Q, E_R, E_V,
     NM_E, NM_G, NM_GCO, NM_GFD, NM_MACH, NM_PSI, NM_QBAR, NM_XI,
     S_ALLOC_SCALE, S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E1, S_E2,
     S_E_COUP, S_FROZEN, S_LAMBDA, S_M_C, S_M_UNALLOC, S_MACH, S_OMC_LIM, S_OMEGA_C,
     S_OMEGA_CF, S_OMEGA_REF, S_QBAR, S_RHO_F, S_RHO_S, S_SAT, S_SAT_ANY, S_SIGMA, S_XI,
     TH_F_N, TH_F_PITCH, TH_F_YAW, TH_S_N,
     X_CF, X_CF_DOT, X_DCMD, X_DM, X_INT_E1, X_LIM, X_OMC, X_PF, X_PF_DOT, X_RHO_F,
-    X_RHO_S, X_SAT, X_SIGMA, X_XI, X_Z,
+    X_RHO_S, X_SAT, X_SIGMA, X_XI, X_Z, X_AF1, X_AF2, X_WF1, X_WF2, X_EF, X_FF1, X_FF2,
 )
 from fc.control.nominal import B_REF_M, C_REF_M, S_REF_M2, V_MIN_M_S, COS_MIN, eval_model
 from fc.control.params import (
@@ -42,7 +42,7 @@ from fc.control.params import (
     P_DOB_C, P_DOB_ENABLE, P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK,
     P_FST_TH_BND, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN,
     P_REF_PF_ZETA, P_SLW_AW, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX,
-    P_SLW_TH_BND, P_SLW_CFB,
+    P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ,
 )
 
 from fc.control import layout as _layout, nominal as _nominal, params as _params
@@ -154,6 +154,30 @@ def second_order_step(u, dt, wn, zeta, x, ix, ixd):
 
 
 # ---------------------------------------------------------------------------------------------
+# Input filters (deviation: the paper assumes noise-free measurements)
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def lowpass2_step(u, dt, fc_hz, x, i1, i2, wrap):
+    """Two exact-discretised 1st-order low-pass sections at ``fc_hz`` (stable for any dt).
+
+    Updates x[i1], x[i2] toward u and returns the output x[i2]; ``fc_hz`` <= 0 passes u
+    through (and keeps the states on it). ``wrap``: the signal is an angle taken modulo 2 pi.
+    """
+    if fc_hz <= 0.0:
+        x[i1] = u
+        x[i2] = u
+        return u
+    a = 1.0 - math.exp(-2.0 * PI * fc_hz * dt)
+    if wrap:
+        x[i1] = wrap_pi(x[i1] + a * wrap_pi(u - x[i1]))
+        x[i2] = wrap_pi(x[i2] + a * wrap_pi(x[i1] - x[i2]))
+    else:
+        x[i1] += a * (u - x[i1])
+        x[i2] += a * (x[i1] - x[i2])
+    return x[i2]
+
+
+# ---------------------------------------------------------------------------------------------
 # Slow loop (Eqs. 26-30)
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
@@ -181,10 +205,20 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
             x[X_PF + i] = cmd[i]
             x[X_PF_DOT + i] = 0.0
 
-    # e1 = Omega - Omega_c
-    e1a = alpha - x[X_PF]
-    e1b = beta - x[X_PF + 1]
-    e1m = wrap_pi(mu - x[X_PF + 2])
+    # e1 = Omega - Omega_c; with FLT_ANG_HZ > 0, Omega is the output of the input filter that
+    # the fast loop runs at its own (higher) rate, so the noise is filtered before the slow
+    # loop samples it
+    if par[P_FLT_ANG_HZ] > 0.0 and not literal:
+        af = x[X_AF2]
+        bf = x[X_AF2 + 1]
+        mf = x[X_AF2 + 2]
+    else:
+        af = alpha
+        bf = beta
+        mf = mu
+    e1a = af - x[X_PF]
+    e1b = bf - x[X_PF + 1]
+    e1m = wrap_pi(mf - x[X_PF + 2])
 
     # Eq. 27: sigma = e1 + K int(e1) dt, integral frozen while limited / saturated
     freeze = (par[P_SLW_AW] > 0.5 and not literal) and (x[X_SAT] > 0.5 or x[X_LIM] > 0.5)
@@ -516,13 +550,25 @@ def dob_update(x, c_d, dt, f0, f1, f2, w0, w1, w2):
 @njit(cache=True, error_model="numpy")
 def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
     """Fast loop: M_c (Eq. 35), theta_omega (Eq. 36), observer (Eq. 37), allocation (44-47)."""
-    eval_model(est, par, tab, atm, grid, nm)
     literal = par[P_PAPER_LITERAL] > 0.5
-    alpha = est[E_ALPHA]
-    beta = est[E_BETA]
-    p = est[E_P]
-    q = est[E_Q]
-    r = est[E_R]
+    # the fast loop's state: est with p, q, r through the input filter (FLT_RATE_HZ)
+    fr = 0.0 if literal else par[P_FLT_RATE_HZ]
+    ef = x[X_EF:X_EF + E_N]
+    for i in range(E_N):
+        ef[i] = est[i]
+    for i in range(3):
+        ef[E_P + i] = lowpass2_step(est[E_P + i], dt, fr, x, X_WF1 + i, X_WF2 + i, False)
+    # the slow loop's angle filter (FLT_ANG_HZ), run here at the fast rate
+    fa = 0.0 if literal else par[P_FLT_ANG_HZ]
+    lowpass2_step(est[E_ALPHA], dt, fa, x, X_AF1, X_AF2, False)
+    lowpass2_step(est[E_BETA], dt, fa, x, X_AF1 + 1, X_AF2 + 1, False)
+    lowpass2_step(est[E_MU], dt, fa, x, X_AF1 + 2, X_AF2 + 2, True)
+    eval_model(ef, par, tab, atm, grid, nm)
+    alpha = ef[E_ALPHA]
+    beta = ef[E_BETA]
+    p = ef[E_P]
+    q = ef[E_Q]
+    r = ef[E_R]
     ixx = par[P_MDL_IXX]
     iyy = par[P_MDL_IYY]
     izz = par[P_MDL_IZZ]
@@ -570,7 +616,7 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
     mc2 = -izz * (kap * e2r + xy + dr + gtr - x[X_CF_DOT + 2])
 
     # Eqs. 13/14/19 factors, Eq. 45 coordinated matrix, Eqs. 46-47 allocation
-    coordinated_factors(est, par, st, S_LAMBDA)
+    coordinated_factors(ef, par, st, S_LAMBDA)
     fallback = coordinated_matrix(par, nm, st, S_LAMBDA)
     e_coup = par[P_CO_E] if par[P_CO_E] > 0.0 else nm[NM_E]
     sat = allocate(par, nm, mc0, mc1, mc2, e_coup, delta_out, st)
@@ -598,7 +644,12 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
         m1 = mc1
         m2 = mc2
     if dob:
-        dob_update(x, c_d, dt, xr + m0 / ixx, xp + m1 / iyy, xy + m2 / izz, p, q, r)
+        # the model acceleration passes through the rates' input filter, so that the
+        # observer compares filtered omega with filtered f (a plain DOB Q-filter)
+        f0 = lowpass2_step(xr + m0 / ixx, dt, fr, x, X_FF1, X_FF2, False)
+        f1 = lowpass2_step(xp + m1 / iyy, dt, fr, x, X_FF1 + 1, X_FF2 + 1, False)
+        f2 = lowpass2_step(xy + m2 / izz, dt, fr, x, X_FF1 + 2, X_FF2 + 2, False)
+        dob_update(x, c_d, dt, f0, f1, f2, p, q, r)
 
     # Eq. 36: rho_omega_dot = Gamma2 (Xi e2 - lambda_omega rho), projected onto the box
     freeze = (par[P_SLW_AW] > 0.5 and not literal) and (sat > 0.5 or x[X_LIM] > 0.5)
@@ -659,6 +710,12 @@ def reset_kernel(est, par, x, st, delta0):
         x[X_Z + i] = -par[P_DOB_C] * est[E_P + i]
         x[X_DM + i] = delta0[i]
         x[X_DCMD + i] = delta0[i]
+        x[X_AF1 + i] = est[E_ALPHA + i]
+        x[X_AF2 + i] = est[E_ALPHA + i]
+        x[X_WF1 + i] = est[E_P + i]
+        x[X_WF2 + i] = est[E_P + i]
+    for i in range(E_N):
+        x[X_EF + i] = est[i]
     st[S_ALLOC_SCALE] = 1.0
 
 

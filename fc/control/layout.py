@@ -124,7 +124,14 @@ X_SAT = 48           # 1 if a surface saturated in the last fast step
 X_LIM = 49           # 1 if omega_c was limited in the last slow step
 X_DCMD = 50          # last surface command (rad), 3
 X_XI = 53            # command-filter compensation xi of sigma (rad), 3
-X_N = 56
+X_AF1 = 56           # input filter of alpha, beta, mu, stage 1 (rad), 3
+X_AF2 = 59           # stage 2 (the filtered value), 3
+X_WF1 = 62           # input filter of p, q, r, stage 1 (rad/s), 3
+X_WF2 = 65           # stage 2 (the filtered value), 3
+X_EF = 68            # the fast loop's effective state: est with p, q, r filtered, E_N
+X_FF1 = X_EF + E_N   # the observer's model acceleration through the same filter, stage 1, 3
+X_FF2 = X_FF1 + 3    # stage 2, 3
+X_N = X_FF2 + 3
 
 # --- Status record (st array) ------------------------------------------------------------------
 S_SIGMA = 0          # 3

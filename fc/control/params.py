@@ -28,7 +28,7 @@ class Param:
     name : <= 16 characters, uppercase (MAVLink param_id).
     default, min, max : in ``unit``.
     unit : human unit ("deg", "deg/s", "1/s", "-", ...).
-    group : prefix family (CO, SLW, FST, DOB, ACT, REF, MDL, LAW).
+    group : prefix family (CO, SLW, FST, DOB, ACT, REF, MDL, FLT, LAW).
     description : one or two sentences, with the paper's equation where there is one.
     si_scale : SI value = value * si_scale (DEG for degree parameters, else 1).
     integer : True for options and switches (the value must be a whole number).
@@ -90,7 +90,9 @@ P_MDL_IYY = 45
 P_MDL_IZZ = 46
 P_MDL_XCG = 47
 P_SLW_CFB = 48
-P_N = 49
+P_FLT_RATE_HZ = 49
+P_FLT_ANG_HZ = 50
+P_N = 51
 
 LAW_PARAMS: tuple[Param, ...] = (
     _p("PAPER_LITERAL", 0, 0, 1, "-", "LAW",
@@ -197,6 +199,12 @@ LAW_PARAMS: tuple[Param, ...] = (
        "1 = command-filtered backstepping compensation: xi_dot = -kappa1 xi + g_s (omega_c_lim "
        "- omega_c), and sigma_bar = sigma - xi replaces sigma in Eq. 30 and in the g_s^T sigma "
        "term of Eq. 35, so the omega_c limit does not feed back through them.", integer=True),
+    _p("FLT_RATE_HZ", 20, 0, 200, "Hz", "FLT",
+       "Cutoff of the 2nd-order (two 1st-order sections) low-pass on p, q, r as the fast loop "
+       "uses them (e2, Xi, observer, factors); 0 = off. The paper assumes noise-free rates."),
+    _p("FLT_ANG_HZ", 20, 0, 100, "Hz", "FLT",
+       "Cutoff of the 2nd-order low-pass on alpha, beta, mu as e1 of the slow loop uses them "
+       "(run at the fast rate, read by the slow loop); 0 = off."),
 )
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
@@ -214,7 +222,8 @@ _EXPECTED = {"PAPER_LITERAL": P_PAPER_LITERAL, "CO_ENABLE": P_CO_ENABLE, "CO_FAC
              "ACT_TAU": P_ACT_TAU, "ALLOC_MODE": P_ALLOC_MODE, "REF_PF_EN": P_REF_PF_EN,
              "REF_PF_WN": P_REF_PF_WN, "REF_PF_ZETA": P_REF_PF_ZETA, "MDL_MASS": P_MDL_MASS,
              "MDL_IXX": P_MDL_IXX, "MDL_IYY": P_MDL_IYY, "MDL_IZZ": P_MDL_IZZ,
-             "MDL_XCG": P_MDL_XCG, "SLW_CFB": P_SLW_CFB}
+             "MDL_XCG": P_MDL_XCG, "SLW_CFB": P_SLW_CFB,
+             "FLT_RATE_HZ": P_FLT_RATE_HZ, "FLT_ANG_HZ": P_FLT_ANG_HZ}
 for _name, _idx in _EXPECTED.items():
     assert PARAM_INDEX[_name] == _idx, (_name, PARAM_INDEX[_name], _idx)
 assert len(LAW_PARAMS) == P_N
