@@ -89,6 +89,9 @@ class FlightController:
         if cfg.mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, not {cfg.mode!r}")
         self.stats = LoopStats(self.planner.period_ns)
+        # cheap checks of the inputs first: a bad file fails before the law is loaded
+        commands = load_timeline(cfg.timeline) if cfg.timeline else None
+        key = load_signing_key(cfg.signing_key_file) if cfg.signing_key_file else None
 
         # --- parameters and law
         law_cls, law_params = load_law_module(cfg.law_module)
@@ -125,7 +128,7 @@ class FlightController:
         self.law_errors = 0
         self.duplicate_frames = 0
         self.plant_resets = 0
-        self.timeline = Timeline(load_timeline(cfg.timeline)) if cfg.timeline else None
+        self.timeline = Timeline(commands) if commands is not None else None
         self._exec_ns_sum = 0
         self._exec_n = 0
         self._load_permille = 0
@@ -136,7 +139,6 @@ class FlightController:
         # --- links and logs (bind last: READY means everything is in place)
         self.plant = PlantLink(UdpEndpoint(*cfg.plant_bind), plant_sysid=cfg.plant_sysid,
                                sysid=cfg.sysid, compid=cfg.compid)
-        key = load_signing_key(cfg.signing_key_file) if cfg.signing_key_file else None
         self.io = IoThread(self.log)
         self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
                            signing_key=key, log=self.log, io=self.io)
