@@ -11,11 +11,15 @@ Prints (medians of repeated batches; the machine is shared, so read the spread t
 3. Lockstep: `python -m plant_sim run --mode lockstep` as a process against a trivial
    responder in this process (decode the stamp, answer with a fixed PWM); exchanges per second
    and the real-time factor from plant_summary.json.
+4. If the optional jsbsim package is installed: JSBSim's X-15 at dt 1/1000 s, us per
+   fdm.run() (perf_anchors.md section 4 method: outputs off, airborne initial condition,
+   reset before each batch), in the same process for comparison.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -108,15 +112,56 @@ def bench_lockstep(sc_name: str, sim_seconds: float):
         return json.loads((Path(tmp) / "plant_summary.json").read_text())
 
 
+def bench_jsbsim(batches: int = 7, steps: int = 2000):
+    """us per JSBSim X-15 step at 1 kHz, or None without jsbsim."""
+    try:
+        import jsbsim
+    except ImportError:
+        return None
+    sys.stdout.flush()
+    saved = os.dup(1)                       # JSBSim prints a banner from C++: keep stdout clean
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    try:
+        fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
+        fdm.set_debug_level(0)
+        loaded = fdm.load_model("X15")
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+    if not loaded:
+        return None
+    fdm.disable_output()
+    fdm.set_dt(1.0 / 1000.0)
+    fdm["ic/h-sl-ft"] = 60000.0
+    fdm["ic/vc-kts"] = 400.0
+    fdm["ic/gamma-deg"] = 0.0
+    res = []
+    for _ in range(batches):
+        fdm.run_ic()
+        t = time.perf_counter()
+        for _ in range(steps):
+            fdm.run()
+        res.append((time.perf_counter() - t) / steps * 1e6)
+    return _median_spread(res)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.bench_plant", description=__doc__.split("\n")[0])
     ap.add_argument("--scenario", default="paper")
     ap.add_argument("--seconds", type=float, default=20.0, help="sim seconds for the RK4 batches")
     ap.add_argument("--lockstep-seconds", type=float, default=10.0, help="sim seconds of the lockstep run")
+    ap.add_argument("--no-jsbsim", action="store_true", help="skip the JSBSim X-15 comparison")
     args = ap.parse_args(argv)
     (k_med, k_lo, k_hi), (p_med, p_lo, p_hi), n_sub = bench_rk4(args.scenario, args.seconds)
     print(f"rk4_step_us (loop inside numba)      median {k_med:.3f}  min {k_lo:.3f}  max {k_hi:.3f}")
     print(f"rk4_step_us (step_frame from Python, /{n_sub}) median {p_med:.3f}  min {p_lo:.3f}  max {p_hi:.3f}")
+    j = None if args.no_jsbsim else bench_jsbsim()
+    if j is not None:
+        print(f"jsbsim_x15_step_us (dt 1 ms, same process) median {j[0]:.3f}  min {j[1]:.3f}  max {j[2]:.3f}")
+    elif not args.no_jsbsim:
+        print("jsbsim_x15_step_us                   n/a (jsbsim not installed)")
     f_med, f_lo, f_hi = bench_frame_path(args.scenario)
     print(f"plant_frame_path_us (no network)     median {f_med:.1f}  min {f_lo:.1f}  max {f_hi:.1f}")
     s = bench_lockstep(args.scenario, args.lockstep_seconds)
