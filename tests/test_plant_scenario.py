@@ -78,3 +78,47 @@ def test_round_trip_of_the_scenario_as_used():
     again = parse(sc.to_toml(), "as_used.toml")
     assert again.data == sc.data
     assert again.commands == sc.commands
+
+
+def _leaves(schema, prefix=""):
+    from plant_sim.scenario import Key
+    for k, v in schema.items():
+        if isinstance(v, dict):
+            yield from _leaves(v, prefix + k + ".")
+        else:
+            assert isinstance(v, Key)
+            yield prefix + k, v
+
+
+def test_every_key_rejects_wrong_types_and_out_of_range_values():
+    """Systematic: each schema key, set to a wrong type or just outside its range, fails with a
+    message naming that key; its default is accepted."""
+    import copy
+    from plant_sim.scenario import SCHEMA, _apply, ScenarioError as SE
+    checked = 0
+    for dotted, key in _leaves(SCHEMA):
+        parts = dotted.split(".")
+
+        def with_value(v):
+            given = {}
+            node = given
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = v
+            return given
+
+        _apply("t.toml", SCHEMA, with_value(copy.deepcopy(key.default)), "")
+        bad = ["text"] if key.kind != "str" else [1.5]
+        if key.kind in ("float", "int"):
+            if key.lo is not None and math.isfinite(key.lo):
+                bad.append(key.lo - (1 if key.kind == "int" else max(1e-6, abs(key.lo) * 1e-6)))
+            if key.hi is not None and math.isfinite(key.hi):
+                bad.append(key.hi + (1 if key.kind == "int" else max(1e-6, abs(key.hi) * 1e-6)))
+        if key.kind == "str" and key.choices:
+            bad.append("not-a-choice")
+        for v in bad:
+            with pytest.raises(SE) as e:
+                _apply("t.toml", SCHEMA, with_value(v), "")
+            assert f"'{dotted}'" in str(e.value), (dotted, v, str(e.value))
+            checked += 1
+    assert checked > 150
