@@ -166,7 +166,9 @@ def timeline_from_internals(internals: dict | None) -> list[dict] | None:
     out = []
     for k in np.concatenate(([0], change)):
         e = {"t_s": float(t[k])}
-        e.update({f"{ch}_deg": math.degrees(float(c[k, i])) for i, ch in enumerate(CHANNELS)})
+        # round off the deg -> rad -> deg trip (6.000000000000001)
+        e.update({f"{ch}_deg": round(math.degrees(float(c[k, i])), 9)
+                  for i, ch in enumerate(CHANNELS)})
         out.append(e)
     return out
 
