@@ -195,7 +195,7 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("MDL_IZZ", 1.36e7, 1e3, 1e9, "kg m^2", "MDL", "Izz of the nominal model (Eq. 4)."),
     _p("MDL_XCG", 0, -10, 10, "m", "MDL",
        "X_cg of Eq. 6: MRC -> c.g., positive aft, of the nominal model."),
-    _p("SLW_CFB", 1, 0, 1, "-", "SLW",
+    _p("SLW_CFB", 0, 0, 1, "-", "SLW",
        "1 = command-filtered backstepping compensation: xi_dot = -kappa1 xi + g_s (omega_c_lim "
        "- omega_c), and sigma_bar = sigma - xi replaces sigma in Eq. 30 and in the g_s^T sigma "
        "term of Eq. 35, so the omega_c limit does not feed back through them.", integer=True),
