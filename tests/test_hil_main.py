@@ -342,3 +342,14 @@ def test_summary_table_lists_both_variants():
     assert "coordinated" in text and "uncoordinated" in text
     assert "alpha overshoot %" in text
     assert "10.0" in text and "-" in text  # settling None shows as "-"
+
+
+def test_bad_input_is_a_clear_error(tmp_path):
+    r = _hil("run", "--scenario", "no_such_scenario", "--out", str(tmp_path / "x"),
+             timeout_s=60)
+    assert r.returncode == 2
+    assert "unknown scenario 'no_such_scenario'" in r.stderr and "paper" in r.stderr
+    r = _hil("run", "--duration", "0", "--out", str(tmp_path / "y"), timeout_s=60)
+    assert r.returncode == 2 and "needs --mode realtime" in r.stderr
+    r = _hil("report", str(tmp_path), timeout_s=60)
+    assert r.returncode == 2 and "not a run directory" in r.stderr
