@@ -392,6 +392,7 @@ def main(argv=None) -> int:
     if args.keep:
         os.makedirs(args.keep, exist_ok=True)
     rep = Report()
+    utc0 = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     t0 = time.perf_counter()
     print(f"tools.bench{' --quick' if args.quick else ''}: {os.cpu_count()} cores, "
           f"load {_load():.2f}, python {platform.python_version()}", file=sys.stderr)
@@ -420,7 +421,7 @@ def main(argv=None) -> int:
     memory_rows(rep)
     print_table(rep)
     meta = {"command": "python -m tools.bench" + (" --quick" if args.quick else ""),
-            "quick": args.quick, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "quick": args.quick, "utc": utc0,
             "cores": os.cpu_count(), "python": platform.python_version(),
             "load_avg_1min_at_part_start": rep.load, "wall_s": time.perf_counter() - t0,
             "failed": failed}
