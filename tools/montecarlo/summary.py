@@ -216,6 +216,16 @@ def table(summary: dict) -> str:
                 lines.append(f"  {ch:8s} {m:16s} " + " ".join(
                     f"{_f(st['p' + str(p)]):>8s}" for p in PERCENTILES) +
                     f" {_f(st['max']):>8s} {st['undefined']:>6d}")
+    for v, vs in summary["variants"].items():
+        lines.append("")
+        lines.append(f"{v}: worst cases (case / sim seed)")
+        for ch in CHANNELS:
+            parts = []
+            for m in SUMMARY_METRICS:
+                w = vs["worst"][ch][m][0] if vs["worst"][ch][m] else None
+                if w is not None:
+                    parts.append(f"{m} {_f(w['value'], '{:.3g}')} ({w['case']} / {w['sim_seed']})")
+            lines.append(f"  {ch:8s} " + "  ".join(parts))
     if "paired" in summary:
         p = summary["paired"]
         lines.append("")
