@@ -477,7 +477,7 @@ class FlightController:
                 if stamp < 0:
                     break
                 t0 = time.perf_counter_ns()
-                self._lockstep_frame(stamp, now_s)
+                self._lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
                 self._exec_ns_sum += time.perf_counter_ns() - t0
                 self._exec_n += 1
             self._housekeeping(now_s)

@@ -233,6 +233,13 @@ class ClosedLoop:
         from plant_sim.scenario import load
         from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
         self.sim = PlantSim(load(scenario), seed=seed)
+        # load the plant's kernels now, on a spare instance, so the first exchanges are not
+        # delayed by JIT/cache loading (the fc's wall-clock failsafe would see a data gap)
+        spare = PlantSim(load(scenario), seed=seed)
+        spare.measure(np.zeros(14))
+        spare.command(np.zeros(3))
+        spare.truth_row(np.zeros(TRUTH_N))
+        spare.advance()
         self.col = {n: i for i, n in enumerate(TRUTH_NAMES)}
         self.row = np.zeros(TRUTH_N)
         self.meas = np.zeros(14)

@@ -39,14 +39,15 @@ def _drain(gcs):
 
 def test_data_loss_gives_failsafe_then_recovery(flying):
     fc, gcs, loop = flying
-    loop.run(300)
+    loop.run(299)
+    t_stop = time.monotonic()          # the fc's last valid frame is not earlier than this
+    loop.run(1)
     assert loop.outputs[-1] != (1500, 1500, 1500), "the law should be flying"
     _drain(gcs)
-    t_stop = time.monotonic()
     text = gcs.wait("STATUSTEXT", 5, lambda m: "FAILSAFE" in m.text)
     t_fs = time.monotonic()
     assert text is not None, "no FAILSAFE STATUSTEXT after plant data stopped"
-    assert t_fs - t_stop >= FS_TIMEOUT_S - 0.02          # never before the configured time
+    assert t_fs - t_stop >= FS_TIMEOUT_S                 # never before the configured time
     print(f"failsafe reported {t_fs - t_stop:.3f} s after the last frame "
           f"(FS_TIMEOUT_S {FS_TIMEOUT_S})")
     hb = gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode == 3)
