@@ -16,8 +16,7 @@ from fc.control import kernels as K
 from fc.control import layout as L
 from fc.control.law import AttitudeLaw
 from fc.control.params import (LAW_PARAMS, P_CO_ENABLE, P_CO_FAC_EQ, P_CO_K1,
-                               P_CO_LAM_MAX, P_CO_SURF, P_N, P_SLW_GAMMA, P_SLW_LEAK,
-                               P_SLW_TH_BND, PARAM_INDEX, check_value, default_si_array)
+                               P_CO_LAM_MAX, P_N, PARAM_INDEX, check_value, default_si_array)
 
 DEG = math.pi / 180.0
 REPO = Path(__file__).resolve().parents[1]
@@ -373,3 +372,71 @@ def test_no_numba_allocation_after_warmup():
     assert one == many, out.stdout          # independent of the number of steps
     assert one <= 13, out.stdout            # at most one per array argument (13 args)
     assert alive == 0, out.stdout
+
+
+# ---------------------------------------------------------------------------------------------
+# Input filters, API contract, stale-cache guard
+# ---------------------------------------------------------------------------------------------
+def test_input_filter_passes_dc_and_attenuates_noise():
+    x = np.zeros(4)
+    dt, fc = 0.002, 20.0
+    # DC: a constant converges to itself
+    for _ in range(500):
+        y = K.lowpass2_step(1.5, dt, fc, x, 0, 1, False)
+    assert y == pytest.approx(1.5, rel=1e-9)
+    # white noise at 500 Hz: two 1st-order sections at 20 Hz cut the rms by > 3x
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=20000)
+    x[:] = 0.0
+    out = np.array([K.lowpass2_step(v, dt, fc, x, 0, 1, False) for v in u])
+    assert np.std(out[1000:]) < np.std(u) / 3.0
+    # off (cutoff 0): pass-through
+    assert K.lowpass2_step(0.3, dt, 0.0, x, 0, 1, False) == 0.3
+    # angles: filtering across +-pi stays near pi, not near 0
+    x[:] = math.pi - 0.01
+    for _ in range(50):
+        y = K.lowpass2_step(-math.pi + 0.01, dt, fc, x, 0, 1, True)
+    assert abs(abs(y) - math.pi) < 0.02
+
+
+def test_attitude_law_api_contract():
+    """docs/architecture.md section 11."""
+    from fc.control.law import STATUS_N
+    law = AttitudeLaw({"CO_ENABLE": 0})
+    est = paper_est()
+    law.reset(est)
+    law.slow_step(est, (5 * DEG, 0.0, 4 * DEG), 0.01)
+    law.fast_step(est, 0.002)
+    assert law.delta_cmd_rad.shape == (3,) and law.delta_cmd_rad.dtype == np.float64
+    assert law.status.shape == (STATUS_N,) == (len(law.STATUS_NAMES),)
+    assert np.all(np.isfinite(law.status)) and np.any(law.delta_cmd_rad != 0)
+    assert set(law.kernel_args()) >= {"par", "x", "nm", "st", "tab", "atm", "grid", "delta"}
+    assert law.kernel_args()["delta"] is law.delta_cmd_rad
+    d = law.status_dict()
+    assert d["lambda_e"] == 0.0 and "M_c_m_Nm" in d
+
+
+def test_stale_numba_cache_is_dropped(tmp_path):
+    import os
+    import time
+    from fc.control.numba_cache import drop_stale
+    mod = tmp_path / "kern.py"
+    dep = tmp_path / "dep.py"
+    mod.write_text("#\n")
+    dep.write_text("#\n")
+    pyc = tmp_path / "__pycache__"
+    pyc.mkdir()
+    files = [pyc / "kern.f-1.py311.nbi", pyc / "kern.f-1.py311.1.nbc"]
+    other = pyc / "other.g-1.py311.nbi"
+    for f in files + [other]:
+        f.write_bytes(b"x")
+    now = time.time()
+    os.utime(dep, (now - 100, now - 100))
+    for f in files:
+        os.utime(f, (now, now))
+    # GIVEN a cache newer than its dependency: kept
+    assert drop_stale(mod, [dep]) == 0 and all(f.exists() for f in files)
+    # WHEN the dependency changes after the cache was written: the module's cache goes
+    os.utime(dep, (now + 100, now + 100))
+    assert drop_stale(mod, [dep]) == 2
+    assert not any(f.exists() for f in files) and other.exists()

@@ -146,7 +146,8 @@ def eval_model(est, par, tab, atm, grid, nm):
         dCD = nm[c + T_DEL + 3 * C_DRAG + j]
         dCY = nm[c + T_DEL + 3 * C_SIDE + j]
         nm[NM_GFD + j] = qSb * nm[c + T_DEL + 3 * C_ROLL + j]
-        nm[NM_GFD + 3 + j] = qSc * nm[c + T_DEL + 3 * C_PITCH + j] + xcg * qS * (dCD * sa + dCL * ca)
+        nm[NM_GFD + 3 + j] = (qSc * nm[c + T_DEL + 3 * C_PITCH + j]
+                              + xcg * qS * (dCD * sa + dCL * ca))
         nm[NM_GFD + 6 + j] = qSb * nm[c + T_DEL + 3 * C_YAW + j] + xcg * qS * dCY
 
     # E (Eq. 15): rolling-moment effectiveness of the rudder over that of the "aileron"
