@@ -117,6 +117,11 @@ def cluster_client(workers: int | None = None, scheduler: str | None = None):
     from distributed import Client, LocalCluster
     if scheduler:
         with Client(scheduler, timeout="30s") as client:
+            try:  # an existing cluster may still be starting its workers
+                client.wait_for_workers(1, timeout=120)
+            except TimeoutError:
+                raise CampaignError(f"no worker joined the scheduler {scheduler} "
+                                    "within 120 s") from None
             yield client
         return
     n = workers or os.cpu_count() or 1
