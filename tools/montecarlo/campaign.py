@@ -205,7 +205,9 @@ def _drive(client, cfg, todo, writer, bar, res, on_case, window) -> None:
             for fut, rows in batch:
                 i = inflight.pop(fut.key)
                 if fut.status != "finished":  # the task did not return: retried on resume
-                    res.lost.append((i, f"{fut.status}: {rows!r}"))
+                    exc = rows[1] if isinstance(rows, tuple) and len(rows) == 3 else rows
+                    first = (str(exc).strip().splitlines() or [""])[0]
+                    res.lost.append((i, f"{fut.status}: {type(exc).__name__}: {first}"))
                     bar.update(0, failures=1)
                     continue
                 writer.add(rows)
