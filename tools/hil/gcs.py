@@ -78,6 +78,8 @@ class ScriptedGcs:
         self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
         self._cond = threading.Condition()
         self._stop = threading.Event()
+        #: set to make every pending and later wait_for() raise GcsError at once
+        self.abort = threading.Event()
         self._rx = threading.Thread(target=self._rx_loop, name="gcs-rx", daemon=True)
         self._rx.start()
         self._hb_thread = threading.Thread(target=self._hb_loop, name="gcs-hb", daemon=True)
@@ -136,6 +138,8 @@ class ScriptedGcs:
         deadline = time.monotonic() + timeout_s
         with self._cond:
             while not pred(self.tel):
+                if self.abort.is_set():
+                    raise GcsError(f"aborted while waiting for {what}")
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     raise GcsError(f"{what} not seen within {timeout_s:.0f} s")

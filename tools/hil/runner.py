@@ -197,6 +197,8 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     total_s = cfg.duration_s if cfg.duration_s else None
     progress = Progress(variant, None if forever else total_s, cfg.quiet)
     t0 = time.monotonic()
+    driver_stop = threading.Event()   # ends the realtime ground-station script
+    driver = None
     try:
         from tools.hil.gcs import ScriptedGcs
         gcs = ScriptedGcs()
@@ -223,10 +225,9 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             plant_argv += ["--duration", repr(float(cfg.duration_s))]
         plant = Child("plant", plant_argv, vdir / "plant.console.log")
         _say(cfg, f"tools.hil: [{variant}] plant pid {plant.pid}")
-        driver = None
         if realtime:
             driver = threading.Thread(target=_drive_realtime, name="gcs-driver", daemon=True,
-                                      args=(gcs, commands, variant, stop, errors))
+                                      args=(gcs, commands, variant, driver_stop, errors))
             driver.start()
         # ---- watch ----
         while True:
@@ -240,6 +241,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                 pass
             if stop.is_set():
                 res.interrupted = True
+                driver_stop.set()
                 break
             if not errors.empty():
                 res.error = errors.get()
@@ -265,6 +267,11 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     except Exception as exc:
         res.error = str(exc)
     finally:
+        driver_stop.set()
+        if gcs is not None:
+            gcs.abort.set()
+        if driver is not None:
+            driver.join(timeout=10.0)
         # the plant first (it writes truth.npz on SIGINT), then the controller
         for child in (plant, fc):
             if child is not None:
