@@ -149,6 +149,7 @@ def build_summary(run_dir: Path, meta: dict, plots: bool = True) -> tuple[dict, 
         summary["errors"] = errors
     summary = rundata.json_safe(summary)
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (run_dir / "summary.txt").write_text(format_table(summary) + "\n")
     written = []
     if plots and plot_runs:
         from tools import plots as plotmod
