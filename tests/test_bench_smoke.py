@@ -23,6 +23,7 @@ EXPECTED = (
     "law_allocate_median_us",
     "plant_rk4_step_median_us", "plant_rk4_step_in_loop_us",
     "pingpong_mavlink_median_us", "pingpong_mavlink_p99_us", "pingpong_raw_median_us",
+    "pingpong_links_median_us",
     "lockstep_500_rtf", "lockstep_1000_rtf", "lockstep_500_exchange_median_us",
     "rt_1000_lateness_median_us", "rt_1000_lateness_p99_us", "rt_1000_lateness_max_us",
     "rt_1000_late_20pct_pct", "rt_1000_latency_median_us", "rt_1000_latency_p99_us",

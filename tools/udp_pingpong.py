@@ -10,6 +10,11 @@ answers, the parent times each round trip with ``time.perf_counter_ns``:
   stamp; the child decodes it (``fc.link.decode_datagram``) and answers a SERVO_OUTPUT_RAW
   echoing the stamp, which the parent decodes and checks. This is the floor a two-process
   lockstep cannot go below: plant + law cost come on top of it.
+- ``links``: the same exchange through the two processes' own link modules: the parent
+  builds and sends with ``plant_sim.link.PlantLink`` (its lean encoder) and waits for the
+  answer with ``poll_for``; the child reads with ``fc.link.PlantLink.read_frame`` and answers
+  with ``send_servo``. This is the lockstep floor of the code as it is: everything but the
+  plant physics and the fc's estimator, law and bookkeeping.
 - ``raw``: 64 bytes echoed unchanged (the kernel + CPython socket floor, no codec).
 
 Both sides block in ``recvfrom`` with a 1 s timeout (the timeout only bounds a lost
@@ -29,7 +34,7 @@ import numpy as np
 
 __all__ = ["run_pingpong", "summarize_us"]
 
-PAYLOADS = ("mavlink", "raw")
+PAYLOADS = ("mavlink", "links", "raw")
 PLANT_SYSID = 2
 FC_SYSID = 1
 RAW_BYTES = 64
@@ -64,6 +69,8 @@ def _echo(payload: str) -> int:
     sock.bind(("127.0.0.1", 0))
     sock.settimeout(30.0)   # bounds an idle child whose parent died
     print(f"PORT {sock.getsockname()[1]}", flush=True)
+    if payload == "links":
+        return _echo_links(sock)
     if payload == "mavlink":
         from fc.link import decode_datagram, mavlink, new_codec
         rx = new_codec(FC_SYSID)
@@ -89,6 +96,66 @@ def _echo(payload: str) -> int:
         sock.sendto(out, addr)
 
 
+def _echo_links(sock: socket.socket) -> int:
+    """Child side of ``links``: the fc's plant link on the already bound socket."""
+    import select
+
+    from fc.link import PlantLink, UdpEndpoint
+    ep = UdpEndpoint.__new__(UdpEndpoint)       # wrap the bound socket: same port as printed
+    sock.setblocking(False)
+    ep.sock = sock
+    ep.address = sock.getsockname()
+    ep.send_errors = 0
+    link = PlantLink(ep, plant_sysid=PLANT_SYSID, sysid=FC_SYSID)
+    meas = np.zeros(14)
+    pwm = [1500, 1500, 1500]
+    while True:
+        r, _, _ = select.select([sock], [], [], 30.0)
+        if not r:
+            return 1
+        stamp = link.read_frame(meas)
+        if stamp >= 0:
+            link.send_servo(stamp, pwm)
+        elif link.counters.rejected:   # the parent's STOP datagram (not MAVLink)
+            return 0
+
+
+def _run_links(sock: socket.socket, peer: tuple, n: int, warm: int) -> dict:
+    """Parent side of ``links``: the plant's link (its own socket) against the child."""
+    from plant_sim.link import PlantLink, PwmMap
+    link = PlantLink(peer, ("127.0.0.1", 0), PwmMap(1000, 1500, 2000, 0.349))
+    meas = np.zeros(14)
+    meas[9] = 2200.0
+    meas[10] = 25000.0
+    rtt = np.zeros(n, dtype=np.int64)
+    lost = bad = 0
+    pc = time.perf_counter_ns
+    try:
+        for i in range(warm + n):
+            stamp = 1000 * (i + 1)
+            meas[0] = stamp * 1e-6
+            t0 = pc()
+            link.build_sensors(stamp, meas, 50.0)
+            link.send_sensors()
+            while True:
+                if not link.wait_readable(TIMEOUT_S):
+                    lost += 1
+                    break
+                _acc, match = link.poll_for(stamp & 0xFFFFFFFF)
+                if match:
+                    t1 = pc()
+                    if i >= warm:
+                        rtt[i - warm] = t1 - t0
+                    break
+        link.sock.sendto(b"STOP", peer)
+    finally:
+        link.close()
+    res = summarize_us(rtt[rtt > 0])
+    res.update({"payload": "links", "lost": lost, "bad": bad,
+                "exchanges_per_s": 1e6 / res["median_us"] if res["n"] else float("nan")})
+    return res
+
+
 def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
     """Time ``n`` round trips to a child process; returns :func:`summarize_us` plus counts."""
     if payload not in PAYLOADS:
@@ -102,13 +169,15 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
         if not line.startswith("PORT "):
             raise RuntimeError(f"udp_pingpong child did not start (printed {line!r})")
         peer = ("127.0.0.1", int(line.split()[1]))
+        warm = max(n // 20, 10)
+        if payload == "links":
+            return _run_links(sock, peer, n, warm)
         sock.bind(("127.0.0.1", 0))
         sock.settimeout(TIMEOUT_S)
         if payload == "mavlink":
             from fc.link import decode_datagram, mavlink, new_codec
             tx = new_codec(PLANT_SYSID)
             rx = new_codec(PLANT_SYSID)
-        warm = max(n // 20, 10)
         rtt = np.zeros(n, dtype=np.int64)
         lost = 0
         bad = 0
