@@ -440,3 +440,26 @@ def test_stale_numba_cache_is_dropped(tmp_path):
     os.utime(dep, (now + 100, now + 100))
     assert drop_stale(mod, [dep]) == 2
     assert not any(f.exists() for f in files) and other.exists()
+
+
+def test_bad_input_holds_the_last_command():
+    law = AttitudeLaw()
+    est = paper_est()
+    law.reset(est)
+    _run_law(law, est, 5)
+    held = law.delta_cmd_rad.copy()
+    x0 = law.x.copy()
+    bad = est.copy()
+    bad[L.E_Q] = np.nan
+    law.slow_step(bad, (5 * DEG, 0.0, 4 * DEG), 0.01)
+    law.fast_step(bad, 0.002)
+    assert law.status[L.S_INPUT_BAD] == 1.0
+    np.testing.assert_array_equal(law.delta_cmd_rad, held)
+    np.testing.assert_array_equal(law.x, x0)
+    law.fast_step(est, 0.0)                      # dt = 0: rejected too
+    assert law.status[L.S_INPUT_BAD] == 1.0
+    law.slow_step(est, (float("inf"), 0.0, 0.0), 0.01)
+    assert law.status[L.S_INPUT_BAD] == 1.0
+    # good input again: flies on, state finite
+    _run_law(law, est, 5)
+    assert law.status[L.S_INPUT_BAD] == 0.0 and np.all(np.isfinite(law.x))

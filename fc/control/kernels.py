@@ -30,7 +30,7 @@ from fc.control.layout import (
     NM_E, NM_G, NM_GCO, NM_GFD, NM_MACH, NM_PSI, NM_QBAR, NM_XI,
     S_ALLOC_SCALE, S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E1, S_E2,
     S_E_COUP, S_FROZEN, S_LAMBDA, S_M_C, S_M_UNALLOC, S_MACH, S_OMC_LIM, S_OMEGA_C,
-    S_OMEGA_CF, S_OMEGA_REF, S_QBAR, S_RHO_F, S_RHO_S, S_SAT, S_SAT_ANY, S_SIGMA, S_XI,
+    S_OMEGA_CF, S_OMEGA_REF, S_QBAR, S_RHO_F, S_RHO_S, S_SAT, S_SAT_ANY, S_SIGMA, S_XI, S_INPUT_BAD,
     TH_F_N, TH_F_PITCH, TH_F_YAW, TH_S_N,
     X_CF, X_CF_DOT, X_DCMD, X_DM, X_INT_E1, X_LIM, X_OMC, X_PF, X_PF_DOT, X_RHO_F,
     X_RHO_S, X_SAT, X_SIGMA, X_XI, X_Z, X_AF1, X_AF2, X_WF1, X_WF2, X_EF, X_FF1, X_FF2,
@@ -181,8 +181,28 @@ def lowpass2_step(u, dt, fc_hz, x, i1, i2, wrap):
 # Slow loop (Eqs. 26-30)
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
+def input_ok(est, dt):
+    """True if every entry of est is finite and 0 < dt <= 1 s (else the step is skipped)."""
+    if not (dt > 0.0 and dt <= 1.0):
+        return False
+    for i in range(E_N):
+        if not math.isfinite(est[i]):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
 def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
-    """Slow loop: Omega_c shaping, sigma (Eq. 27), omega_c (Eq. 29), theta_Omega (Eq. 30)."""
+    """Slow loop: Omega_c shaping, sigma (Eq. 27), omega_c (Eq. 29), theta_Omega (Eq. 30).
+
+    A non-finite est or cmd, or dt outside (0, 1] s, leaves every state untouched and sets
+    st[S_INPUT_BAD] (the fast loop keeps flying the last omega_c).
+    """
+    if not (input_ok(est, dt) and math.isfinite(cmd[0]) and math.isfinite(cmd[1])
+            and math.isfinite(cmd[2])):
+        st[S_INPUT_BAD] = 1.0
+        return
+    st[S_INPUT_BAD] = 0.0
     eval_model(est, par, tab, atm, grid, nm)
     literal = par[P_PAPER_LITERAL] > 0.5
     alpha = est[E_ALPHA]
@@ -549,7 +569,17 @@ def dob_update(x, c_d, dt, f0, f1, f2, w0, w1, w2):
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
-    """Fast loop: M_c (Eq. 35), theta_omega (Eq. 36), observer (Eq. 37), allocation (44-47)."""
+    """Fast loop: M_c (Eq. 35), theta_omega (Eq. 36), observer (Eq. 37), allocation (44-47).
+
+    A non-finite est or dt outside (0, 1] s holds the last surface command in delta_out,
+    leaves every state untouched and sets st[S_INPUT_BAD].
+    """
+    if not input_ok(est, dt):
+        st[S_INPUT_BAD] = 1.0
+        for i in range(3):
+            delta_out[i] = x[X_DCMD + i]
+        return
+    st[S_INPUT_BAD] = 0.0
     literal = par[P_PAPER_LITERAL] > 0.5
     # the fast loop's state: est with p, q, r through the input filter (FLT_RATE_HZ)
     fr = 0.0 if literal else par[P_FLT_RATE_HZ]

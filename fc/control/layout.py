@@ -158,7 +158,8 @@ S_QBAR = 46
 S_RHO_S = 47         # 4 relative estimates of theta_Omega
 S_RHO_F = 51         # 17 relative estimates of theta_omega
 S_XI = 68            # 3 compensation xi: sigma_bar = sigma - xi (rad)
-S_N = 71
+S_INPUT_BAD = 71     # 1 if the last step rejected its input (non-finite est/cmd, dt <= 0)
+S_N = 72
 
 STATUS_NAMES = (
     "sigma_alpha_rad", "sigma_beta_rad", "sigma_mu_rad",
@@ -184,6 +185,7 @@ STATUS_NAMES = (
     "rho_yaw_Ixx_Iyy", "rho_yaw_Izzdot", "rho_yaw_Cnb", "rho_yaw_Cnp", "rho_yaw_Cnr",
     "rho_yaw_CYb",
     "xi_alpha_rad", "xi_beta_rad", "xi_mu_rad",
+    "input_bad",
 )
 
 assert len(STATUS_NAMES) == S_N, (len(STATUS_NAMES), S_N)
