@@ -58,15 +58,42 @@ def _stop(proc: subprocess.Popen, timeout_s: float = 20.0) -> int:
         return proc.wait(timeout=10)
 
 
+def _flood(port: int, stop: threading.Event, counter: list) -> None:
+    """Blast the fc's GCS port: valid PARAM_REQUEST_LIST frames and garbage, as fast as possible."""
+    os.environ["MAVLINK20"] = "1"
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    class _Null:
+        def write(self, _b):
+            return None
+
+    mav = mavlink.MAVLink(_Null(), srcSystem=255, srcComponent=190)
+    req = mav.param_request_list_encode(1, 1).pack(mav)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    n = 0
+    while not stop.is_set():
+        try:
+            sock.sendto(req if n % 2 else b"\xfd\x09\x00\x00garbage-garbage", ("127.0.0.1", port))
+        except OSError:
+            pass
+        n += 1
+    counter.append(n)
+    sock.close()
+
+
 def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, out: str,
-            scenario: str, spin_us: int, rt_priority: int) -> dict:
+            scenario: str, spin_us: int, rt_priority: int, flood: bool = False) -> dict:
     plant_port = _free_port()
-    fc_dir = os.path.join(out, f"fc_{int(fast_hz)}")
-    plant_dir = os.path.join(out, f"plant_{int(fast_hz)}")
+    gcs_bind = _free_port()
+    tag = f"{int(fast_hz)}{'_flood' if flood else ''}"
+    fc_dir = os.path.join(out, f"fc_{tag}")
+    plant_dir = os.path.join(out, f"plant_{tag}")
+    stop_flood = threading.Event()
+    flood_count: list = []
     fc = subprocess.Popen(
         [sys.executable, "-m", "fc", "--mode", "realtime", "--fast-hz", str(fast_hz),
          "--slow-hz", str(slow_hz), "--plant-bind", f"127.0.0.1:{plant_port}",
-         "--gcs-bind", "127.0.0.1:0", "--gcs", f"127.0.0.1:{_free_port()}", "--out", fc_dir,
+         "--gcs-bind", f"127.0.0.1:{gcs_bind}", "--gcs", f"127.0.0.1:{_free_port()}", "--out", fc_dir,
          "--arm", "--flight-mode", "COORDINATED", "--spin-us", str(spin_us),
          "--rt-priority", str(rt_priority)],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -78,11 +105,16 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
              "realtime", "--fc", f"127.0.0.1:{plant_port}", "--bind", "127.0.0.1:0",
              "--out", plant_dir, "--duration", str(duration_s + warmup_s + 5.0)],
             cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if flood:   # from the end of the warm-up, so the plant's start-up is not starved
+            threading.Timer(warmup_s, lambda: threading.Thread(
+                target=_flood, args=(gcs_bind, stop_flood, flood_count), daemon=True).start()
+            ).start()
         try:
             plant.wait(timeout=duration_s + warmup_s + 2.0)
         except subprocess.TimeoutExpired:
             pass
         finally:
+            stop_flood.set()
             _stop(plant)
     finally:
         rc = _stop(fc)
@@ -99,6 +131,7 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
         sched = [ln.split(" ", 3)[-1].strip() for ln in f if "scheduling" in ln]
     return {
         "fast_hz": fast_hz, "slow_hz": slow_hz, "ticks": int(late_us.size),
+        "gcs_flood_datagrams": flood_count[0] if flood_count else 0,
         "wall_s": float(wall[keep][-1] - wall[keep][0]) if late_us.size else 0.0,
         "share_ticks_with_plant_data": float(flying.mean()) if flying.size else 0.0,
         "late_median_us": float(np.median(late_us)), "late_p99_us": float(np.percentile(late_us, 99)),
@@ -119,16 +152,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario", default="paper")
     ap.add_argument("--spin-us", type=int, default=0)
     ap.add_argument("--rt-priority", type=int, default=50)
+    ap.add_argument("--gcs-flood", action="store_true",
+                    help="also flood the fc's GCS port (PARAM_REQUEST_LIST + garbage) during the run")
     ap.add_argument("--out", help="directory for the runs (default: a temporary one)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = ap.parse_args(argv)
     out = args.out or tempfile.mkdtemp(prefix="fc_timing_")
     rows = [measure(hz, args.slow_hz, args.duration, args.warmup, out, args.scenario,
-                    args.spin_us, args.rt_priority) for hz in args.fast_hz]
+                    args.spin_us, args.rt_priority, args.gcs_flood) for hz in args.fast_hz]
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
     print(f"runs in {out}")
+    if args.gcs_flood:
+        print("GCS flood datagrams sent: " + ", ".join(str(r["gcs_flood_datagrams"]) for r in rows))
     print("| fast Hz | ticks | ticks with plant data | late median us | p99 us | p99.9 us | max us | late >20% of T "
           "| exec median us | exec p99 us | scheduling |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
