@@ -62,3 +62,37 @@ def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
     persisted = ParamTable.read_file(os.path.join(fc.out, "params.parm"))
     assert persisted["FS_TIMEOUT_S"] == pytest.approx(2.5)
     assert persisted["TRIM_RUD_DEG"] == pytest.approx(1.5)
+
+
+def test_mavproxy_with_the_signing_key_can_set_without_it_cannot(tmp_path):
+    exe = shutil.which("mavproxy.py")
+    if exe is None:
+        pytest.skip("MAVProxy is not installed (pip install -e .[test])")
+    key_file = tmp_path / "gcs.key"
+    key_file.write_text("s3cret-passphrase\n")
+    os.chmod(key_file, 0o600)
+
+    def mavproxy(port: int, key: str | None, value: float) -> str:
+        steps = ["set param_ftp 0", "set requireexit 1"]
+        if key is not None:
+            steps += ["module load signing", f"signing key {key}"]
+        steps += [f"repeat add 2 param set TRIM_RUD_DEG {value}", "repeat add 4 exit"]
+        res = subprocess.run(
+            [exe, f"--master=udpin:127.0.0.1:{port}", "--non-interactive", "--no-state",
+             "--default-modules=link,param,misc", f"--cmd={'; '.join(steps)}"],
+            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+            cwd=str(tmp_path))
+        return res.stdout
+
+    gcs_port = free_udp_port()
+    with FcProcess(str(tmp_path / "run"), "--signing-key-file", str(key_file),
+                   gcs_ports=(gcs_port,)) as fc:
+        unsigned_out = mavproxy(gcs_port, None, 1.25)
+        signed_out = mavproxy(gcs_port, "s3cret-passphrase", 2.5)
+        assert fc.stop() == 0
+    assert "Detected vehicle 1:1" in unsigned_out and "Detected vehicle 1:1" in signed_out
+    with open(os.path.join(fc.out, "fc.log")) as f:
+        log = f.read()
+    assert "param TRIM_RUD_DEG = 1.25" not in log, "an unsigned set must be rejected"
+    assert "param TRIM_RUD_DEG = 2.5" in log, signed_out
+    assert "s3cret-passphrase" not in log
