@@ -178,7 +178,34 @@ def test_law_parameter_takes_effect_and_mode_switch_in_flight(vehicle):
     assert abs(math.degrees(loop.truth("alpha_rad")) - 5.0) < 0.5
 
 
+def test_qgroundcontrol_connect_sequence_completes(vehicle):
+    """The requests QGC's InitialConnectStateMachine sends all get an answer (shared mavlink.md 3)."""
+    _, gcs, _ = vehicle
+    for msg_id in (300, 395):   # PROTOCOL_VERSION, COMPONENT_METADATA: not provided
+        ack = gcs.command(ML.MAV_CMD_REQUEST_MESSAGE, msg_id)
+        assert ack is not None and ack.result == ML.MAV_RESULT_UNSUPPORTED
+    for mission_type in (ML.MAV_MISSION_TYPE_MISSION, ML.MAV_MISSION_TYPE_FENCE,
+                         ML.MAV_MISSION_TYPE_RALLY):
+        gcs.conn.mav.mission_request_list_send(1, 0, mission_type)
+        mc = gcs.wait("MISSION_COUNT", 5, lambda m, t=mission_type: m.mission_type == t)
+        assert mc is not None and mc.count == 0
+    gcs.conn.mav.param_request_list_send(1, 0)         # to component 0 (all), as QGC does
+    first = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_index == 0)
+    assert first is not None
+    gcs.conn.mav.command_int_send(1, 1, 0, ML.MAV_CMD_DO_REPOSITION, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+    ack = gcs.wait("COMMAND_ACK", 5, lambda m: m.command == ML.MAV_CMD_DO_REPOSITION)
+    assert ack.result == ML.MAV_RESULT_UNSUPPORTED
+    # a request addressed to another vehicle is not ours to answer
+    gcs.conn.mav.command_long_send(7, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
+    assert gcs.wait("COMMAND_ACK", 1.0, lambda m: m.command == ML.MAV_CMD_REQUEST_MESSAGE) is None
+    ack = gcs.command(ML.MAV_CMD_GET_MESSAGE_INTERVAL, ML.MAVLINK_MSG_ID_HEARTBEAT)
+    assert ack.result == ML.MAV_RESULT_ACCEPTED
+    mi = gcs.wait("MESSAGE_INTERVAL", 5, lambda m: m.message_id == 0)
+    assert mi.interval_us == 1_000_000
+
+
 def test_logs_after_clean_shutdown(vehicle):
+    """Runs last in this module: it stops the fc."""
     fc, gcs, loop = vehicle
     loop.run(10)
     assert fc.stop() == 0, fc.stderr
