@@ -463,3 +463,28 @@ def test_bad_input_holds_the_last_command():
     # good input again: flies on, state finite
     _run_law(law, est, 5)
     assert law.status[L.S_INPUT_BAD] == 0.0 and np.all(np.isfinite(law.x))
+
+
+def test_allocator_properties_hypothesis():
+    """For any moment demand: |delta| <= limit, and when scaled the achieved moment keeps
+    M_c's direction (g_Gamma delta = s M_c, 0 < s <= 1)."""
+    from hypothesis import given, settings, strategies as st_
+
+    law, _ = _alloc_setup(coordinated=True, surf=0)
+    G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3).copy()
+    lim = 20 * DEG
+    delta = np.zeros(3)
+    moment = st_.floats(min_value=-5e7, max_value=5e7, allow_nan=False)
+
+    @settings(max_examples=200, deadline=None)
+    @given(moment, moment, moment)
+    def check(m0, m1, m2):
+        sat = K.allocate(law.par, law.nm, m0, m1, m2, 0.7, delta, law.status)
+        assert np.all(np.abs(delta) <= lim * (1 + 1e-12))
+        mc = np.array([m0, m1, m2])
+        s = law.status[L.S_ALLOC_SCALE]
+        assert 0.0 < s <= 1.0 or not np.any(mc)
+        np.testing.assert_allclose(G @ delta, s * mc, rtol=1e-8, atol=1e-3)
+        assert (sat == 1.0) == (s < 1.0)
+
+    check()
