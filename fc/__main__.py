@@ -111,6 +111,8 @@ def _run(args, out: str, log: logging.Logger) -> int:
         print(f"fc: {exc}", file=sys.stderr)
         return 2
     log.info("fc started: %s", cfg)
+    log.info("plant link bound at %s:%d, GCS link bound at %s:%d", *fc.plant.endpoint.address,
+             *fc.gcs.endpoint.address)
     print("READY", flush=True)
     try:
         fc.run(lambda: bool(stopping))
