@@ -164,3 +164,15 @@ def test_spec_scalar_and_per_channel():
     assert d.spec["overshoot_max_pct"] == {"alpha": 30.0, "beta": 40.0, "mu": 30.0}
     assert d.spec["settling_max_s"] == {"alpha": 3.0, "beta": 3.0, "mu": 3.0}
     assert d.spec["final_error_max_deg"]["mu"] == dsp.SPEC_DEFAULTS["final_error_max_deg"]
+
+
+def test_campaign_identity_ignores_comments_and_spec_but_not_distributions():
+    from tools.montecarlo.case import CampaignConfig
+    text = dsp.load("paper").source_text
+
+    def ident(t):
+        return CampaignConfig("paper", t, "paper", 1).identity()
+    assert ident(text) == ident("# a comment\n" + text.replace("overshoot_max_pct = 10.0",
+                                                               "overshoot_max_pct = 12.0"))
+    assert ident(text) != ident(text.replace("CL = { dist = \"uniform\", low = 0.8",
+                                             "CL = { dist = \"uniform\", low = 0.7"))

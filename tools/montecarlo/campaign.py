@@ -76,7 +76,9 @@ def prepare_dir(cfg: CampaignConfig, runs: int, out_dir: os.PathLike) -> None:
     if man.is_file():
         old, old_runs = load_manifest(out)
         if old.identity() != cfg.identity():
-            diff = [k for k, v in cfg.to_json().items() if old.to_json().get(k) != v]
+            diff = [k for k, v in cfg.to_json().items() if old.to_json().get(k) != v
+                    and (k != "dispersions_text" or
+                         old.dispersions_canonical() != cfg.dispersions_canonical())]
             raise CampaignError(
                 f"{out} holds a different campaign (differs in: {', '.join(diff)}); "
                 "use another --out, or the same options to resume it")

@@ -87,9 +87,21 @@ class CampaignConfig:
         d["variants"] = tuple(d["variants"])
         return cls(**d)
 
+    def dispersions_canonical(self) -> str:
+        """The parsed distributions as text (what of the dispersion file decides the rows)."""
+        disp = dispersions_of(self)
+        return json.dumps([[k, d.kind, d.low, d.high, d.mean, d.std, d.value]
+                           for k, d in disp.dists.items()])
+
     def identity(self) -> str:
-        """Hash of what decides the rows (a resumed campaign must have the same)."""
-        text = json.dumps(self.to_json(), sort_keys=True)
+        """Hash of what decides the rows (a resumed campaign must have the same).
+
+        The dispersion file counts by its parsed distributions: comments, layout and its
+        [spec] (which only the summary reads) may change between a run and its resume.
+        """
+        d = self.to_json()
+        d["dispersions_text"] = self.dispersions_canonical()
+        text = json.dumps(d, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
