@@ -493,7 +493,9 @@ class FlightController:
             self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
             self.est.reset()
             self.planner.next_ns = None
-            self.law_changes_seen = -1
+            self.law_changes_seen = -1      # re-engages the law (reset at the new state)
+            if self.timeline is not None:
+                self.timeline.next = 0      # the command timeline starts over with sim time
         self.last_stamp_us = stamp
         self.meas_stamp_us = stamp
         t_exec = time.perf_counter_ns()

@@ -106,3 +106,29 @@ def test_realtime_mode_echoes_newest_stamp(tmp_path):
     assert len(log["lateness_us"]) > 500     # ~1000 ticks per wall second were logged
     with open(os.path.join(tmp_path, "fc.log")) as f:
         assert "scheduling" in f.read()      # SCHED_FIFO granted or the refusal logged
+
+
+def test_plant_reset_restarts_loops_and_timeline(tmp_path):
+    tl = tmp_path / "timeline.toml"
+    tl.write_text("[[command]]\nt_s = 0.0\nalpha_deg = 1.0\n[[command]]\nt_s = 0.02\nalpha_deg = 3.0\n")
+    out = str(tmp_path / "run")
+    os.makedirs(out)
+    with open(os.path.join(out, "params.parm"), "w") as f:
+        f.write("FS_TIMEOUT_S 30\n")
+    with FcProcess(out, "--timeline", str(tl)) as fc:
+        plant = ScriptedPlant(fc.plant_port)
+        try:
+            for k in range(20):                        # 0 .. 38 ms
+                plant.exchange(level_meas(0.002 * k))
+            for k in range(5):                         # the plant restarted: 0 .. 8 ms again
+                assert plant.exchange(level_meas(0.002 * k)).time_usec == 2000 * k
+        finally:
+            plant.close()
+        assert fc.stop() == 0
+    log = load(out)
+    cmd = log["cmd_alpha_rad"]
+    assert len(cmd) == 25
+    assert cmd[19] == pytest.approx(math.radians(3.0))
+    assert np.allclose(cmd[20:], math.radians(1.0))    # the timeline started over
+    with open(os.path.join(out, "fc.log")) as f:
+        assert "plant time went backwards" in f.read()
