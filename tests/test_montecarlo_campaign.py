@@ -210,3 +210,18 @@ def test_compare_a_campaign_with_itself_finds_no_difference(campaign):
     assert c["pairs"] == 2 * RUNS and c["warnings"] == [] and c["diverged_mismatch"] == []
     for v in cfg.variants:
         assert all(e["max_abs_diff"] == 0.0 for e in c["variants"][v].values())
+
+
+def test_summary_command_writes_strict_json_table_and_plots(campaign, capsys):
+    import json
+    from tools.montecarlo import __main__ as cli
+    cfg, out, _ = campaign
+    assert cli.main(["summary", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "meets spec" in printed and "worst cases" in printed
+    s = json.loads((out / "summary.json").read_text(),
+                   parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
+    assert s["cases"] == RUNS
+    for name in ("envelopes.png", "histograms.png", "sensitivity.png"):
+        p = out / name
+        assert p.is_file() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -48,15 +48,23 @@ def _save(fig, path) -> Path:
     return Path(path)
 
 
+#: width of the zoom on the transient (right column of envelopes.png), s
+ZOOM_S = 5.0
+
+
 def envelopes(out_dir, meta: dict, variants, trace_dt_s: float,
               commands: tuple | None = None) -> Path:
-    """alpha/beta/mu envelopes over all cases (reads the trace columns)."""
+    """alpha/beta/mu envelopes over all cases (reads the trace columns).
+
+    Left column: the whole run; right column: the first ZOOM_S seconds (the transient), when
+    the run is longer than that.
+    """
     table = results.read_rows(out_dir, columns=["error", *results.TRACE_COLUMNS], traces=True)
     var = np.asarray(table.column("variant").to_pylist(), dtype=object)
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     n_cases = len(set(table.column("case").to_pylist()))
+    bands = {}  # (channel, variant) -> (t, lo, p5, p50, p95, hi)
     t_end = 0.0
-    for ax, ch in zip(axes, CHANNELS):
+    for ch in CHANNELS:
         col = table.column(f"trace.{ch}_deg").to_pylist()
         for v in variants:
             traces = [np.asarray(c, dtype=float) for c, vv in zip(col, var)
@@ -72,22 +80,41 @@ def envelopes(out_dir, meta: dict, variants, trace_dt_s: float,
             with np.errstate(all="ignore"), _quiet():
                 lo, hi = np.nanmin(arr, axis=0), np.nanmax(arr, axis=0)
                 p5, p50, p95 = np.nanpercentile(arr, [5, 50, 95], axis=0)
-            c = _color(v)
-            ax.fill_between(t, lo, hi, color=c, alpha=0.15, linewidth=0,
-                            label=f"{v}: min-max")
-            ax.fill_between(t, p5, p95, color=c, alpha=0.35, linewidth=0,
-                            label=f"{v}: 5-95 %")
-            ax.plot(t, p50, color=c, linewidth=1.3, label=f"{v}: median")
-        if commands is not None:
-            cmd_t, cmd_deg = commands
-            i = CHANNELS.index(ch)
-            xs = np.repeat(np.append(cmd_t, max(t_end, cmd_t[-1])), 2)[1:-1]
-            ax.plot(xs, np.repeat(cmd_deg[:, i], 2), color="black", linestyle=":",
-                    linewidth=1.2, label="command")
-        ax.set_ylabel(LABELS[ch])
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, ncol=2, loc="best")
-    axes[-1].set_xlabel("time (s)")
+            bands[ch, v] = (t, lo, p5, p50, p95, hi)
+    zoom = t_end > 1.5 * ZOOM_S
+    if zoom:
+        fig, grid = plt.subplots(3, 2, figsize=(13, 9), sharex="col",
+                                 gridspec_kw={"width_ratios": [2, 1]})
+    else:
+        fig, grid = plt.subplots(3, 1, figsize=(9, 9), sharex=True, squeeze=False)
+    for r, ch in enumerate(CHANNELS):
+        for c_ax, ax in enumerate(grid[r]):
+            for v in variants:
+                if (ch, v) not in bands:
+                    continue
+                t, lo, p5, p50, p95, hi = bands[ch, v]
+                c = _color(v)
+                ax.fill_between(t, lo, hi, color=c, alpha=0.15, linewidth=0,
+                                label=f"{v}: min-max")
+                ax.fill_between(t, p5, p95, color=c, alpha=0.35, linewidth=0,
+                                label=f"{v}: 5-95 %")
+                ax.plot(t, p50, color=c, linewidth=1.3, label=f"{v}: median")
+            if commands is not None:
+                cmd_t, cmd_deg = commands
+                i = CHANNELS.index(ch)
+                xs = np.repeat(np.append(cmd_t, max(t_end, cmd_t[-1])), 2)[1:-1]
+                ax.plot(xs, np.repeat(cmd_deg[:, i], 2), color="black", linestyle=":",
+                        linewidth=1.2, label="command")
+            ax.grid(alpha=0.3)
+            if c_ax == 0:
+                ax.set_ylabel(LABELS[ch])
+            else:
+                ax.set_xlim(0.0, ZOOM_S)
+    grid[0][0].legend(fontsize=7, ncol=2, loc="lower right")
+    grid[-1][0].set_xlabel("time (s)")
+    if zoom:
+        grid[0][1].set_title(f"first {ZOOM_S:g} s", fontsize=9)
+        grid[-1][1].set_xlabel("time (s)")
     _title(fig, "Attitude envelopes over all cases", meta, n_cases)
     return _save(fig, Path(out_dir) / "envelopes.png")
 
