@@ -69,17 +69,24 @@ class InternalsLog:
         while True:
             item = self._full.get()
             if item is None:
+                self._full.task_done()
                 break
             chunk, n = item
-            self._raw.write(chunk[:n].tobytes())
+            self._raw.write(chunk[:n].data)   # no copy: the rows are contiguous
             self._raw.flush()
             self._free.put(chunk)
+            self._full.task_done()
 
     def flush(self) -> None:
         """Hand the partial chunk to the writer (e.g. at shutdown)."""
         if self.chunk is not None and self.n:
             self._full.put((self.chunk, self.n))
             self.chunk = None
+
+    def sync(self) -> None:
+        """Hand over the partial chunk and wait until the writer has put everything on disk."""
+        self.flush()
+        self._full.join()
 
     def close(self) -> str:
         """Flush, stop the writer, write ``fc_internals.npz``; returns its path."""
