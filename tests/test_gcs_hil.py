@@ -204,6 +204,29 @@ def test_qgroundcontrol_connect_sequence_completes(vehicle):
     assert mi.interval_us == 1_000_000
 
 
+def test_stream_rates_follow_set_message_interval(vehicle):
+    _, gcs, _ = vehicle
+    att = ML.MAVLINK_MSG_ID_ATTITUDE
+    assert gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, att, -1).result == ML.MAV_RESULT_ACCEPTED
+    gcs.wait("HEARTBEAT", 3)                       # let what was in flight arrive
+    while gcs.conn.recv_match(blocking=False) is not None:
+        pass
+    assert gcs.wait("ATTITUDE", 1.5) is None       # disabled
+    assert gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, att, 20_000).result == \
+        ML.MAV_RESULT_ACCEPTED                     # 50 Hz
+    first = gcs.wait("ATTITUDE", 3)
+    assert first is not None
+    n, t0 = 0, first.time_boot_ms
+    while True:
+        m = gcs.wait("ATTITUDE", 3)
+        assert m is not None
+        n += 1
+        if m.time_boot_ms - t0 >= 1000:
+            break
+    assert n >= 25, f"{n} ATTITUDE in one second of fc time at a 50 Hz setting"
+    gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, att, 0)   # back to the default
+
+
 def test_logs_after_clean_shutdown(vehicle):
     """Runs last in this module: it stops the fc."""
     fc, gcs, loop = vehicle
