@@ -488,3 +488,18 @@ def test_allocator_properties_hypothesis():
         assert (sat == 1.0) == (s < 1.0)
 
     check()
+
+
+def test_cycle_equals_slow_then_fast():
+    a = AttitudeLaw()
+    b = AttitudeLaw()
+    est = paper_est(p=0.01, q=-0.02, r=0.03)
+    a.reset(est)
+    b.reset(est)
+    cmd = (5 * DEG, 0.0, 4 * DEG)
+    for _ in range(20):
+        a.slow_step(est, cmd, 0.01)
+        a.fast_step(est, 0.002)
+        b.cycle(est, cmd, 0.01, 0.002)
+    np.testing.assert_array_equal(a.delta_cmd_rad, b.delta_cmd_rad)
+    np.testing.assert_array_equal(a.x, b.x)

@@ -108,7 +108,10 @@ def bench_per_call(calls: int):
     for _ in range(200):                                   # warm-up
         law.slow_step(est, cmd, 0.01)
         law.fast_step(est, 0.002)
+    for _ in range(200):
+        law.cycle(est, cmd, 0.01, 0.002)
     wrap = np.empty(calls)
+    cyc = np.empty(calls)
     slow = np.empty(calls)
     fast = np.empty(calls)
     par, x, nm, st, tab, atm, grid, delta = (k[n] for n in ("par", "x", "nm", "st", "tab",
@@ -122,13 +125,17 @@ def bench_per_call(calls: int):
         t2 = pc()
         K.fast_kernel(est, 0.002, par, x, nm, st, tab, atm, grid, delta)
         t3 = pc()
+        law.cycle(est, cmd, 0.01, 0.002)
+        t4 = pc()
+        cyc[i] = (t4 - t3) / 1e3
         wrap[i] = (t1 - t0) / 1e3
         slow[i] = (t2 - t1) / 1e3
         fast[i] = (t3 - t2) / 1e3
     return {"AttitudeLaw.slow_step + fast_step (wrapper)": _stats(wrap),
             "slow_kernel called from Python": _stats(slow),
             "fast_kernel called from Python": _stats(fast),
-            "slow_kernel + fast_kernel from Python": _stats(slow + fast)}
+            "slow_kernel + fast_kernel from Python": _stats(slow + fast),
+            "AttitudeLaw.cycle (slow + fast in one call)": _stats(cyc)}
 
 
 def bench_parts(batches: int, batch: int):

@@ -107,6 +107,16 @@ class AttitudeLaw:
         K.fast_kernel(est, float(dt_s), self.par, self.x, self.nm, self.status,
                       self.tab, self.atm, self.grid, self.delta_cmd_rad)
 
+    def cycle(self, est: np.ndarray, cmd_rad, slow_dt_s: float, fast_dt_s: float) -> None:
+        """``slow_step`` then ``fast_step`` in one compiled call (saves one numba dispatch,
+        ~0.6 us): for ticks where both loops are due."""
+        c = self._cmd
+        c[0] = cmd_rad[0]
+        c[1] = cmd_rad[1]
+        c[2] = cmd_rad[2]
+        K.cycle_kernel(est, c, float(slow_dt_s), float(fast_dt_s), 1, self.par, self.x,
+                       self.nm, self.status, self.tab, self.atm, self.grid, self.delta_cmd_rad)
+
     def kernel_args(self) -> dict[str, np.ndarray]:
         """The law's arrays for calling fc.control.kernels directly (no copies).
 
