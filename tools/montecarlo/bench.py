@@ -6,7 +6,8 @@
 For each worker count, runs a fresh campaign of ``--runs`` cases (both variants) on a new
 LocalCluster into a temporary directory (or ``--keep DIR/wK``) and prints: total wall time
 (cluster start included), compute wall time (first submission to last row), cases per second,
-the mean in-task time per variant, and the speed-up against the first worker count.
+the mean in-task time per variant, the speed-up against the first worker count, and the
+in-task CPU time (what the cases cost without contention: the machine is shared).
 """
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 from tools.montecarlo import dispersions as dsp
 from tools.montecarlo import results
@@ -51,8 +54,9 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         res = run_campaign(cfg, args.runs, out, workers=k, progress_stream=open(os.devnull, "w"))
         wall = time.perf_counter() - t0
-        t = results.read_rows(out, columns=["wall_time_s", "error"])
+        t = results.read_rows(out, columns=["wall_time_s", "cpu_time_s", "error"])
         walls = t.column("wall_time_s").to_numpy()
+        cpu = t.column("cpu_time_s").to_numpy()
         var = t.column("variant").to_pylist()
         errs = sum(1 for e in t.column("error").to_pylist() if e)
         per = {v: float(walls[[x == v for x in var]].mean()) for v in cfg.variants}
@@ -63,6 +67,9 @@ def main(argv=None) -> int:
               f"compute {res.compute_wall_s:.1f} s)  {rate:6.1f} cases/s  in-task per case: "
               + ", ".join(f"{v} {1e3 * s:.0f} ms" for v, s in per.items())
               + f"  errors {errs}  speed-up {first / res.compute_wall_s:.2f}x")
+        print(f"           in-task CPU {cpu.sum():.1f} s in all (median {1e3 * np.median(cpu):.0f} "
+              f"ms per variant): on {k} idle core(s) the cases alone need "
+              f"{cpu.sum() / k:.1f} s; load average now {os.getloadavg()[0]:.1f}")
         if not args.keep:
             shutil.rmtree(out, ignore_errors=True)
     return 0

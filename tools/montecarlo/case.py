@@ -265,6 +265,7 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
     t_end = cfg.duration_s if cfg.duration_s is not None else nominal_duration_s(cfg)
     for variant in cfg.variants:
         t0 = time.perf_counter()
+        c0 = time.process_time()
         row = {"case": int(index), "variant": variant, "campaign_seed": int(cfg.seed),
                "sim_seed": int(sim_seed), "backend": cfg.backend, "worker": worker,
                "error": ""}
@@ -286,6 +287,7 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
             where = f" (at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno})" if tb else ""
             row["error"] = f"{type(exc).__name__}: {exc}{where}"
         row["wall_time_s"] = time.perf_counter() - t0
+        row["cpu_time_s"] = time.process_time() - c0  # the worker's CPU: contention-free
         rows.append(row)
     return rows
 

@@ -13,7 +13,7 @@ A case is *finished* when its rows are in a part; resuming runs only the others.
 tolerates the same (case, variant) in two parts (keeps the last written).
 
 Columns: ``case, variant, campaign_seed, sim_seed, backend, worker, error, diverged,
-wall_time_s, sim_time_s``, one float column per dispersion variable (``aero.CL``, ...), one
+wall_time_s, cpu_time_s, sim_time_s``, one float column per dispersion variable (``aero.CL``, ...), one
 per channel metric (``alpha.overshoot_pct``, ... NaN where undefined), and the decimated
 traces ``trace.alpha_deg`` etc. (list<float32>, one sample per ``trace_dt_s``).
 """
@@ -44,7 +44,8 @@ def schema(dispersion_keys: list[str]) -> pa.Schema:
         pa.field("campaign_seed", pa.int64()), pa.field("sim_seed", pa.int64()),
         pa.field("backend", pa.string()), pa.field("worker", pa.string()),
         pa.field("error", pa.string()), pa.field("diverged", pa.bool_()),
-        pa.field("wall_time_s", pa.float64()), pa.field("sim_time_s", pa.float64()),
+        pa.field("wall_time_s", pa.float64()), pa.field("cpu_time_s", pa.float64()),
+        pa.field("sim_time_s", pa.float64()),
     ]
     fields += [pa.field(k, pa.float64()) for k in dispersion_keys]
     fields += [pa.field(c, pa.float64()) for c in METRIC_COLUMNS]
