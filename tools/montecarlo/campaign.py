@@ -144,7 +144,7 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
     client : an existing distributed.Client (else one is made from workers / scheduler).
     progress_stream : where the progress bar goes (default stderr).
     on_case : called with (case index, rows) after each case's rows are buffered.
-    window : tasks in flight at most (default 4 per worker thread, at least 8).
+    window : tasks in flight at most (default 8 per worker thread, at least 32).
 
     KeyboardInterrupt (Ctrl-C) stops the campaign cleanly: finished rows are flushed,
     pending tasks cancelled, and the result says ``interrupted``.
