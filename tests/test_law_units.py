@@ -503,3 +503,18 @@ def test_cycle_equals_slow_then_fast():
         b.cycle(est, cmd, 0.01, 0.002)
     np.testing.assert_array_equal(a.delta_cmd_rad, b.delta_cmd_rad)
     np.testing.assert_array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("zeta", [0.5, 0.9, 1.0, 1.5])
+def test_second_order_filter_is_exact(zeta):
+    """The filters' discretisation equals the continuous response (scipy expm) and stays
+    stable for wn dt = 1.6 (a 25 Hz loop with the 40 rad/s command filter)."""
+    from scipy.linalg import expm
+    wn, dt = 40.0, 0.04
+    phi = np.array(K.second_order_phi(dt, wn, zeta))
+    A = np.array([[0.0, 1.0], [-wn * wn, -2 * zeta * wn]])
+    np.testing.assert_allclose(phi, expm(A * dt).ravel(), rtol=1e-9, atol=1e-12)
+    x = np.zeros(2)
+    for _ in range(100):
+        K.second_order_step(1.0, phi, x, 0, 1)
+    assert x[0] == pytest.approx(1.0, abs=1e-9) and abs(x[1]) < 1e-9
