@@ -81,7 +81,11 @@ class GcsLink:
         self.intervals = dict(STREAM_DEFAULTS_S)
         self.next_due = {k: 0.0 for k in self.intervals}
         self.next_heartbeat = 0.0
+        # parameter answers: single reads/announcements queue (bounded) ahead of the list
+        # download, which is a cursor: a repeated PARAM_REQUEST_LIST restarts it and can never
+        # push out a pending read (a flood of list requests cannot starve a real GCS)
         self.param_queue: deque[int] = deque()
+        self.list_next = -1        # next index of the list download, -1 = none running
         self.text_queue: deque[tuple[int, str]] = deque(maxlen=32)
         self.oneshot: deque = deque(maxlen=16)
         self.nv_cursor = 0
@@ -206,8 +210,7 @@ class GcsLink:
             return
         if t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_LIST:
             if self._for_us(m):
-                self.param_queue.clear()
-                self.param_queue.extend(range(len(self.v.params)))
+                self.list_next = 0
         elif t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ:
             if self._for_us(m):
                 idx = self._param_index(m.param_id, m.param_index)
@@ -439,8 +442,15 @@ class GcsLink:
             self.send(self.mav.statustext_encode(sev, text.encode("ascii", "replace")[:50]))
             sent += 1
         n_param = 0
-        while self.param_queue and n_param < 2 and sent < self.max_tx:
-            self.send(self._param_value(self.param_queue.popleft()))
+        while n_param < 2 and sent < self.max_tx:
+            if self.param_queue:
+                idx = self.param_queue.popleft()
+            elif self.list_next >= 0:
+                idx = self.list_next
+                self.list_next = idx + 1 if idx + 1 < len(self.v.params) else -1
+            else:
+                break
+            self.send(self._param_value(idx))
             n_param += 1
             sent += 1
         for msg_id, iv in self.intervals.items():
