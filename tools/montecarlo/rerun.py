@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from tools import metrics as mt
+from tools.hil.rundata import json_safe
 from tools.montecarlo import results
 from tools.montecarlo.campaign import load_manifest
 from tools.montecarlo.case import CHANNELS, code_fingerprint, fly_case, flight_metrics
@@ -93,7 +94,7 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
         lines.append(f"  {v:14s} diverged {m['diverged']}  {ch_txt}  "
                      f"{'(same as the campaign row)' if match else '(DIFFERS from the campaign row)' if match is False else '(no campaign row)'}")
     report["values"] = report.get("values", {})
-    results.write_json(dest / "case.json", _jsonable(report))
+    results.write_json(dest / "case.json", json_safe(report))
     plots = _main_job_plots(runs_for_plots, cfg, case, dest)
     lines.append(f"  values: " + ", ".join(f"{k}={v:.4g}" for k, v in report["values"].items()))
     lines.append(f"  written: {dest}/case.json, */history.npz" +
@@ -103,18 +104,6 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
 
 def _fmt(x, f="{:.2f}"):
     return "-" if x is None else f.format(x)
-
-
-def _jsonable(o):
-    if isinstance(o, dict):
-        return {k: _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    if isinstance(o, (np.floating, np.integer, np.bool_)):
-        return o.item()
-    return o
 
 
 def _plot_data(fl, entry) -> dict:

@@ -178,13 +178,8 @@ def _paired(cols: dict) -> dict:
 
 def to_json(summary: dict) -> dict:
     """Replace every NaN/inf by None, recursively (strict JSON)."""
-    if isinstance(summary, dict):
-        return {k: to_json(v) for k, v in summary.items()}
-    if isinstance(summary, (list, tuple)):
-        return [to_json(v) for v in summary]
-    if isinstance(summary, float):
-        return _clean(summary)
-    return summary
+    from tools.hil.rundata import json_safe
+    return json_safe(summary)
 
 
 def _f(x, fmt="{:.2f}"):
