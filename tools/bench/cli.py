@@ -21,6 +21,7 @@ import platform
 import sys
 import time
 
+SPIN_US = 300               # the fc's --spin-us tried in the real-time part
 PARTS = ("law", "plant", "pingpong", "fcpath", "lockstep", "realtime", "startup", "inproc")
 
 # Targets (issue 7) and the reference figures taken on this machine before the code existed
@@ -244,7 +245,7 @@ def part_realtime(rep: Report, quick: bool, keep) -> None:
     from tools.bench.procs import realtime
     pp99 = rep.figures.get("pingpong_mavlink_p99_us")
     for hz in (1000, 500):
-        r = realtime(hz, 2.5 if quick else 15.0, keep)
+        r = realtime(hz, 1.5 if quick else 15.0, keep, skip_s=0.3 if quick else 1.0)
         rep.details[f"realtime_{hz}"] = r
         lm = rep.fig(f"rt_{hz}_lateness_median_us", r["lateness_median_us"])
         lp = rep.fig(f"rt_{hz}_lateness_p99_us", r["lateness_p99_us"])
@@ -271,8 +272,21 @@ def part_realtime(rep: Report, quick: bool, keep) -> None:
         rep.row(f"4 real time {hz} Hz: fc tick work (wake to send)",
                 f"median {_f(r['tick_exec_median_us'], '.0f')} us, p99 "
                 f"{_f(r['tick_exec_p99_us'], '.0f')} us", "", "", "", "realtime")
+    # the same at 1 kHz with the fc's own busy-wait option (CPU for wake-up precision)
+    r = realtime(1000, 1.5 if quick else 15.0, keep, fc_extra=("--spin-us", str(SPIN_US)),
+                 skip_s=0.3 if quick else 1.0)
+    rep.details["realtime_1000_spin"] = r
+    lp = rep.fig("rt_1000_spin_lateness_p99_us", r["lateness_p99_us"])
+    ls = rep.fig("rt_1000_spin_late_20pct_pct", r["late_20pct_share_pct"])
+    rep.fig("rt_1000_spin_lateness_max_us", r["lateness_max_us"])
+    rep.row(f"4 real time 1000 Hz with `python -m fc --spin-us {SPIN_US}`: wake-up lateness",
+            f"median {_f(r['lateness_median_us'], '.0f')}, p99 {_f(lp, '.0f')}, max "
+            f"{_f(r['lateness_max_us'], '.0f')} us; {_f(ls, '.2f')} % > 20 % late",
+            f"p99 <= 100 us: {_ok(lp <= 100)}; late < 0.1 %: {_ok(ls < 0.1)}",
+            f"costs ~{SPIN_US / 10:.0f} % of a core at 1 kHz", "", "realtime")
     # the same real-time plant against the fc's frame-triggered (lockstep) loop
-    r = realtime(1000, 2.5 if quick else 10.0, keep, fc_mode="lockstep")
+    r = realtime(1000, 1.5 if quick else 10.0, keep, fc_mode="lockstep",
+                 skip_s=0.3 if quick else 1.0)
     rep.details["realtime_1000_frame_triggered"] = r
     sm = rep.fig("rt_1000_triggered_latency_median_us", r["latency_median_us"])
     sp = rep.fig("rt_1000_triggered_latency_p99_us", r["latency_p99_us"])
@@ -290,7 +304,7 @@ def part_startup(rep: Report, quick: bool, keep) -> None:
     warm = [startup(False, keep) for _ in range(1 if quick else 3)]
     w = sorted(x["first_servo_s"] for x in warm)[len(warm) // 2]
     rep.details["startup_warm"] = warm
-    fl = import_floor()
+    fl = import_floor(1 if quick else 3)
     rep.details["startup_import_floor"] = fl
     for k, v in fl.items():
         rep.fig(f"startup_import_{k}_s", v)
@@ -329,18 +343,18 @@ print(t1 - t0, t2 - t1, t3 - t2, t4 - t3)
 """
 
 
-def import_floor() -> dict:
+def import_floor(n: int = 3) -> dict:
     """Wall time of a bare interpreter that only imports what the fc needs (s): numpy,
     numba, scipy.linalg (numba imports it at its first compile or cache load, to find BLAS),
-    pymavlink's dialect. Median of 3 processes."""
+    pymavlink's dialect. Median of ``n`` processes."""
     import subprocess
     runs = []
-    for _ in range(3):
+    for _ in range(n):
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", IMPORT_FLOOR_CODE], capture_output=True,
                              text=True, timeout=120, check=True).stdout.split()
         runs.append([time.perf_counter() - t0] + [float(x) for x in out])
-    med = [sorted(r[i] for r in runs)[1] for i in range(5)]
+    med = [sorted(r[i] for r in runs)[len(runs) // 2] for i in range(5)]
     return {"total": med[0], "numpy": med[1], "numba": med[2], "scipy_linalg": med[3],
             "pymavlink": med[4]}
 

@@ -279,7 +279,7 @@ def lockstep(fast_hz: float, sim_s: float, keep: str | None = None,
 
 
 def realtime(fast_hz: float, wall_s: float, keep: str | None = None,
-             fc_mode: str = "realtime") -> dict:
+             fc_mode: str = "realtime", fc_extra: tuple = (), skip_s: float = 1.0) -> dict:
     """Real-time fc at ``fast_hz`` with the measuring stand-in plant and a streaming GCS.
 
     ``fc_mode="lockstep"`` runs the fc's frame-triggered loop (it answers each frame as it
@@ -294,7 +294,7 @@ def realtime(fast_hz: float, wall_s: float, keep: str | None = None,
         gcs = GcsSink()
         gcs.start()
         fc_out = s.dir / "fc"
-        fc = s.start("fc", _fc_argv(fc_out, fc_mode, fast_hz, port, gcs.port))
+        fc = s.start("fc", _fc_argv(fc_out, fc_mode, fast_hz, port, gcs.port) + list(fc_extra))
         fc.wait_for_line("READY", READY_TIMEOUT_S)
         pl = s.start("standin", [PY, "-m", "tools.bench.standin", "--fc", f"127.0.0.1:{port}",
                                  "--mode", "realtime", "--frame-hz", f"{fast_hz:g}",
@@ -315,8 +315,8 @@ def realtime(fast_hz: float, wall_s: float, keep: str | None = None,
         d = load_internals(str(fc_out / "fc_internals.npz"))
         wall = np.asarray(d["wall_s"])
         late = np.asarray(d["lateness_us"])
-        # the ticks while the plant streamed, after its warm-up second
-        sel = (wall > t_plant0 + 1.0) & (wall < t_plant1 - 0.1)
+        # the ticks while the plant streamed, after its warm-up (skip_s)
+        sel = (wall > t_plant0 + skip_s) & (wall < t_plant1 - 0.1)
         lat = late[sel] if fc_mode == "realtime" else late[:0]
         period_us = 1e6 / fast_hz
         ex = np.asarray(d["exec_us"])[sel]

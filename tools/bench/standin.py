@@ -4,8 +4,9 @@
                                   --duration S --out FILE.json [--scenario paper]
 
 It runs the real plant physics (``plant_sim.sim.PlantSim``, the scenario's RK4 at its
-physics rate, sensors, actuators) and speaks the wire protocol of docs/wire.md to the fc, like
-``python -m plant_sim run``, but it also records what a benchmark needs and the plant process
+physics rate, sensors, actuators) and speaks the wire protocol of docs/wire.md to the fc with
+the plant's own link codec (``plant_sim.link``), like ``python -m plant_sim run``, but it
+also records what a benchmark needs and the plant process
 does not report: the wall time at which each sensor frame k was sent and the time at which the
 first SERVO_OUTPUT_RAW echoing k came back (sensor-to-servo latency, measured at the plant).
 
@@ -32,7 +33,7 @@ import time
 import numpy as np
 
 from fc.link import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P,
-                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, UdpEndpoint, decode_datagram,
+                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, decode_datagram,
                      mavlink, new_codec, parse_hostport, pwm_to_deflection)
 
 PLANT_SYSID = 2
@@ -50,7 +51,8 @@ def _summ(ns: np.ndarray) -> dict:
 
 
 class FrameCodec:
-    """Sensor frame encoder / servo echo decoder (docs/wire.md sections 2-3)."""
+    """Sensor frame encoder / servo echo decoder (docs/wire.md sections 2-3), pymavlink's
+    generic codec (used where no plant link is at hand: start-up probe, tests)."""
 
     def __init__(self) -> None:
         self.tx = new_codec(PLANT_SYSID)
@@ -79,6 +81,47 @@ class FrameCodec:
         return None
 
 
+class PlantWire:
+    """The plant process's own link codec (``plant_sim.link``: lean encoder, lean servo
+    decoder) on this stand-in's socket, so the stand-in costs what the plant costs."""
+
+    def __init__(self, sim, fc: tuple) -> None:
+        from plant_sim import dynamics as dy
+        from plant_sim.link import PlantLink, PwmMap
+        sv = sim.scenario.data["servo"]
+        self.pwm = PwmMap(sv["pwm_min_us"], sv["pwm_trim_us"], sv["pwm_max_us"],
+                          float(sim.p[dy.P_ACT_LIMIT]))
+        self.link = PlantLink(fc, ("127.0.0.1", 0), self.pwm)
+        self.sock = self.link.sock
+        self._generic = FrameCodec()
+
+    def send(self, meas: np.ndarray, stamp_us: int) -> None:
+        self.link.build_sensors(stamp_us, meas, 0.0)
+        self.link.send_sensors()
+
+    def recv(self):
+        try:
+            return self.sock.recvfrom(2048)
+        except (BlockingIOError, InterruptedError, ConnectionRefusedError):
+            return None
+
+    def servo(self, data: bytes):
+        """(time_usec, (s1, s2, s3)) of a SERVO_OUTPUT_RAW datagram, or None."""
+        r = self.link.decode_servo(data)
+        if r is not None:
+            return r[1], (r[2], r[3], r[4])
+        return self._generic.servo(data)
+
+    def to_rad(self, pwm: int) -> float:
+        return self.pwm.to_rad(pwm)
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def close(self) -> None:
+        self.link.close()
+
+
 def make_sim(scenario: str, frame_hz: float):
     from plant_sim.scenario import load
     from plant_sim.sim import PlantSim
@@ -93,15 +136,15 @@ def make_sim(scenario: str, frame_hz: float):
     return PlantSim(sc)
 
 
-def _apply(cmd: np.ndarray, pwm) -> None:
+def _apply(cmd: np.ndarray, pwm, wire=None) -> None:
     for i in range(3):
         if pwm[i]:
-            cmd[i] = pwm_to_deflection(pwm[i])
+            cmd[i] = wire.to_rad(pwm[i]) if wire is not None else pwm_to_deflection(pwm[i])
 
 
-def run_lockstep(ep: UdpEndpoint, fc: tuple, sim, duration_s: float, rerequest_s: float,
+def run_lockstep(ep: PlantWire, fc: tuple, sim, duration_s: float, rerequest_s: float,
                  give_up_s: float) -> dict:
-    codec = FrameCodec()
+    codec = ep
     meas = np.zeros(M_N)
     cmd = sim.cmd_rad.copy()
     n = int(round(duration_s / sim.frame_dt_s)) + WARMUP_FRAMES
@@ -115,9 +158,8 @@ def run_lockstep(ep: UdpEndpoint, fc: tuple, sim, duration_s: float, rerequest_s
             t_start = pc()
         sim.measure(meas)
         stamp = int(round(sim.t_s * 1e6))
-        data = codec.encode(meas, stamp)
         t_send = pc()
-        ep.send(data, fc)
+        ep.send(meas, stamp)
         last_send = t_send
         while True:
             r, _, _ = select.select([fd], [], [], rerequest_s)
@@ -125,7 +167,7 @@ def run_lockstep(ep: UdpEndpoint, fc: tuple, sim, duration_s: float, rerequest_s
                 if (pc() - t_send) * 1e-9 > give_up_s:
                     raise RuntimeError(f"fc did not answer frame {k} within {give_up_s:.0f} s")
                 rereq += 1
-                ep.send(data, fc)
+                ep.link.send_sensors()
                 last_send = pc()
                 continue
             got = ep.recv()
@@ -134,7 +176,7 @@ def run_lockstep(ep: UdpEndpoint, fc: tuple, sim, duration_s: float, rerequest_s
             s = codec.servo(got[0])
             if s is not None and s[0] == stamp & 0xFFFFFFFF:
                 rtt[k] = pc() - last_send
-                _apply(cmd, s[1])
+                _apply(cmd, s[1], ep)
                 break
         sim.step_frame(cmd)
     wall_s = (pc() - t_start) * 1e-9
@@ -144,11 +186,11 @@ def run_lockstep(ep: UdpEndpoint, fc: tuple, sim, duration_s: float, rerequest_s
             "exchange": _summ(rtt[WARMUP_FRAMES:])}
 
 
-def run_realtime(ep: UdpEndpoint, fc: tuple, sim, duration_s: float) -> dict:
+def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
     """Wall-clock frames; latency of frame k = first echo of k - send time of k."""
     from fc.scheduler import try_realtime
     rt_ok, rt_msg = try_realtime(50)
-    codec = FrameCodec()
+    codec = ep
     meas = np.zeros(M_N)
     cmd = sim.cmd_rad.copy()
     period_ns = int(round(sim.frame_dt_s * 1e9))
@@ -188,7 +230,7 @@ def run_realtime(ep: UdpEndpoint, fc: tuple, sim, duration_s: float) -> dict:
                     echo_ns[j] = t_rx
                 else:
                     stale += 1
-                _apply(cmd, s[1])
+                _apply(cmd, s[1], ep)
         now = mono()
         send_late_ns[k] = now - nxt
         if k > 0:
@@ -196,7 +238,7 @@ def run_realtime(ep: UdpEndpoint, fc: tuple, sim, duration_s: float) -> dict:
             sim.advance()
         sim.measure(meas)
         stamp = int(round(sim.t_s * 1e6))
-        ep.send(codec.encode(meas, stamp), fc)
+        ep.send(meas, stamp)
         sent_ns[k] = mono()
         k += 1
         nxt += period_ns
@@ -241,7 +283,7 @@ def main(argv=None) -> int:
     try:
         fc = parse_hostport(args.fc)
         sim = make_sim(args.scenario, args.frame_hz)
-        ep = UdpEndpoint("127.0.0.1", 0)
+        ep = PlantWire(sim, fc)
     except (ValueError, OSError) as exc:
         print(f"standin: {exc}", file=sys.stderr)
         return 2
