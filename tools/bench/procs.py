@@ -378,13 +378,24 @@ def startup(cold: bool, keep: str | None = None) -> dict:
                 got = ep.recv()
                 if got is not None and codec.servo(got[0]) is not None:
                     t1 = time.perf_counter()
-                    return {"cold": cold, "first_servo_s": t1 - t0}
+                    return {"cold": cold, "first_servo_s": t1 - t0,
+                            "cpu_s_at_first_servo": _cpu_s(fc.pid)}
             if fc.poll() is not None:
                 raise RuntimeError(fc.death_message())
         raise RuntimeError(f"no SERVO_OUTPUT_RAW within {READY_TIMEOUT_S:.0f} s of start")
     finally:
         ep.close()
         s.close()
+
+
+def _cpu_s(pid: int) -> float:
+    """CPU time (user + system, s) used so far by ``pid`` (/proc/PID/stat), NaN if unknown."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
 
 
 def _have_plant_process() -> bool:
