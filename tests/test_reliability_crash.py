@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import time
 
 import numpy as np
@@ -70,11 +71,6 @@ def _trim_scenario(tmp_path):
     return path
 
 
-def _plant_applied_estimate(rig) -> int:
-    """Servo frames the plant applied up to now: ~ one per frame until the kill."""
-    return int(rig.plant_time_now() * 500)
-
-
 def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_path):
     from plant_sim.scenario import load
     from plant_sim.trim import trim_at
@@ -82,7 +78,7 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
     ini = load(str(scenario)).data["initial"]
     trim_rad = np.asarray(trim_at(load(str(scenario)), math.radians(ini["alpha_deg"]),
                                   math.radians(ini["beta_deg"])).deflection_rad)
-    cfg = RigConfig(out=tmp_path, duration_s=13.0, seed=4, scenario=str(scenario))
+    cfg = RigConfig(out=tmp_path, duration_s=60.0, seed=4, scenario=str(scenario))
     names = build_table().names
     with Rig(cfg) as rig:
         rig.start()
@@ -91,13 +87,12 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
                                         ml.MAV_PARAM_TYPE_REAL32)
         saved = _wait_file_value(rig, SET_NAME, SET_VALUE)
         assert saved is not None, "the accepted PARAM_SET never reached the parameter file"
-        t_kill = rig.wait_plant_time(3.0, 30)
+        t_kill = rig.wait_plant_time(2.5, 30)
         rc_kill = rig.fc.kill9()
         # the plant keeps running on its own for a while: its sim time goes on advancing
         t_alive = rig.wait_plant_time(t_kill + 2.0, 10)
         assert rig.plant.proc.poll() is None
         after_kill = ParamTable.read_file(str(rig.params_path))     # parses completely
-        applied_before = _plant_applied_estimate(rig)
         rig.start_fc()
         rig.arm_when_data_valid()
         t_restart = rig.plant_time_now()
@@ -106,7 +101,8 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
         mode_after = None if hb is None else hb.custom_mode
         armed_after = hb is not None and bool(hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED)
         reloaded = _param_value(rig, SET_NAME)
-        rcs = rig.finish()
+        assert rig.wait_plant_time(t_restart + 2.0, 30) is not None
+        rcs = rig.finish(stop_plant=True)
         truth = rig.truth()
         ps = rig.plant_summary()
         log = rig.fc_log()
@@ -115,7 +111,7 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
     assert set(after_kill) == set(names) and after_kill[SET_NAME] == pytest.approx(SET_VALUE)
     assert reloaded == pytest.approx(SET_VALUE, abs=1e-6)
     assert log.count("loaded %d parameters" % len(names)) >= 1 or "loaded" in log
-    assert rcs["plant"] == 0 and ps["exit_reason"] == "completed", ps
+    assert rcs["plant"] == 0 and ps["exit_reason"] != "completed", ps   # ran until stopped
     # the plant saw the silence and put the surfaces to its trim after no_command_s (0.5 s)
     assert ps["no_command_frames"] > 0.5 * 500 * (t_alive - t_kill - 0.5)
     cmd = np.stack([truth["delta_cmd_left_rad"], truth["delta_cmd_right_rad"],
@@ -126,7 +122,9 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
     # the new fc resynced and flies: the plant applies its answers again, the law commands
     # the surfaces (they leave the plant's trim). Tracking is not asserted: seconds of fixed
     # surfaces let this open-loop unstable vehicle depart (docs/reliability.md, promise 3).
-    assert ps["servo_frames_applied"] > applied_before + 500
+    exits = re.findall(r"exit: frames (\d+), outputs (\d+)", log)
+    assert len(exits) == 1                       # only the restarted fc exited cleanly
+    assert int(exits[0][0]) > 500 and int(exits[0][1]) > 500
     tail = (t > t_restart + 1.0)
     assert np.abs(cmd[tail] - trim_rad).max() > math.radians(1.0)
     assert mode_after == 1 and armed_after

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from tools import fuzz
@@ -39,7 +39,9 @@ from pymavlink.dialects.v20 import ardupilotmega as ml  # noqa: E402
 
 CORPUS = Path(__file__).resolve().parent / "fuzz_corpus"
 EXAMPLES = 120
+#: no shrinking: against a live process a failure is reported as drawn (bounded run time)
 HYP = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
+               phases=[Phase.explicit, Phase.generate],
                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 hostile_float = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
@@ -128,6 +130,7 @@ def _pwm_ok(plant: FakePlant) -> bool:
 @given(batch=_drawn("fc-plant"))
 def test_promise4_fc_plant_port_survives_hypothesis(fc_rig, batch):
     rig, plant, _ = fc_rig
+    assert rig.fc.proc.poll() is None, "the fc died earlier"
     for d in batch:
         plant.raw(d)
     assert plant.exchange(), "fc stopped answering its plant after hostile input"
@@ -138,6 +141,7 @@ def test_promise4_fc_plant_port_survives_hypothesis(fc_rig, batch):
 @given(batch=_drawn("fc-gcs"))
 def test_promise4_fc_gcs_port_survives_hypothesis(fc_rig, batch):
     rig, plant, gsock = fc_rig
+    assert rig.fc.proc.poll() is None, "the fc died earlier"
     for d in batch:
         gsock.sendto(d, ("127.0.0.1", rig.gcs_bind_port))
     assert plant.exchange(), "fc stopped answering its plant after hostile GCS input"
@@ -224,8 +228,7 @@ def plant_proc(tmp_path_factory):
         fc.sock.close()
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@HYP
 @given(batch=_drawn("plant"))
 def test_promise4_plant_port_survives_hypothesis(plant_proc, batch):
     p, fc, _ = plant_proc

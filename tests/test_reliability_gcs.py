@@ -67,13 +67,13 @@ def _set_param(gcs, name, value, timeout_s=3.0):
 
 # ---------------------------------------------------------------------- promise 5
 def test_promise5_gcs_flood_does_not_disturb_the_control_loop(tmp_path):
-    cfg = RigConfig(out=tmp_path, duration_s=10.0, seed=5)
+    cfg = RigConfig(out=tmp_path, duration_s=60.0, seed=5)
     with Rig(cfg) as rig:
         rig.start()
-        assert rig.wait_plant_time(5.0, 60) is not None
+        assert rig.wait_plant_time(3.5, 60) is not None
         flood = Flood(("127.0.0.1", rig.gcs_bind_port), FLOOD_RATE_HZ, FLOOD_S, seed=5).start()
         try:
-            t_flood0 = rig.wait_plant_time(5.5, 10)
+            t_flood0 = rig.wait_plant_time(3.8, 10)
             served = _read_param(rig.gcs, "FS_TIMEOUT_S", 3.0)          # a real GCS, meanwhile
             hb = rig.gcs.heartbeat_mode(2.5, since=time.monotonic())
             sent = flood.wait(30)
@@ -81,7 +81,7 @@ def test_promise5_gcs_flood_does_not_disturb_the_control_loop(tmp_path):
             flood.stop()
         t_flood1 = rig.plant_time_now()
         rej = rig.gcs.wait_named("REJ_GCS", lambda v: v > 100, 5.0)
-        rcs = rig.finish()
+        rcs = rig.finish(stop_plant=True)
         internals, truth = rig.internals(), rig.truth()
     assert rcs == {"plant": 0, "fc": 0}
     assert sent == int(FLOOD_RATE_HZ * FLOOD_S)
@@ -90,7 +90,7 @@ def test_promise5_gcs_flood_does_not_disturb_the_control_loop(tmp_path):
     t = internals["t_s"]
     lat_us = internals["lateness_us"]
     late_us = 0.2 * 2000.0
-    clean = (t > 1.5) & (t < 5.0)
+    clean = (t > 1.0) & (t < 3.5)
     flooded = (t > t_flood0 + 0.2) & (t < t_flood1 - 0.2)
     n_clean, n_flood = int(clean.sum()), int(flooded.sum())
     f_clean = float(np.mean(lat_us[clean] > late_us))
@@ -100,7 +100,7 @@ def test_promise5_gcs_flood_does_not_disturb_the_control_loop(tmp_path):
           f"/1000 ({n_clean} ticks), flooded {f_flood * 1000:.1f}/1000 ({n_flood} ticks); "
           f"exec p99 clean {np.percentile(exec_us[clean], 99):.0f} us, flooded "
           f"{np.percentile(exec_us[flooded], 99):.0f} us; REJ_GCS {rej}")
-    assert n_clean > 1000 and n_flood > 0.8 * 500 * (t_flood1 - t_flood0 - 0.4)
+    assert n_clean > 900 and n_flood > 0.8 * 500 * (t_flood1 - t_flood0 - 0.4)
     assert f_flood <= f_clean + FLOOD_LATE_MARGIN
     err = tracking_error_deg({k: v[(truth["t_s"] > t_flood0) & (truth["t_s"] < t_flood1)]
                               for k, v in truth.items()}, 0.0)
@@ -109,7 +109,7 @@ def test_promise5_gcs_flood_does_not_disturb_the_control_loop(tmp_path):
 
 # ---------------------------------------------------------------------- promise 6
 def test_promise6_invalid_parameters_and_commands_are_refused_visibly(tmp_path):
-    cfg = RigConfig(out=tmp_path, duration_s=6.0, seed=6, arm="no")
+    cfg = RigConfig(out=tmp_path, duration_s=60.0, seed=6, arm="no")
     with Rig(cfg) as rig:
         rig.start(plant=False)
         g = rig.gcs
@@ -148,7 +148,7 @@ def test_promise6_invalid_parameters_and_commands_are_refused_visibly(tmp_path):
         ok_arm = g.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
         hb_ok = g.wait(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1
                        and m.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED, 3.0, time.monotonic())
-        rcs = rig.finish()
+        rcs = rig.finish(stop_plant=True)
         on_file = ParamTable.read_file(str(rig.params_path))
     assert ack_nodata is not None and ack_nodata.result == ml.MAV_RESULT_DENIED
     for key, (value, text) in results.items():
@@ -209,7 +209,7 @@ def _attempts(mav, send):
 def test_promise7_signing_rejects_unsigned_and_wrong_key_accepts_signed_and_mavproxy(tmp_path):
     key = hashlib.sha256(PASSPHRASE.encode()).digest()
     keyfile = _key_file(tmp_path)
-    cfg = RigConfig(out=tmp_path, duration_s=9.0, seed=7, arm="no",
+    cfg = RigConfig(out=tmp_path, duration_s=60.0, seed=7, arm="no",
                     signing_key_file=str(keyfile))
     with Rig(cfg) as rig:
         rig.start()
@@ -245,7 +245,7 @@ def test_promise7_signing_rejects_unsigned_and_wrong_key_accepts_signed_and_mavp
                         and abs(m.param_value - 0.45) < 1e-6, 3.0)
         for s in (s_un, s_bad, s_ok):
             s.close()
-        rcs = rig.finish()
+        rcs = rig.finish(stop_plant=True)
         texts = [rig.fc_log()]
         texts += [p.read_text(errors="replace") for p in tmp_path.glob("fc.console.*.log")]
         tlog = (tmp_path / "fc" / "fc.tlog").read_bytes()
@@ -267,7 +267,7 @@ def _mavproxy_set(port: int, name: str, value: float, tmp_path) -> str:
     exe = shutil.which("mavproxy.py")
     assert exe is not None, "MAVProxy is a test dependency (pyproject [test])"
     cmd = (f"set param_ftp 0; set requireexit 1; signing key {PASSPHRASE}; "
-           f"repeat add 2 param set {name} {value}; repeat add 5 exit")
+           f"repeat add 1 param set {name} {value}; repeat add 3 exit")
     argv = [sys.executable, exe, f"--master=udpout:127.0.0.1:{port}", "--non-interactive",
             "--no-state", "--default-modules=link,param,signing,misc", f"--cmd={cmd}"]
     r = subprocess.run(argv, cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,

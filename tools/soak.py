@@ -190,6 +190,14 @@ class GroundStation:
                     return None
                 self.cv.wait(min(left, 0.2))
 
+    def find(self, pred, since: float = 0.0, until: float = math.inf):
+        """First recorded message received in [since, until] satisfying ``pred`` (no wait)."""
+        with self.cv:
+            for t, m in self.msgs:
+                if since <= t <= until and pred(m):
+                    return m
+        return None
+
     def wait_text(self, needle: str, timeout_s: float, since: float = 0.0) -> str | None:
         m = self.wait(lambda m: m.get_type() == "STATUSTEXT" and needle in m.text, timeout_s,
                       since)
@@ -357,9 +365,12 @@ class Rig:
         return 0.0
 
     # ------------------------------------------------------------------ finish
-    def finish(self, timeout_s: float | None = None) -> dict:
-        """Wait for the plant to complete, stop the fc (SIGINT), return exit codes."""
+    def finish(self, timeout_s: float | None = None, stop_plant: bool = False) -> dict:
+        """Wait for the plant to complete (or stop it now with SIGINT, which is a clean end:
+        it flushes its logs and exits 0), stop the fc (SIGINT), return the exit codes."""
         t = timeout_s if timeout_s is not None else self.cfg.duration_s * 3 + 60
+        if stop_plant and self.plant is not None:
+            self.plant.stop(signal.SIGINT)
         rc_plant = self.plant.wait_exit(t) if self.plant else None
         if rc_plant is None and self.plant is not None:
             rc_plant = self.plant.stop()
