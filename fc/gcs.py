@@ -227,7 +227,7 @@ class GcsLink:
                 self._ack(m, m.command, ML.MAV_RESULT_UNSUPPORTED)
         elif t == ML.MAVLINK_MSG_ID_SET_MODE:
             if m.target_system in (0, self.v.sysid):
-                ok, text = self.v.request_mode(m.custom_mode)
+                ok, text = self.v.request_mode(int(m.custom_mode))
                 self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
         elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
             if self._for_us(m):
@@ -283,50 +283,76 @@ class GcsLink:
                                               m.get_srcComponent()))
 
     def _command(self, m, now_s: float) -> None:
+        """Every COMMAND_LONG addressed to us gets exactly one COMMAND_ACK."""
+        try:
+            r = self._command_result(m)
+        except Exception as exc:  # noqa: BLE001 - a bad command must still be answered
+            r = ML.MAV_RESULT_FAILED
+            if self.log is not None:
+                self.log.warning("command %d failed: %r", m.command, exc)
+        self._ack(m, m.command, r)
+
+    @staticmethod
+    def _whole(x: float) -> int | None:
+        """``x`` as an int if it is a finite whole number, else None (NaN is not 0)."""
+        if not math.isfinite(x) or x != round(x):
+            return None
+        return int(x)
+
+    def _command_result(self, m) -> int:
         c = m.command
-        r = ML.MAV_RESULT_UNSUPPORTED
         if c == ML.MAV_CMD_COMPONENT_ARM_DISARM:
-            ok, text = self.v.arm(m.param1 > 0.5)
-            r = ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+            flag = self._whole(m.param1)
+            if flag not in (0, 1):
+                self.statustext(ML.MAV_SEVERITY_WARNING, "arm/disarm refused: param1 must be 1 or 0")
+                return ML.MAV_RESULT_DENIED
+            ok, text = self.v.arm(flag == 1)
             self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
-        elif c == ML.MAV_CMD_DO_SET_MODE:
-            ok, text = self.v.request_mode(int(m.param2))
-            r = ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+            return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+        if c == ML.MAV_CMD_DO_SET_MODE:
+            mode = self._whole(m.param2)
+            ok, text = (self.v.request_mode(mode) if mode is not None
+                        else (False, f"mode {m.param2} refused: not a mode number"))
             self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
-        elif c == CMD_ATTITUDE:
+            return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+        if c == CMD_ATTITUDE:
             reason = self.v.set_attitude_command(m.param1, m.param2, m.param3)
-            r = ML.MAV_RESULT_ACCEPTED if reason is None else ML.MAV_RESULT_DENIED
             if reason is not None:
                 self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
-        elif c == ML.MAV_CMD_SET_MESSAGE_INTERVAL:
-            msg_id = int(m.param1)
-            if msg_id in self.intervals:
-                self._set_interval(msg_id, m.param2)
-                r = ML.MAV_RESULT_ACCEPTED
-                self.oneshot.append(self._message_interval(msg_id))
-            else:
-                r = ML.MAV_RESULT_DENIED
-        elif c == ML.MAV_CMD_GET_MESSAGE_INTERVAL:
-            msg_id = int(m.param1)
-            r = ML.MAV_RESULT_ACCEPTED
+                return ML.MAV_RESULT_DENIED
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_SET_MESSAGE_INTERVAL:
+            msg_id = self._whole(m.param1)
+            if msg_id not in self.intervals:
+                return ML.MAV_RESULT_DENIED
+            self._set_interval(msg_id, m.param2)
             self.oneshot.append(self._message_interval(msg_id))
-        elif c == ML.MAV_CMD_REQUEST_MESSAGE:
-            msg_id = int(m.param1)
-            msg = self._build(msg_id, 0)
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_GET_MESSAGE_INTERVAL:
+            msg_id = self._whole(m.param1)
+            if msg_id is None:
+                return ML.MAV_RESULT_DENIED
+            self.oneshot.append(self._message_interval(msg_id))
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_REQUEST_MESSAGE:
+            msg_id = self._whole(m.param1)
             if msg_id == ML.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
                 msg = self._autopilot_version()
             elif msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
                 msg = self._heartbeat()
-            if msg is not None:
-                r = ML.MAV_RESULT_ACCEPTED
-                self.oneshot.append(msg)
-        elif c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            r = ML.MAV_RESULT_ACCEPTED
+            else:
+                msg = self._build(msg_id, 0) if msg_id is not None else None
+            if msg is None:
+                return ML.MAV_RESULT_UNSUPPORTED
+            self.oneshot.append(msg)
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self.oneshot.append(self._autopilot_version())
-        elif c == ML.MAV_CMD_PREFLIGHT_STORAGE:
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_PREFLIGHT_STORAGE:
             # parameters are saved on every accepted set: "write" is already done
-            r = ML.MAV_RESULT_ACCEPTED if int(m.param1) == 1 else ML.MAV_RESULT_UNSUPPORTED
-        self._ack(m, c, r)
+            return ML.MAV_RESULT_ACCEPTED if m.param1 == 1 else ML.MAV_RESULT_UNSUPPORTED
+        return ML.MAV_RESULT_UNSUPPORTED
 
     def _set_interval(self, msg_id: int, interval_us: float) -> None:
         if not math.isfinite(interval_us) or interval_us < 0:
