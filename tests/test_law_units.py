@@ -162,15 +162,24 @@ def _alloc_setup(coordinated=True, surf=0, overrides=None):
     return law, fb
 
 
-def test_allocator_exact_when_unsaturated():
-    law, fb = _alloc_setup(coordinated=True, surf=0)
+@pytest.mark.parametrize("co_map", [0, 1])
+def test_allocator_exact_when_unsaturated(co_map):
+    law, fb = _alloc_setup(coordinated=True, surf=0, overrides={"CO_MAP": co_map})
     assert fb == 0.0
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
     Gf = law.nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3)
     lam = law.status[L.S_LAMBDA:L.S_LAMBDA + 3]
     assert np.any(lam != 0)
-    # Eq. 45 with CO_NORM 0: the factors scale the diagonal entries
-    np.testing.assert_allclose(np.diag(G), np.diag(Gf) * (1 + lam), rtol=1e-12)
+    if co_map == 0:
+        # Eq. 45 with CO_NORM 0: the factors scale the printed diagonal entries
+        np.testing.assert_allclose(np.diag(G), np.diag(Gf) * (1 + lam), rtol=1e-12)
+        off = ~np.eye(3, dtype=bool)
+        np.testing.assert_array_equal(G[off], Gf[off])
+    else:
+        # the loops of the prose: roll row x (1 + lambda_a), pitch row x (1 + lambda_e),
+        # yaw row x (1 + lambda_r)
+        scale = np.array([1 + lam[1], 1 + lam[0], 1 + lam[2]])
+        np.testing.assert_allclose(G, Gf * scale[:, None], rtol=1e-12)
     mc = np.array([1.0e6, -2.0e6, 5.0e5])
     delta = np.zeros(3)
     sat = K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, delta, law.status)
@@ -223,11 +232,14 @@ def test_surface_coordination_eq47():
 
 def test_coordinated_matrix_guard_rejects_sign_flip():
     # lambda_e = -1.5 (CO_NORM 0, no clamp) flips the sign of the (roll, left elevon) entry
-    law, _ = _alloc_setup(coordinated=True, surf=0, overrides={"CO_LAM_MAX": 0})
+    law, _ = _alloc_setup(coordinated=True, surf=0, overrides={"CO_LAM_MAX": 0, "CO_MAP": 0})
     lam = np.array([-1.5, 0.0, 0.0])
     fb = K.coordinated_matrix(law.par, law.nm, lam, 0)
     assert fb == 1.0
     np.testing.assert_array_equal(law.nm[L.NM_GCO:L.NM_GCO + 9], law.nm[L.NM_GFD:L.NM_GFD + 9])
+    # and with the axis mapping, lambda_e = -1.5 flips the pitch row
+    law.set_param("CO_MAP", 1)
+    assert K.coordinated_matrix(law.par, law.nm, lam, 0) == 1.0
 
 
 # ---------------------------------------------------------------------------------------------

@@ -42,7 +42,7 @@ from fc.control.params import (
     P_DOB_C, P_DOB_ENABLE, P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK,
     P_FST_TH_BND, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN,
     P_REF_PF_ZETA, P_SLW_AW, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX,
-    P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ,
+    P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ, P_CO_MAP,
 )
 
 from fc.control import layout as _layout, nominal as _nominal, params as _params
@@ -432,9 +432,19 @@ def coordinated_matrix(par, nm, lam, lo):
         nm[NM_GCO + i] = nm[NM_GFD + i]
     norm = int(par[P_CO_NORM] + 0.5)
     qS = nm[NM_QBAR] * S_REF_M2
+    if par[P_CO_MAP] > 0.5:
+        # the loops the prose names: aileron -> roll row, elevator -> pitch row,
+        # rudder -> yaw row, each scaled by (1 + lambda)
+        for j in range(3):
+            nm[NM_GCO + j] *= 1.0 + lam[lo + 1]
+            nm[NM_GCO + 3 + j] *= 1.0 + lam[lo]
+            nm[NM_GCO + 6 + j] *= 1.0 + lam[lo + 2]
+        norm = -1
     for i in range(3):
         d = NM_GCO + 4 * i
-        if norm == 0:
+        if norm == -1:
+            pass
+        elif norm == 0:
             nm[d] += lam[lo + i] * nm[NM_GFD + 4 * i]
         elif norm == 1:
             lref = C_REF_M if i == 1 else B_REF_M

@@ -92,7 +92,8 @@ P_MDL_XCG = 47
 P_SLW_CFB = 48
 P_FLT_RATE_HZ = 49
 P_FLT_ANG_HZ = 50
-P_N = 51
+P_CO_MAP = 51
+P_N = 52
 
 LAW_PARAMS: tuple[Param, ...] = (
     _p("PAPER_LITERAL", 0, 0, 1, "-", "LAW",
@@ -212,6 +213,12 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("FLT_ANG_HZ", 20, 0, 100, "Hz", "FLT",
        "Cutoff of the 2nd-order low-pass on alpha, beta, mu as e1 of the slow loop uses them "
        "(run at the fast rate, read by the slow loop); 0 = off."),
+    _p("CO_MAP", 1, 0, 1, "-", "CO",
+       "Where the factors act in Eq. 45: 0 = on the printed diagonal entries (roll-left "
+       "elevon lambda_e, pitch-right elevon lambda_a, yaw-rudder lambda_r; CO_NORM applies); "
+       "1 = on the axis the prose names (elevator loop = pitch row x (1 + lambda_e), aileron "
+       "loop = roll row x (1 + lambda_a), rudder loop = yaw row x (1 + lambda_r)).",
+       integer=True),
 )
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
@@ -230,7 +237,7 @@ _EXPECTED = {"PAPER_LITERAL": P_PAPER_LITERAL, "CO_ENABLE": P_CO_ENABLE, "CO_FAC
              "REF_PF_WN": P_REF_PF_WN, "REF_PF_ZETA": P_REF_PF_ZETA, "MDL_MASS": P_MDL_MASS,
              "MDL_IXX": P_MDL_IXX, "MDL_IYY": P_MDL_IYY, "MDL_IZZ": P_MDL_IZZ,
              "MDL_XCG": P_MDL_XCG, "SLW_CFB": P_SLW_CFB,
-             "FLT_RATE_HZ": P_FLT_RATE_HZ, "FLT_ANG_HZ": P_FLT_ANG_HZ}
+             "FLT_RATE_HZ": P_FLT_RATE_HZ, "FLT_ANG_HZ": P_FLT_ANG_HZ, "CO_MAP": P_CO_MAP}
 for _name, _idx in _EXPECTED.items():
     assert PARAM_INDEX[_name] == _idx, (_name, PARAM_INDEX[_name], _idx)
 assert len(LAW_PARAMS) == P_N
