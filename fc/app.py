@@ -109,6 +109,7 @@ class FlightController:
         # --- state
         self.meas = np.zeros(M_N)
         self.meas_scratch = np.zeros(M_N)
+        self._rx_meas = np.zeros(M_N)
         self.meas_stamp_us = 0
         self.est = Estimator(self.params.get("EST_STALE_S"))
         self.cmd_rad = np.zeros(3)
@@ -521,18 +522,24 @@ class FlightController:
             wake = mono_ns()
             planner.due(wake)
             now_s = wake * 1e-9
-            new = False
-            for _ in range(64):   # drain: keep the newest frame
-                stamp = self.plant.read_frame(self.meas_scratch)
+            for _ in range(64):   # drain: every new frame goes through the estimator
+                stamp = self.plant.read_frame(self._rx_meas)
                 if stamp < 0:
                     break
-                if stamp <= self.last_stamp_us and self.last_stamp_us - stamp < 1_000_000:
+                if stamp == self.last_stamp_us:
                     self.duplicate_frames += 1
                     continue
+                if stamp < self.last_stamp_us:
+                    # plant restarted, or a reordered/hostile frame: the estimator starts over
+                    # (it ignores stamps that do not advance); the law keeps running
+                    self.plant_resets += 1
+                    self.est.reset()
+                    if self.last_stamp_us - stamp > 100_000:
+                        self._event("plant time went backwards: estimator restarted",
+                                    ML.MAV_SEVERITY_WARNING)
+                self.meas_scratch[:] = self._rx_meas
                 self.last_stamp_us = stamp
                 self.meas_stamp_us = stamp
-                new = True
-            if new:
                 self._new_frame(now_s)
                 have_frame = True
             self._sync_mode()
