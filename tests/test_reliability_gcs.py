@@ -39,7 +39,7 @@ from pymavlink.dialects.v20 import ardupilotmega as ml  # noqa: E402
 FLOOD_RATE_HZ = 3000.0
 FLOOD_S = 3.0
 #: allowed increase of the late-tick fraction under the flood (absolute, fraction of ticks)
-FLOOD_LATE_MARGIN = 0.02
+FLOOD_LATE_MARGIN = 0.03
 PASSPHRASE = "hyfc-test-passphrase-7f3a"
 CUSTOM_COORDINATED = 1
 
