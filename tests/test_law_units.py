@@ -530,3 +530,11 @@ def test_second_order_filter_is_exact(zeta):
     for _ in range(100):
         K.second_order_step(1.0, phi, x, 0, 1)
     assert x[0] == pytest.approx(1.0, abs=1e-9) and abs(x[1]) < 1e-9
+
+
+def test_bounds_survive_float32_round_trip():
+    import struct
+    for p in LAW_PARAMS:
+        for v in (p.min, p.max, p.default):
+            v32 = struct.unpack("<f", struct.pack("<f", v))[0]
+            assert p.min <= check_value(p.name, v32) <= p.max, (p.name, v, v32)

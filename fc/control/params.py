@@ -261,6 +261,13 @@ def check_value(name: str, value: float) -> float:
         raise ValueError(f"{name}: value {value!r} is not a number") from None
     if not math.isfinite(v):
         raise ValueError(f"{name}: value {v} is not finite")
+    # a bound sent as float32 over MAVLink (1.01 -> 1.00999999) is the bound
+    tol_lo = 1e-6 * max(1.0, abs(prm.min))
+    tol_hi = 1e-6 * max(1.0, abs(prm.max))
+    if prm.min - tol_lo <= v < prm.min:
+        v = prm.min
+    elif prm.max < v <= prm.max + tol_hi:
+        v = prm.max
     if v < prm.min or v > prm.max:
         raise ValueError(f"{name}: {v} outside [{prm.min}, {prm.max}] {prm.unit}")
     if prm.integer and v != round(v):
