@@ -11,10 +11,13 @@ slots in fc/control/params.py) and allocate nothing:
         reference prefilter, Eq. 27 sliding surface, Eq. 29 virtual rate command omega_c
         (with its limit), Eq. 30 adaptive law for theta_Omega.
     fast_kernel(est, dt_s, par, x, nm, st, tab, atm, grid, delta_out)
-        command filter (omega_c, omega_c_dot), Eq. 35 moment command M_c, Eq. 36 adaptive law
+        input filters (rates; the slow loop's angles), command filter (omega_c,
+        omega_c_dot), Eq. 35 moment command M_c, Eq. 36 adaptive law
         for theta_omega, Eqs. 13/14/19 factors, Eqs. 44-47 coordinated allocation with
         saturation, the controller's actuator model and the Eq. 37 disturbance observer.
     reset_kernel(est, par, x, st, delta0)
+    cycle_kernel(est, cmd, dt_slow, dt_fast, n_fast, par, x, nm, st, tab, atm, grid, delta)
+        one slow step then n_fast fast steps.
 
 Conventions: Omega = [alpha, beta, mu] (rad), omega = [p, q, r] (rad/s), surfaces
 [left elevon, right elevon, rudder] (rad), moments [l, m, n] (N m).
