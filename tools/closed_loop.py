@@ -40,8 +40,10 @@ from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim, truth_kernel
 from fc.control.numba_cache import drop_stale
 
 # _run inlines the law's and the plant's kernels: recompile when any of them changed
+_ROOT = Path(__file__).resolve().parents[1]
 drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim")
-                      for f in (Path(__file__).resolve().parents[1] / pkg).glob("*.py")])
+                      for f in (_ROOT / pkg).glob("*.py")]
+           + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])
 
 DEG = math.pi / 180.0
 
