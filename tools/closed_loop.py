@@ -369,6 +369,52 @@ def markdown_table(scenario, duration_s=None, law_overrides=None, estimate="trut
     return "\n".join(rows)
 
 
+def perturbed_comparison(n: int = 40, seed: int = 7, command_shaping: str = "steps",
+                         law_overrides: dict | None = None, scenario: str = "paper") -> str:
+    """Coordinated vs uncoordinated over ``n`` perturbed copies of ``scenario``.
+
+    Each draw (numpy Generator seeded with ``seed``): every coefficient uncertainty
+    (CL, CD, CY, Cl, Cm, Cn) uniform in +-30 %, initial sideslip uniform in +-5 deg,
+    disturbance scale uniform in 0.5..1.5. Returns a text summary (the figures of
+    docs/control_law.md section 9). A quick look, not a campaign: tools.montecarlo is that.
+    """
+    import copy
+    base = load(scenario)
+    rng = np.random.default_rng(seed)
+    rows = {True: [], False: []}
+    diverged = {True: 0, False: 0}
+    for i in range(n):
+        d = copy.deepcopy(base.data)
+        for k in ("CL", "CD", "CY", "Cl", "Cm", "Cn"):
+            d["uncertainty"][k] = float(rng.uniform(-0.3, 0.3))
+        d["initial"]["beta_deg"] = float(rng.uniform(-5.0, 5.0))
+        d["disturbance"]["scale"] = float(rng.uniform(0.5, 1.5))
+        sc = Scenario(name=f"{scenario}-draw{i}", path=base.path, data=d,
+                      commands=list(base.commands))
+        for co in (True, False):
+            res = simulate(sc, coordinated=co, command_shaping=command_shaping,
+                           law_overrides=law_overrides)
+            m = res.metrics()
+            diverged[co] += res.diverged
+            rows[co].append([np.nan if m[c].overshoot_pct is None else m[c].overshoot_pct
+                             for c in ("alpha", "beta", "mu")]
+                            + [max(m[c].final_error_deg for c in ("alpha", "beta", "mu")),
+                               m["surfaces"]["saturated_s"]])
+    co = np.array(rows[True])
+    un = np.array(rows[False])
+    out = [f"{n} draws of {scenario}, {command_shaping}: diverged co {diverged[True]} "
+           f"unco {diverged[False]}; worst final error co {np.nanmax(co[:, 3]):.3f} unco "
+           f"{np.nanmax(un[:, 3]):.3f} deg; max saturated co {np.nanmax(co[:, 4]):.2f} unco "
+           f"{np.nanmax(un[:, 4]):.2f} s"]
+    for j, ch in enumerate(("alpha", "beta", "mu")):
+        ok = ~np.isnan(co[:, j]) & ~np.isnan(un[:, j])
+        out.append(f"{ch} overshoot %: median co {np.median(co[ok, j]):.1f} unco "
+                   f"{np.median(un[ok, j]):.1f}; max co {np.max(co[ok, j]):.1f} unco "
+                   f"{np.max(un[ok, j]):.1f}; co lower in {int(np.sum(co[ok, j] < un[ok, j]))}"
+                   f"/{int(ok.sum())}")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     import argparse
     ap = argparse.ArgumentParser(description="Fly a scenario in process and print the figures.")
@@ -379,6 +425,8 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable")
     ap.add_argument("--estimate", choices=("truth", "sensors"), default="truth")
+    ap.add_argument("--perturbed", type=int, default=0, metavar="N",
+                    help="compare the variants over N perturbed copies of the scenario")
     ap.add_argument("--table", action="store_true",
                     help="print a markdown table (both variants, steps and prefilter)")
     a = ap.parse_args(argv)
@@ -387,6 +435,10 @@ def main(argv=None) -> int:
         name, _, val = s.partition("=")
         ov[name.strip()] = float(val)
     variants = (True, False) if a.variant == "both" else (a.variant == "coordinated",)
+    if a.perturbed:
+        print(perturbed_comparison(a.perturbed, command_shaping=a.shaping, law_overrides=ov,
+                                   scenario=a.scenario))
+        return 0
     if a.table:
         print(markdown_table(a.scenario, duration_s=a.duration, law_overrides=ov,
                              estimate=a.estimate))
