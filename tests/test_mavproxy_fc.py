@@ -6,9 +6,10 @@ Its exit code is always 1, so the output is checked instead.
 """
 from __future__ import annotations
 
+import importlib.util
 import os
-import shutil
 import subprocess
+import sys
 
 import pytest
 
@@ -18,10 +19,16 @@ from tests.fc_harness import FcProcess, free_udp_port
 pytestmark = pytest.mark.hil
 
 
-def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
-    exe = shutil.which("mavproxy.py")
-    if exe is None:
+def _mavproxy() -> list[str]:
+    """MAVProxy of this interpreter (``python -m MAVProxy.mavproxy``: works in a venv whose
+    bin/ is not on PATH, as in .ci/run)."""
+    if importlib.util.find_spec("MAVProxy") is None:
         pytest.skip("MAVProxy is not installed (pip install -e .[test])")
+    return [sys.executable, "-m", "MAVProxy.mavproxy"]
+
+
+def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
+    exe = _mavproxy()
     n_params = len(build_table())
     saved = tmp_path / "saved.parm"
     to_load = tmp_path / "load.parm"
@@ -38,8 +45,8 @@ def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
     ])
     with FcProcess(str(tmp_path / "run"), gcs_ports=(gcs_port,)) as fc:
         res = subprocess.run(
-            [exe, f"--master=udpin:127.0.0.1:{gcs_port}", "--non-interactive", "--no-state",
-             "--default-modules=link,param,misc,cmdlong", f"--cmd={steps}"],
+            exe + [f"--master=udpin:127.0.0.1:{gcs_port}", "--non-interactive", "--no-state",
+                   "--default-modules=link,param,misc,cmdlong", f"--cmd={steps}"],
             stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
             cwd=str(tmp_path))
         out = res.stdout
@@ -65,9 +72,7 @@ def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
 
 
 def test_mavproxy_with_the_signing_key_can_set_without_it_cannot(tmp_path):
-    exe = shutil.which("mavproxy.py")
-    if exe is None:
-        pytest.skip("MAVProxy is not installed (pip install -e .[test])")
+    exe = _mavproxy()
     key_file = tmp_path / "gcs.key"
     key_file.write_text("s3cret-passphrase\n")
     os.chmod(key_file, 0o600)
@@ -78,8 +83,8 @@ def test_mavproxy_with_the_signing_key_can_set_without_it_cannot(tmp_path):
             steps += ["module load signing", f"signing key {key}"]
         steps += [f"repeat add 2 param set TRIM_RUD_DEG {value}", "repeat add 4 exit"]
         res = subprocess.run(
-            [exe, f"--master=udpin:127.0.0.1:{port}", "--non-interactive", "--no-state",
-             "--default-modules=link,param,misc", f"--cmd={'; '.join(steps)}"],
+            exe + [f"--master=udpin:127.0.0.1:{port}", "--non-interactive", "--no-state",
+                   "--default-modules=link,param,misc", f"--cmd={'; '.join(steps)}"],
             stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
             cwd=str(tmp_path))
         return res.stdout
