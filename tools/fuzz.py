@@ -229,6 +229,11 @@ def corpus() -> dict[str, bytes]:
         1, 1, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 0, float("nan"), float("nan"), 0, 0, 0, 0, 0))
     out["gcs_cmd_interval_tiny"] = pack(mav, mav.command_long_encode(
         1, 1, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 30, 1e-30, 0, 0, 0, 0, 0))
+    # found by `python -m tools.fuzz run` (seed 2): a message id outside u16 made the
+    # MESSAGE_INTERVAL answer unpackable and killed the fc from its send path
+    for name, v in (("huge", 1e6), ("neg", -5.0), ("u16max_plus1", 65536.0)):
+        out[f"gcs_cmd_get_interval_{name}"] = pack(mav, mav.command_long_encode(
+            1, 1, ml.MAV_CMD_GET_MESSAGE_INTERVAL, 0, v, 0, 0, 0, 0, 0, 0))
     out["gcs_cmd_request_msg_inf"] = pack(mav, mav.command_long_encode(
         1, 1, ml.MAV_CMD_REQUEST_MESSAGE, 0, float("inf"), 0, 0, 0, 0, 0, 0))
     out["gcs_cmd_user1_nan_all"] = pack(mav, mav.command_long_encode(
