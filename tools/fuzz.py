@@ -15,6 +15,7 @@ frame, a burst of frames glued together. ``corpus()`` is the recorded, determini
 The long run (by hand; not CI)::
 
     python -m tools.fuzz run --duration 600 --seed 1 [--rate 2000] [--out DIR]
+                             [--targets fc-plant,fc-gcs,plant] [--corrupt 0.1]
 
 flies the paper scenario in real time (tools.soak.Rig) with the plant link corrupting 10 % of
 datagrams in flight both ways (so each process decodes mutated frames from its legitimate peer)
@@ -281,6 +282,10 @@ def run(args) -> int:
     cfg = RigConfig(out=out, duration_s=args.duration, seed=args.seed, impair_up=imp,
                     impair_down=imp)
     rng = random.Random(args.seed)
+    targets = tuple(args.targets.split(","))
+    bad = set(targets) - set(TARGETS)
+    if bad:
+        raise SystemExit(f"unknown --targets {sorted(bad)}; choose from {','.join(TARGETS)}")
     last: deque = deque(maxlen=64)
     sent = {t: 0 for t in TARGETS}
     report: dict = {"duration_s": args.duration, "seed": args.seed, "rate_hz": args.rate,
@@ -300,7 +305,7 @@ def run(args) -> int:
             now = time.monotonic()
             if due > now:
                 time.sleep(due - now)   # pacing of a load generator
-            t = TARGETS[rng.randrange(3)]
+            t = targets[rng.randrange(len(targets))]
             d = datagram(t, rng, stamp_us=int((now - t0) * 1e6))
             last.append((t, d))
             try:
@@ -352,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--corrupt", type=float, default=0.1,
                    help="fraction of plant-link datagrams mutated in flight (0.1)")
     r.add_argument("--out", help="run directory (default: a new temp directory)")
+    r.add_argument("--targets", default=",".join(TARGETS),
+                   help="comma-separated ports to fuzz (default: all: fc-plant,fc-gcs,plant)")
     c = sub.add_parser("corpus", help="write the recorded corpus")
     c.add_argument("--write", required=True, metavar="DIR")
     args = ap.parse_args(argv)
