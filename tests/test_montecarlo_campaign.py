@@ -225,3 +225,23 @@ def test_summary_command_writes_strict_json_table_and_plots(campaign, capsys):
     for name in ("envelopes.png", "histograms.png", "sensitivity.png"):
         p = out / name
         assert p.is_file() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_command_line_campaign_then_resume_runs_nothing(tmp_path):
+    """The documented command end to end (own LocalCluster, 1 worker), then the same command
+    again: everything already finished, exit 0, no new rows."""
+    import subprocess
+    import sys
+    out = tmp_path / "cli"
+    cmd = [sys.executable, "-m", "tools.montecarlo", "--scenario", "paper", "--runs", "3",
+           "--workers", "1", "--duration", "2", "--seed", "4", "--out", str(out), "--no-plots"]
+    for attempt in range(2):
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
+        assert p.returncode == 0, p.stderr[-2000:]
+        expect = "3 cases run, 0 already finished" if attempt == 0 else \
+            "0 cases run, 3 already finished"
+        assert expect in p.stdout
+    assert "meets spec" in p.stdout
+    assert sorted(_raw_keys(out)) == sorted((i, v) for i in range(3)
+                                            for v in ("coordinated", "uncoordinated"))
+    assert (out / "summary.json").is_file() and (out / "campaign.json").is_file()
