@@ -236,7 +236,7 @@ def part_lockstep(rep: Report, quick: bool, keep) -> None:
         else:
             peer = ratio = ""
         rep.row(f"3 lockstep RTF at {hz} Hz ({r['rtf_source']})", f"{_f(rtf, '.1f')}x", tgt,
-                peer + "; " + ANCHOR["lockstep"], ratio, "lockstep")
+                "; ".join(x for x in (peer, ANCHOR["lockstep"]) if x), ratio, "lockstep")
         fcc = rep.figures.get("fc_frame_cpu_median_us")
         plc = rep.figures.get("plant_frame_path_us")
         if raw and fcc and plc and hz == 500:
@@ -252,6 +252,21 @@ def part_lockstep(rep: Report, quick: bool, keep) -> None:
                 f"{_f(sd['exchange']['p99_us'], '.0f')} us", "",
                 f"links ping-pong median {_f(floor, '.0f')} us" if floor else "",
                 f"{ex / floor:.1f}x the ping-pong" if floor else "", "lockstep")
+
+
+def part_lockstep_pinned(rep: Report, quick: bool, keep) -> None:
+    """Both processes on one CPU: a lockstep exchange is sequential, and on this VM a wake-up
+    across CPUs costs more than the work (measured: 5.6x pinned apart, 12-14x together)."""
+    from tools.bench.procs import lockstep
+    r = lockstep(500, 2.0 if quick else 30.0, keep, real_plant=not quick, pin_cpu=0,
+                 standin=quick)
+    rep.details["lockstep_500_pinned"] = r
+    rtf = rep.fig("lockstep_500_pinned_rtf", r["real_time_factor"])
+    free = rep.figures.get("lockstep_500_rtf")
+    rep.row(f"3 lockstep RTF at 500 Hz, fc and plant pinned to one CPU (`taskset -c 0`, "
+            f"{r['rtf_source']})", f"{_f(rtf, '.1f')}x", f">= 20x: {_ok(rtf >= 20.0)}",
+            f"unpinned (above): {_f(free, '.1f')}x" if free else "",
+            f"{rtf / free:.2f}x the unpinned" if free else "", "lockstep")
 
 
 def part_realtime(rep: Report, quick: bool, keep) -> None:
@@ -462,7 +477,8 @@ def main(argv=None) -> int:
                "plant": lambda: part_plant(rep, args.quick),
                "pingpong": lambda: part_pingpong(rep, args.quick),
                "fcpath": lambda: part_fcpath(rep, args.quick),
-               "lockstep": lambda: part_lockstep(rep, args.quick, args.keep),
+               "lockstep": lambda: (part_lockstep(rep, args.quick, args.keep),
+                                    part_lockstep_pinned(rep, args.quick, args.keep)),
                "realtime": lambda: part_realtime(rep, args.quick, args.keep),
                "startup": lambda: part_startup(rep, args.quick, args.keep),
                "inproc": lambda: part_inproc(rep, args.quick)}

@@ -216,38 +216,53 @@ def _wait_exit(child: Child, timeout_s: float) -> int:
                            f"(see {child.console_path})") from exc
 
 
+def _pinned(argv: list[str], cpu: int | None) -> list[str]:
+    """``argv`` run on CPU ``cpu`` only (util-linux taskset; unchanged if cpu is None)."""
+    if cpu is None:
+        return argv
+    if shutil.which("taskset") is None:
+        raise RuntimeError("taskset (util-linux) not found: cannot pin processes")
+    return ["taskset", "-c", str(cpu)] + argv
+
+
 def lockstep(fast_hz: float, sim_s: float, keep: str | None = None,
-             real_plant: bool = True, standin_sim_s: float | None = None) -> dict:
+             real_plant: bool = True, standin_sim_s: float | None = None,
+             pin_cpu: int | None = None, standin: bool = True) -> dict:
     """Lockstep fc + plant at ``fast_hz`` frames (one fast tick per frame).
 
     ``sim_s`` for the plant-process run, ``standin_sim_s`` (default ``sim_s``) for the
     measuring stand-in's run, whose fc RSS samples give the heap-growth figure.
+    ``pin_cpu``: run both processes on that one CPU (a lockstep exchange is sequential).
     """
     standin_sim_s = sim_s if standin_sim_s is None else standin_sim_s
-    out: dict = {"fast_hz": fast_hz, "sim_s": sim_s, "standin_sim_s": standin_sim_s}
-    runs = [("standin", None)]
+    out: dict = {"fast_hz": fast_hz, "sim_s": sim_s, "standin_sim_s": standin_sim_s,
+                 "pin_cpu": pin_cpu}
+    runs = [("standin", None)] if standin else []
     if real_plant and _have_plant_process():
         runs.insert(0, ("plant", None))
+    if not runs:
+        raise RuntimeError("no plant to run (plant_sim has no __main__ and standin=False)")
     for kind, _ in runs:
         s = Session(keep, f"lockstep{int(fast_hz)}-{kind}")
         try:
             port = free_udp_port()
             gcs = GcsSink()
             gcs.start()
-            fc = s.start("fc", _fc_argv(s.dir / "fc", "lockstep", fast_hz, port, gcs.port))
+            fc = s.start("fc", _pinned(_fc_argv(s.dir / "fc", "lockstep", fast_hz, port,
+                                                gcs.port), pin_cpu))
             fc.wait_for_line("READY", READY_TIMEOUT_S)
             if kind == "plant":
                 sc = _scenario_file(s.dir, fast_hz)
-                pl = s.start("plant", [PY, "-m", "plant_sim", "run", "--scenario", str(sc),
-                                       "--mode", "lockstep", "--fc", f"127.0.0.1:{port}",
-                                       "--bind", "127.0.0.1:0", "--out", str(s.dir / "plant"),
-                                       "--duration", f"{sim_s:g}", "--progress-every", "1000"])
+                pl = s.start("plant", _pinned(
+                    [PY, "-m", "plant_sim", "run", "--scenario", str(sc), "--mode", "lockstep",
+                     "--fc", f"127.0.0.1:{port}", "--bind", "127.0.0.1:0", "--out",
+                     str(s.dir / "plant"), "--duration", f"{sim_s:g}", "--progress-every",
+                     "1000"], pin_cpu))
             else:
-                pl = s.start("standin", [PY, "-m", "tools.bench.standin", "--fc",
-                                         f"127.0.0.1:{port}", "--mode", "lockstep",
-                                         "--frame-hz", f"{fast_hz:g}",
-                                         "--duration", f"{standin_sim_s:g}",
-                                         "--out", str(s.dir / "standin.json")])
+                pl = s.start("standin", _pinned(
+                    [PY, "-m", "tools.bench.standin", "--fc", f"127.0.0.1:{port}", "--mode",
+                     "lockstep", "--frame-hz", f"{fast_hz:g}", "--duration",
+                     f"{standin_sim_s:g}", "--out", str(s.dir / "standin.json")], pin_cpu))
             rss = RssSampler({"fc": fc.pid, kind: pl.pid})
             rss.start()
             rc = _wait_exit(pl, 60.0 + 10.0 * max(sim_s, standin_sim_s))
