@@ -205,10 +205,11 @@ def _closed_loop_flight(cfg: CampaignConfig, values: dict, variant: str, sim_see
 
 
 def _hil_flight(cfg: CampaignConfig, values: dict, variant: str, sim_seed: int,
-                full: bool) -> Flight:
+                full: bool, log_dir=None) -> Flight:
     from tools.montecarlo import hil
     scen = dispersed_scenario(cfg, values)
-    return hil.fly(scen, variant, cfg.duration_s, sim_seed, cfg.law_overrides, full=full)
+    return hil.fly(scen, variant, cfg.duration_s, sim_seed, cfg.law_overrides, full=full,
+                   keep_dir=log_dir)
 
 
 _BACKEND_FUNCS = {"closed_loop": _closed_loop_flight, "hil": _hil_flight,
@@ -246,10 +247,18 @@ def case_values(cfg: CampaignConfig, index: int) -> tuple[dict, int]:
     return disp.sample(cfg.seed, index), dsp.case_sim_seed(cfg.seed, index)
 
 
-def fly_case(cfg: CampaignConfig, index: int, variant: str, *, full: bool = False):
-    """Fly one variant of case ``index``: (values, sim_seed, Flight)."""
+def fly_case(cfg: CampaignConfig, index: int, variant: str, *, full: bool = False,
+             log_dir=None):
+    """Fly one variant of case ``index``: (values, sim_seed, Flight).
+
+    ``log_dir``: with the ``hil`` backend, keep the processes' run directory there (truth log,
+    fc.log, fc.tlog, internals; docs/hil.md) instead of a temporary one.
+    """
     values, sim_seed = case_values(cfg, index)
-    fl = _BACKEND_FUNCS[cfg.backend](cfg, values, variant, sim_seed, full)
+    if cfg.backend == "hil":
+        fl = _hil_flight(cfg, values, variant, sim_seed, full, log_dir)
+    else:
+        fl = _BACKEND_FUNCS[cfg.backend](cfg, values, variant, sim_seed, full)
     return values, sim_seed, fl
 
 

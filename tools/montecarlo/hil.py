@@ -27,6 +27,7 @@ def fly(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
     if law_overrides:
         raise ValueError("law overrides are not supported with --hil yet")
     tmp = Path(tempfile.mkdtemp(prefix="mc-hil-")) if keep_dir is None else Path(keep_dir)
+    tmp.mkdir(parents=True, exist_ok=True)
     try:
         scen_path = tmp / "scenario.toml"
         scen_path.write_text(scenario.to_toml())

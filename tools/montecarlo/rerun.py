@@ -6,8 +6,10 @@ the full logging of the backend, and writes into ``OUT_DIR/case-I/``:
 
 - ``case.json``: the dispersion values, the plant seed, the metrics of each variant, and the
   metrics stored in the campaign's rows for comparison (``matches_campaign``);
-- ``scenario.toml``-equivalent description of the dispersed scenario (``scenario.json``);
-- per variant the backend's full history (``<variant>/history.npz``);
+- ``scenario.toml``: the dispersed scenario as the plant takes it (fly it with the main job:
+  ``python -m tools.hil run --scenario OUT_DIR/case-I/scenario.toml --seed SIM_SEED``);
+- per variant the backend's full history (``<variant>/history.npz``); with ``--hil`` also the
+  two processes' whole run directory (``<variant>/hil/``: truth.npz, fc.log, fc.tlog, ...);
 - the main job's plots (``tools.plots``: fig2_attitude.png, ...), variants overlaid.
 """
 from __future__ import annotations
@@ -61,7 +63,10 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
         lines.append(f"  note: the law/plant code changed since the campaign ran (fingerprint "
                      f"{codes[-1]} -> {code_now}): differences from its rows are expected")
     for v in variants:
-        values, sim_seed, fl = fly_case(cfg, case, v, full=True)
+        vdir = dest / v
+        vdir.mkdir(exist_ok=True)
+        values, sim_seed, fl = fly_case(cfg, case, v, full=True,
+                                        log_dir=vdir / "hil" if cfg.backend == "hil" else None)
         report["values"] = values
         report["sim_seed"] = sim_seed
         m = flight_metrics(fl)
@@ -77,8 +82,6 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
             entry["matches_campaign"] = not diffs
             entry["differences_campaign_rerun"] = diffs
         report["variants"][v] = entry
-        vdir = dest / v
-        vdir.mkdir(exist_ok=True)
         hist = {"t_s": fl.t_s, "alpha_rad": fl.alpha_rad, "beta_rad": fl.beta_rad,
                 "mu_rad": fl.mu_rad, "cmd_t_s": fl.cmd_t_s, "cmd_rad": fl.cmd_rad}
         full = fl.full if isinstance(fl.full, dict) else {}
@@ -94,10 +97,15 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
         lines.append(f"  {v:14s} diverged {m['diverged']}  {ch_txt}  "
                      f"{'(same as the campaign row)' if match else '(DIFFERS from the campaign row)' if match is False else '(no campaign row)'}")
     report["values"] = report.get("values", {})
+    if cfg.backend != "standin":
+        from tools.montecarlo.case import dispersed_scenario
+        (dest / "scenario.toml").write_text(
+            f"# case {case} of campaign {out_dir} (seed {cfg.seed}, plant seed "
+            f"{report.get('sim_seed')})\n" + dispersed_scenario(cfg, report["values"]).to_toml())
     results.write_json(dest / "case.json", json_safe(report))
     plots = _main_job_plots(runs_for_plots, cfg, case, dest)
     lines.append(f"  values: " + ", ".join(f"{k}={v:.4g}" for k, v in report["values"].items()))
-    lines.append(f"  written: {dest}/case.json, */history.npz" +
+    lines.append(f"  written: {dest}/case.json, scenario.toml, */history.npz" +
                  (", " + ", ".join(p.name for p in plots) if plots else ""))
     return "\n".join(lines)
 
