@@ -126,6 +126,11 @@ def main_run(argv) -> int:
     from tools.montecarlo.campaign import CampaignError, run_campaign
     from tools.montecarlo.case import CampaignConfig
     args = _run_parser().parse_args(argv)
+    if args.scheduler and args.workers:
+        print("error: --workers sizes the local cluster; with --scheduler the existing "
+              "cluster's workers run the cases (size it with 'dask worker --nworkers')",
+              file=sys.stderr)
+        return 2
     try:
         path = dsp.resolve_path(args.dispersions)
         disp = dsp.parse(path.read_text(), name=path.stem)
