@@ -4,8 +4,9 @@
    directions, tools/linkimpair.py), the paper scenario still tracks: after 3 s, |alpha - 5|
    and |beta| stay within ALPHA_BETA_MAX_DEG and |mu - 4| within MU_MAX_DEG, and no failsafe.
 2. Plant data cut for longer than FS_TIMEOUT_S -> FAILSAFE, STATUSTEXT, HEARTBEAT custom mode 3,
-   SYS_STATUS health bits cleared, surfaces commanded to trim; data back -> the fc returns to
-   COORDINATED by itself after FS_RECOVER_S (FS_RECOVER = 1, the default) and tracks again.
+   SYS_STATUS health bits cleared, surfaces commanded to trim, no wind-up before; data back ->
+   the fc returns to COORDINATED by itself after FS_RECOVER_S (FS_RECOVER = 1, the default) and
+   tracks again; with FS_RECOVER = 0 it stays in FAILSAFE until the ground station sets a mode.
 8. The plant link accepts only the configured plant system id from the address it bound to,
    and a ground station can never inject servo commands into the plant (neither directly to
    the plant's socket nor through the fc's ground-station port).
@@ -237,3 +238,29 @@ def test_promise8_only_the_plant_feeds_the_fc_and_only_the_fc_drives_the_plant(t
     # the fc never used the intruder's data (it claimed alpha = 40 deg, beta = 10 deg)
     est_alpha = np.degrees(internals["est_alpha_rad"])
     assert est_alpha.max() < 15.0 and np.degrees(internals["est_beta_rad"]).max() < 8.0
+
+
+def test_promise2_with_fs_recover_0_the_ground_station_resumes(tmp_path):
+    """FS_RECOVER = 0: after the data comes back the fc stays in FAILSAFE (and says so) until
+    the ground station sets a mode; then it flies again."""
+    cfg = RigConfig(out=tmp_path, duration_s=60.0, seed=9, params={"FS_RECOVER": 0})
+    with Rig(cfg) as rig:
+        rig.start()
+        assert rig.wait_plant_time(2.0, 60) is not None
+        t_cut = time.monotonic()
+        rig.relay.set_blackout(True, "up")
+        lost = rig.gcs.wait_text("FAILSAFE", 3.0, since=t_cut)
+        rig.relay.set_blackout(False, "up")
+        t_back = time.monotonic()
+        staying = rig.gcs.wait_text("staying in FAILSAFE", 5.0, since=t_back)
+        t_stay = time.monotonic()
+        rig.gcs.command(ml.MAV_CMD_REQUEST_MESSAGE, ml.MAVLINK_MSG_ID_HEARTBEAT, timeout_s=1.0)
+        still = rig.gcs.heartbeat_mode(2.0, since=t_stay)
+        ack = rig.gcs.command(ml.MAV_CMD_DO_SET_MODE, 1, 1)
+        flying = rig.gcs.heartbeat_mode(2.0, since=time.monotonic())
+        rcs = rig.finish(stop_plant=True)
+    assert lost is not None and staying is not None, (lost, staying)
+    assert still == 3                                      # data is back, still FAILSAFE
+    assert ack is not None and ack.result == ml.MAV_RESULT_ACCEPTED
+    assert flying == 1
+    assert rcs == {"plant": 0, "fc": 0}
