@@ -113,7 +113,7 @@ def test_clean_relay_passes_everything_in_order_both_ways():
             c, back = _pump(relay.listen_address, srv, 300)
             _drain(c, back, lambda: len(back) >= 300)
             c.close()
-            k = relay.counters
+        k = relay.counters          # after stop: the relay thread has finished counting
         assert [s for s, _ in srv.seen] == list(range(300))
         assert [s for s, _ in back] == list(range(300))
         assert srv.peers == {relay.upstream_address}          # one stable address for the server
@@ -134,7 +134,7 @@ def test_loss_duplication_reordering_rates_match_the_seed():
             expected = n - k["dropped"] + k["duplicated"]
             srv.wait_count(expected)
             c.close()
-            k = relay.counters["up"]
+        k = relay.counters["up"]
         seqs = [s for s, _ in srv.seen]
         assert k["received"] == n
         assert len(seqs) == n - k["dropped"] + k["duplicated"] == k["delivered"]
@@ -198,7 +198,7 @@ def test_directions_are_independent():
             c, back = _pump(relay.listen_address, srv, 400)
             _drain(c, back, lambda: len(back) >= 400 - relay.counters["down"]["dropped"])
             c.close()
-            k = relay.counters
+        k = relay.counters
         assert k["up"]["dropped"] == 0 and len(srv.seen) == 400
         assert _within(k["down"]["dropped"], 400, 0.5)
         assert len(back) == 400 - k["down"]["dropped"]
@@ -218,7 +218,7 @@ def test_corruption_rate_and_every_corrupted_datagram_differs():
                 c.sendto(payload[i], relay.listen_address)
             srv.wait_count(n, 5.0)
             c.close()
-            k = relay.counters["up"]
+        k = relay.counters["up"]
     finally:
         srv.close()
     assert k["received"] == n and k["delivered"] == n
