@@ -117,8 +117,8 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
     cmd = np.stack([truth["delta_cmd_left_rad"], truth["delta_cmd_right_rad"],
                     truth["delta_cmd_rudder_rad"]], axis=1)
     t = truth["t_s"]
-    held = cmd[(t > t_kill + 0.6) & (t < t_alive)]
-    assert held.shape[0] > 500 and np.abs(held - trim_rad).max() < 1e-9
+    held = cmd[(t > t_kill + 0.9) & (t < t_alive)]     # 0.5 s no_command_s + scheduling margin
+    assert held.shape[0] > 400 and np.abs(held - trim_rad).max() < 1e-9
     # the new fc resynced and flies: the plant applies its answers again, the law commands
     # the surfaces (they leave the plant's trim). Tracking is not asserted: seconds of fixed
     # surfaces let this open-loop unstable vehicle depart (docs/reliability.md, promise 3).
