@@ -116,6 +116,10 @@ def _versions() -> dict:
                              text=True, timeout=5, cwd=Path(__file__).resolve().parents[2])
         if rev.returncode == 0:
             out["git"] = rev.stdout.strip()
+            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                                   capture_output=True, text=True, timeout=5,
+                                   cwd=Path(__file__).resolve().parents[2])
+            out["git_dirty"] = bool(dirty.stdout.strip())
     except (OSError, subprocess.SubprocessError):
         pass
     return out
