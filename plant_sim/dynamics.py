@@ -84,7 +84,8 @@ P_NOISE = 33       # 33..46: noise standard deviation per measurement channel (S
 P_BIAS = 47        # 47..60: bias per measurement channel (SI)
 P_DELAY = 61       # 61..74: latency per channel in frames (integer valued)
 P_SENSORS_ON = 75
-P_N = 76
+P_DIST_PHASE = 76  # 76..78: phase added to the roll, pitch, yaw sine arguments (rad)
+P_N = 79
 
 SPEED_NONE = 0
 SPEED_HOLD = 1
@@ -124,16 +125,17 @@ W_N = W_AUX + AX_N_OUT
 def disturbance_components(t_s, p):
     """The paper's Section 5 disturbance as body angular acceleration (rad/s^2) at ``t_s``.
 
-    d(t) = A [0.5 sin(1.5 t), 0.5 cos(2 t), 0.5 sin(2 t)] with A = amplitude x scale
-    (paper: 10), converted to rad/s^2 from the scenario unit; a disturbance given as a moment
-    (N m) is divided by the inertia (I^-1 d). Returns (d_p, d_q, d_r); zeros when off.
+    d(t) = A [0.5 sin(1.5 t + ph_p), 0.5 cos(2 t + ph_q), 0.5 sin(2 t + ph_r)] with
+    A = amplitude x scale (paper: 10, phases 0), converted to rad/s^2 from the scenario unit; a
+    disturbance given as a moment (N m) is divided by the inertia (I^-1 d). The phases (rad) let
+    campaigns disperse the disturbance. Returns (d_p, d_q, d_r); zeros when off.
     """
     if p[P_DIST_ON] == 0.0:
         return 0.0, 0.0, 0.0
     a = p[P_DIST_AMP]
-    d0 = a * 0.5 * math.sin(1.5 * t_s)
-    d1 = a * 0.5 * math.cos(2.0 * t_s)
-    d2 = a * 0.5 * math.sin(2.0 * t_s)
+    d0 = a * 0.5 * math.sin(1.5 * t_s + p[P_DIST_PHASE])
+    d1 = a * 0.5 * math.cos(2.0 * t_s + p[P_DIST_PHASE + 1])
+    d2 = a * 0.5 * math.sin(2.0 * t_s + p[P_DIST_PHASE + 2])
     if p[P_DIST_MOMENT] != 0.0:
         i = P_IINV
         return (p[i] * d0 + p[i + 1] * d1 + p[i + 2] * d2,

@@ -88,6 +88,9 @@ SCHEMA: dict[str, Any] = {
         "unit": Key("str", "deg/s^2", choices=("deg/s^2", "rad/s^2", "N*m"),
                     doc="angular acceleration, or a moment divided by the inertia"),
         "scale": Key("float", 1.0, 0.0, 1e6, doc="factor on the amplitude"),
+        "phase_roll_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the roll term's sine argument"),
+        "phase_pitch_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the pitch term's cosine argument"),
+        "phase_yaw_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the yaw term's sine argument"),
     },
     "actuators": {
         "limit_deg": Key("float", vehicle.DEFLECTION_MAX_DEG, 0.1, vehicle.DEFLECTION_MAX_DEG),

@@ -149,6 +149,8 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
         amp *= DEG
     p[dy.P_DIST_AMP] = amp
     p[dy.P_DIST_MOMENT] = 1.0 if ds["unit"] == "N*m" else 0.0
+    for i, k in enumerate(("phase_roll_deg", "phase_pitch_deg", "phase_yaw_deg")):
+        p[dy.P_DIST_PHASE + i] = ds[k] * DEG
     s = d["speed"]
     p[dy.P_SPEED_MODE] = dy.SPEED_HOLD if s["model"] == "hold" else dy.SPEED_NONE
     p[dy.P_VREF] = s["V_ref_m_s"] if s["V_ref_m_s"] > 0.0 else d["initial"]["V_m_s"]

@@ -116,12 +116,14 @@ def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overr
     """Fly one variant of a dispersed scenario with ``tools.closed_loop.simulate``.
 
     Every frame is recorded (as the plant's truth log of the main job), so the metrics are
-    taken on the same samples as ``summary.json``'s.
+    taken on the same samples as ``summary.json``'s. The law sees the fc's estimate from the
+    plant's sensor model (``estimate="sensors"``), as in the two-process product, so sensor
+    noise and bias dispersions act in process too.
     """
     from tools import closed_loop
     res = closed_loop.simulate(scenario, coordinated=(variant == "coordinated"),
                                duration_s=duration_s, seed=sim_seed,
-                               law_overrides=law_overrides or None)
+                               law_overrides=law_overrides or None, estimate="sensors")
     return flight_from_result(res, full)
 
 
