@@ -441,6 +441,23 @@ def memory_rows(rep: Report) -> None:
                 "memory")
 
 
+def hold_pm_qos() -> int | None:
+    """Open /dev/cpu_dma_latency and request 0 us (kept while the fd is open); None if not
+    allowed. With the request held, cpuidle picks only the polling state: an idle vCPU
+    polls instead of halting, so a wake-up does not wait for the hypervisor."""
+    import struct
+    try:
+        fd = os.open("/dev/cpu_dma_latency", os.O_WRONLY)
+    except OSError:
+        return None
+    try:
+        os.write(fd, struct.pack("i", 0))
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
 def print_table(rep: Report, out=sys.stdout) -> None:
     cols = ("figure", "measured", "target", "peer", "ratio")
     print("| " + " | ".join(cols) + " |", file=out)
@@ -461,6 +478,9 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=",".join(PARTS),
                     help=f"comma-separated parts (default all: {','.join(PARTS)})")
     ap.add_argument("--keep", metavar="DIR", help="keep the process runs' directories under DIR")
+    ap.add_argument("--pm-qos", action="store_true",
+                    help="hold /dev/cpu_dma_latency at 0 during the run (idle CPUs poll instead "
+                         "of halting: fast wake-ups on a VM; needs root), as cyclictest does")
     args = ap.parse_args(argv)
     parts = [p.strip() for p in args.only.split(",") if p.strip()]
     bad = [p for p in parts if p not in PARTS]
@@ -468,6 +488,12 @@ def main(argv=None) -> int:
         ap.error(f"unknown part(s) {bad}; choose from {PARTS}")
     if args.keep:
         os.makedirs(args.keep, exist_ok=True)
+    qos_fd = None
+    if args.pm_qos:
+        qos_fd = hold_pm_qos()
+        if qos_fd is None:
+            print("tools.bench: --pm-qos: cannot write /dev/cpu_dma_latency (not root?); "
+                  "measuring without it", file=sys.stderr)
     rep = Report()
     utc0 = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     t0 = time.perf_counter()
@@ -496,9 +522,12 @@ def main(argv=None) -> int:
             print(f"  {p} FAILED: {failed[p]}", file=sys.stderr)
         print(f"  {p} done in {time.perf_counter() - tp:.1f} s (load {_load():.2f})",
               file=sys.stderr)
+    if qos_fd is not None:
+        os.close(qos_fd)
     memory_rows(rep)
     print_table(rep)
-    meta = {"command": "python -m tools.bench" + (" --quick" if args.quick else ""),
+    meta = {"command": "python -m tools.bench" + (" --quick" if args.quick else "")
+            + (" --pm-qos" if args.pm_qos else ""), "pm_qos_held": qos_fd is not None,
             "quick": args.quick, "utc": utc0,
             "cores": os.cpu_count(), "python": platform.python_version(),
             "load_avg_1min_at_part_start": rep.load, "wall_s": time.perf_counter() - t0,

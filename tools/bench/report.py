@@ -21,7 +21,8 @@ def main(argv=None) -> int:
     rep.rows = data["rows"]
     rep.skipped = data.get("skipped", {})
     meta = data.get("meta", {})
-    print(f"`{meta.get('command', 'python -m tools.bench')}` at {meta.get('utc', '?')}, "
+    print(f"`{meta.get('command', 'python -m tools.bench')}` at {meta.get('utc', '?')}"
+          + (" (PM QoS 0 us held)" if meta.get("pm_qos_held") else "") + ", "
           f"{meta.get('wall_s', 0):.0f} s; load average (1 min) at the start of each part: "
           + ", ".join(f"{k} {v:.1f}" for k, v in meta.get("load_avg_1min_at_part_start",
                                                           {}).items()))
