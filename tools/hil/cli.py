@@ -14,7 +14,7 @@ import threading
 from pathlib import Path
 
 from tools.hil import rundata
-from tools.hil.runner import RunConfig, run_variant
+from tools.hil.runner import RunConfig, controller_params, run_variant
 
 VARIANTS = ("coordinated", "uncoordinated")
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -146,7 +146,7 @@ def build_summary(run_dir: Path, meta: dict, plots: bool = True) -> tuple[dict, 
         summary["runs"][variant] = entry
         plot_runs[variant] = pdata
     for k in ("command_shaping", "duration_s", "scenario_file", "created_utc", "versions",
-              "params", "wall_time_total_s"):
+              "params", "params_file"):
         if k in meta:
             summary[k] = meta[k]
     if errors:
@@ -232,9 +232,8 @@ def cmd_run(args) -> int:
             "duration_s": args.duration, "scenario_file": str(scen_path),
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "versions": _versions(), "gcs_out": list(gcs_out),
-            "params": {**({} if args.params is None else {"file": str(args.params)}),
-                       **__import__("tools.hil.runner", fromlist=["x"]).shaping_params(
-                           args.command_shaping)},
+            "params": controller_params(cfg),
+            "params_file": None if args.params is None else str(args.params),
             "status": {}}
 
     stop = threading.Event()

@@ -71,14 +71,13 @@ def shaping_params(shaping: str) -> dict[str, float]:
     raise ValueError(f"unknown command shaping {shaping!r} (steps or prefilter)")
 
 
-def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
-    """The controller's parameter file of a variant: the user's file, then the shaping."""
+def controller_params(cfg: RunConfig) -> dict[str, float]:
+    """The parameters tools.hil gives the controller: the user's file, then the shaping, then
+    (lockstep) the failsafe timeout unless the user set it."""
     values: dict[str, float] = {}
-    lines = ["# hyfc controller parameters written by tools.hil"]
     if cfg.params_file is not None:
         from fc.params import ParamTable
         values.update(ParamTable.read_file(str(cfg.params_file)))
-        lines.append(f"# from {cfg.params_file}")
     values.update(shaping_params(cfg.command_shaping))
     if cfg.mode == "lockstep":
         # In lockstep the plant waits for the controller and may itself pause (JIT compile,
@@ -86,6 +85,15 @@ def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
         # wall-clock data-loss failsafe would otherwise fire mid-run and make the run depend
         # on the machine's load (docs/hil.md). 30 s is the parameter's maximum.
         values.setdefault("FS_TIMEOUT_S", LOCKSTEP_FS_TIMEOUT_S)
+    return values
+
+
+def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
+    """The controller's parameter file of a variant (MAVProxy format)."""
+    values = controller_params(cfg)
+    lines = ["# hyfc controller parameters written by tools.hil"]
+    if cfg.params_file is not None:
+        lines.append(f"# includes {cfg.params_file}")
     lines += [f"{k:<16s} {v:.9g}" for k, v in values.items()]
     Path(path).write_text("\n".join(lines) + "\n")
     return values
