@@ -194,6 +194,117 @@ class UdpEndpoint:
         self.sock.close()
 
 
+# ---- lean decode of the expected sensor datagram (performance; docs/performance.md) -------
+_MAGIC2 = mavlink.PROTOCOL_MARKER_V2
+_HDR2 = 10                                   # MAVLink 2 header length
+_mcrf4xx = getattr(mavlink, "mcrf4xx", None)  # fastcrc's CRC-16/MCRF4XX, as the codec uses
+
+
+def _crc16(data, init: int = 0xFFFF) -> int:
+    """X.25 CRC (CRC-16/MCRF4XX) as the codec computes it, from ``init``."""
+    if _mcrf4xx is not None:
+        return _mcrf4xx(data, init)
+    c = mavlink.x25crc()
+    c.crc = init
+    c.accumulate(bytes(data))
+    return c.crc
+
+
+class _LeanSensorDecoder:
+    """Fast path for the one datagram the plant link expects (docs/wire.md section 2).
+
+    Accepts only a datagram made of exactly ATTITUDE, AOA_SSA and VFR_HUD (any order, each
+    once), unsigned MAVLink 2 with good CRCs, all from ``plant_sysid``, and unpacks them with
+    the generated codec's own payload structs (zero-padding truncated payloads, as the codec
+    does) straight into the measurement vector. Anything else returns -1 without touching
+    ``meas_out``, and the caller takes the codec's general parser, which also does the
+    counting: what is accepted or rejected, and the values, are the same as before; only the
+    cost of the common case changes (about 3.5 us instead of 19 us per datagram).
+    """
+
+    _CLASSES = (mavlink.MAVLink_attitude_message, mavlink.MAVLink_aoa_ssa_message,
+                mavlink.MAVLink_vfr_hud_message)
+
+    def __init__(self) -> None:
+        self.spec = {}
+        for slot, cls in enumerate(self._CLASSES):
+            size = cls.unpacker.size
+            self.spec[cls.id] = (slot, cls.unpacker, size, bytes((cls.crc_extra,)), bytes(size))
+        self._vals = [None, None, None]
+
+    def decode(self, data: bytes, plant_sysid: int, meas_out: np.ndarray) -> int:
+        n = len(data)
+        pos = 0
+        vals = self._vals
+        vals[0] = vals[1] = vals[2] = None
+        spec = self.spec
+        while pos < n:
+            if n - pos < _HDR2 + 2 or data[pos] != _MAGIC2 or data[pos + 2] != 0:
+                return -1                        # not MAVLink 2, or signed / incompat flags
+            mlen = data[pos + 1]
+            end = pos + _HDR2 + mlen
+            if end + 2 > n or data[pos + 5] != plant_sysid:
+                return -1
+            sp = spec.get(data[pos + 7] | (data[pos + 8] << 8) | (data[pos + 9] << 16))
+            if sp is None:
+                return -1
+            slot, unpacker, size, extra, zeros = sp
+            if mlen > size or vals[slot] is not None:
+                return -1
+            if _crc16(extra, _crc16(data[pos + 1:end])) != data[end] | (data[end + 1] << 8):
+                return -1
+            payload = data[pos + _HDR2:end]
+            if mlen < size:
+                payload += zeros[mlen:]
+            vals[slot] = unpacker.unpack(payload)
+            pos = end + 2
+        att, aoa, hud = vals
+        if att is None or aoa is None or hud is None:
+            return -1
+        # ATTITUDE <Iffffff time_boot_ms roll pitch yaw rollspeed pitchspeed yawspeed;
+        # AOA_SSA <Qff time_usec AOA SSA; VFR_HUD <ffffhH airspeed groundspeed alt climb
+        # heading throttle (wire order, checked by _lean_self_check)
+        stamp = aoa[0]
+        meas_out[M_T_S] = stamp * 1e-6
+        meas_out[M_ROLL] = att[1]
+        meas_out[M_PITCH] = att[2]
+        meas_out[M_YAW] = att[3]
+        meas_out[M_P] = att[4]
+        meas_out[M_Q] = att[5]
+        meas_out[M_R] = att[6]
+        meas_out[M_AOA] = math.radians(aoa[1])
+        meas_out[M_SSA] = math.radians(aoa[2])
+        meas_out[M_AIRSPEED] = hud[0]
+        meas_out[M_ALT] = hud[2]
+        meas_out[M_CLIMB] = hud[3]
+        meas_out[M_GROUNDSPEED] = hud[1]
+        meas_out[M_HEADING] = math.radians(hud[4])
+        return stamp
+
+
+def _lean_self_check(link: "PlantLink") -> bool:
+    """True if the lean decoder gives exactly the general parser's result on a codec-built
+    frame (field order, truncation, CRC_EXTRA of this pymavlink); else the link keeps the
+    general parser only."""
+    try:
+        tx = new_codec(link.plant_sysid)
+        buf = tx.attitude_encode(1234, 0.1, -0.2, 0.3, 0.01, -0.02, 0.0).pack(tx)
+        buf += tx.aoa_ssa_encode(1_234_567, 2.5, 0.0).pack(tx)
+        buf += tx.vfr_hud_encode(2200.0, 2190.0, 45, 0, 25000.0, -1.5).pack(tx)
+        a = np.full(M_N, -1.0)
+        b = np.full(M_N, -2.0)
+        lean = link._lean
+        link._lean = None
+        try:
+            sa = link._decode(buf, a)
+        finally:
+            link._lean = lean
+        sb = lean.decode(buf, link.plant_sysid, b)
+        return sa == sb == 1_234_567 and bool(np.array_equal(a, b))
+    except Exception:  # noqa: BLE001 - any surprise: stay on the general parser
+        return False
+
+
 @dataclass(slots=True)
 class LinkCounters:
     """Rejected and accepted input of the plant link (telemetry and fc.log)."""
@@ -234,10 +345,14 @@ class PlantLink:
     relock_allowed: bool = False
     counters: LinkCounters = field(default_factory=LinkCounters)
     _tx_codec: mavlink.MAVLink = None
+    _lean: _LeanSensorDecoder | None = None
 
     def __post_init__(self) -> None:
         self.codec = new_codec(self.sysid, self.compid)
         self._tx_codec = new_codec(self.sysid, self.compid)
+        self._lean = _LeanSensorDecoder()
+        if not _lean_self_check(self):
+            self._lean = None
 
     def read_frame(self, meas_out: np.ndarray) -> int:
         """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
@@ -270,6 +385,10 @@ class PlantLink:
         return -1
 
     def _decode(self, data: bytes, meas_out: np.ndarray) -> int:
+        if self._lean is not None:      # the common case, same result as below
+            stamp = self._lean.decode(data, self.plant_sysid, meas_out)
+            if stamp >= 0:
+                return stamp
         msgs, n_bad = decode_datagram(self.codec, data)
         if n_bad:
             self.counters.rejected_bad += 1
