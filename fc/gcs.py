@@ -94,6 +94,7 @@ class GcsLink:
         self.rx_msgs = 0
         self.rejected_bad = 0
         self.rejected_signing = 0
+        self.tx_errors = 0            # messages that could not be packed (never sent)
         self.ignored_target = 0
         # tlog: frames collect in memory; flush() hands the chunk to the I/O thread (``io``,
         # fc/iothread.py) so a slow disk never stalls the loop
@@ -120,7 +121,14 @@ class GcsLink:
             self._tlog_buf += buf
 
     def send(self, msg) -> None:
-        buf = msg.pack(self.mav)
+        try:
+            buf = msg.pack(self.mav)
+        except (struct.error, ValueError, TypeError, OverflowError) as exc:
+            # a message built from hostile input must never stop the control loop
+            self.tx_errors += 1
+            if self.log is not None and self.tx_errors == 1:
+                self.log.warning("cannot pack %s: %r (counted, not sent)", msg.get_type(), exc)
+            return
         self.mav.seq = (self.mav.seq + 1) % 256
         self._tlog_write(buf)
         for addr in self.outputs:
@@ -330,7 +338,7 @@ class GcsLink:
             return ML.MAV_RESULT_ACCEPTED
         if c == ML.MAV_CMD_GET_MESSAGE_INTERVAL:
             msg_id = self._whole(m.param1)
-            if msg_id is None:
+            if msg_id is None or not 0 <= msg_id <= 0xFFFF:   # MESSAGE_INTERVAL.message_id u16
                 return ML.MAV_RESULT_DENIED
             self.oneshot.append(self._message_interval(msg_id))
             return ML.MAV_RESULT_ACCEPTED
