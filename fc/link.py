@@ -282,6 +282,34 @@ class _LeanSensorDecoder:
         return stamp
 
 
+class _LeanServoPacker:
+    """SERVO_OUTPUT_RAW with channels 1-3 only (port 0, other channels 0), framed as the
+    codec's ``msg.pack`` does (MAVLink 2, unsigned, trailing-zero truncation), from the
+    codec's own payload layout and CRC_EXTRA. Checked byte for byte against the codec by
+    ``_lean_self_check``."""
+
+    _CLS = mavlink.MAVLink_servo_output_raw_message
+
+    def __init__(self, sysid: int, compid: int) -> None:
+        import struct
+        # wire order: time_usec (u32), servo1..3 (u16) lead the payload; the rest is zero
+        assert self._CLS.unpacker.format.startswith("<IHHH")
+        self.head = struct.Struct("<IHHH")
+        self.hdr = bytearray((_MAGIC2, 0, 0, 0, 0, sysid & 0xFF, compid & 0xFF,
+                              self._CLS.id & 0xFF, (self._CLS.id >> 8) & 0xFF,
+                              self._CLS.id >> 16))
+        self.extra = bytes((self._CLS.crc_extra,))
+
+    def pack(self, seq: int, time_usec: int, s1: int, s2: int, s3: int) -> bytes:
+        payload = self.head.pack(time_usec, s1, s2, s3).rstrip(b"\0") or b"\0"
+        h = self.hdr
+        h[1] = len(payload)
+        h[4] = seq
+        frame = bytes(h) + payload
+        crc = _crc16(self.extra, _crc16(frame[1:]))
+        return frame + bytes((crc & 0xFF, crc >> 8))
+
+
 def _lean_self_check(link: "PlantLink") -> bool:
     """True if the lean decoder gives exactly the general parser's result on a codec-built
     frame (field order, truncation, CRC_EXTRA of this pymavlink); else the link keeps the
@@ -300,7 +328,17 @@ def _lean_self_check(link: "PlantLink") -> bool:
         finally:
             link._lean = lean
         sb = lean.decode(buf, link.plant_sysid, b)
-        return sa == sb == 1_234_567 and bool(np.array_equal(a, b))
+        if not (sa == sb == 1_234_567 and bool(np.array_equal(a, b))):
+            return False
+        c = new_codec(link.sysid, link.compid)
+        for seq, args in ((0, (0, 1500, 1500, 1500)), (7, (123456, 1000, 2000, 1500)),
+                          (255, (0xFFFFFFFF, 0, 0, 0)), (3, (256, 0, 0, 0))):
+            c.seq = seq
+            ref = c.servo_output_raw_encode(args[0], 0, args[1], args[2], args[3],
+                                            0, 0, 0, 0, 0).pack(c)
+            if link._packer.pack(seq, *args) != ref:
+                return False
+        return True
     except Exception:  # noqa: BLE001 - any surprise: stay on the general parser
         return False
 
@@ -346,13 +384,16 @@ class PlantLink:
     counters: LinkCounters = field(default_factory=LinkCounters)
     _tx_codec: mavlink.MAVLink = None
     _lean: _LeanSensorDecoder | None = None
+    _packer: _LeanServoPacker | None = None
 
     def __post_init__(self) -> None:
         self.codec = new_codec(self.sysid, self.compid)
         self._tx_codec = new_codec(self.sysid, self.compid)
         self._lean = _LeanSensorDecoder()
+        self._packer = _LeanServoPacker(self.sysid, self.compid)
         if not _lean_self_check(self):
             self._lean = None
+            self._packer = None
 
     def read_frame(self, meas_out: np.ndarray) -> int:
         """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
@@ -429,9 +470,14 @@ class PlantLink:
         """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3)."""
         if self.peer is None:
             return False
-        msg = self._tx_codec.servo_output_raw_encode(
-            stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], 0, 0, 0, 0, 0)
-        ok = self.endpoint.send(msg.pack(self._tx_codec), self.peer)
+        if self._packer is not None:    # same bytes as the codec's pack (self-checked)
+            buf = self._packer.pack(self._tx_codec.seq, stamp_us & 0xFFFFFFFF,
+                                    pwm_us[0], pwm_us[1], pwm_us[2])
+        else:
+            buf = self._tx_codec.servo_output_raw_encode(
+                stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], 0, 0, 0, 0,
+                0).pack(self._tx_codec)
+        ok = self.endpoint.send(buf, self.peer)
         self._tx_codec.seq = (self._tx_codec.seq + 1) % 256
         if ok:
             self.counters.outputs += 1
