@@ -31,6 +31,11 @@ from fc.timeline import Timeline, load_timeline
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
+#: Real time: with no new plant frame for this long (wall clock, 5 frame periods at 500 Hz) the
+#: law is not stepped and the last surface command is held until data comes back or FAILSAFE
+#: takes over; stepping it on a frozen estimate winds it up (docs/reliability.md, promise 2).
+HOLD_AFTER_S = 0.01
+
 ML = mavlink
 DEG = math.pi / 180.0
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
@@ -126,6 +131,11 @@ class FlightController:
         # True while the law is engaged but the estimate is not yet healthy: the law is reset
         # (integrators, observer, estimates start from the current state) on the first healthy frame.
         self.law_reset_pending = False
+        # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
+        # stepped on the frozen estimate (it would wind up); the last command is held
+        self.law_held = False
+        self.law_holds = 0
+        self.last_frame_wall_s = -1.0
         self.law_errors = 0
         self.duplicate_frames = 0
         self.plant_resets = 0
@@ -280,7 +290,9 @@ class FlightController:
 
     # ------------------------------------------------------------------ the tick
     def _fast_tick(self, slow: bool) -> None:
-        if self.modes.law_active and not self.law_reset_pending:
+        if self.modes.law_active and self.law_held:
+            pass                        # hold the last command: no new data to act on
+        elif self.modes.law_active and not self.law_reset_pending:
             try:
                 if slow:
                     self.law.slow_step(self.est.est, self.cmd_rad, self.planner.slow_dt_s)
@@ -542,6 +554,12 @@ class FlightController:
                 self.meas_stamp_us = stamp
                 self._new_frame(now_s)
                 have_frame = True
+                self.last_frame_wall_s = now_s
+                self.law_held = False
+            if (have_frame and not self.law_held and self.modes.law_active
+                    and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
+                self.law_held = True
+                self.law_holds += 1
             self._sync_mode()
             self._fast_tick(planner.slow_due())
             if have_frame:
