@@ -63,6 +63,7 @@ class RunStats:
     rerequests: int = 0
     stale_commands: int = 0
     no_command_frames: int = 0
+    no_command_episodes: int = 0      # real time: silences of the fc after it had answered
     late_frames: int = 0
     resyncs: int = 0
     aero_clip_frames: int = 0
@@ -153,6 +154,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
             "rerequests": stats.rerequests,
             "stale_commands": stats.stale_commands,
             "no_command_frames": stats.no_command_frames,
+            "no_command_episodes": stats.no_command_episodes,
             "late_frames": stats.late_frames,
             "resyncs": stats.resyncs,
             "aero_clip_frames": stats.aero_clip_frames,
@@ -257,6 +259,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     t0 = perf()
     next_progress = t0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
     last_cmd_wall = -math.inf
+    silent = False
     last_count = 0
     k = 0
     base_k = 0
@@ -280,6 +283,10 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             # are 50-100 us here, perf_anchors.md section 2)
         if link.cmd_count != last_count:
             last_count = link.cmd_count
+            if silent:
+                silent = False
+                log.info("servo commands back after %.2f s without (t=%.3f s)",
+                         now - last_cmd_wall, k * frame_dt)
             last_cmd_wall = now
         late = now - deadline
         lateness[k] = late
@@ -291,6 +298,12 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
                 stats.resyncs += 1
         if now - last_cmd_wall > no_cmd_s:
             stats.no_command_frames += 1
+            if not silent and last_cmd_wall > -math.inf:
+                silent = True                      # logged once per episode, not per frame
+                stats.no_command_episodes += 1
+                log.warning("no servo command for %.2f s (t=%.3f s): %s", now - last_cmd_wall,
+                            k * frame_dt, "surfaces to trim" if to_trim
+                            else "holding the last command")
             if to_trim:
                 cmd[:] = trim
             else:
