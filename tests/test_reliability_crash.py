@@ -106,14 +106,19 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
         truth = rig.truth()
         ps = rig.plant_summary()
         log = rig.fc_log()
+        plant_log = (tmp_path / "plant" / "plant.log").read_text()
     assert rc_kill == -9
     assert t_alive is not None and t_alive >= t_kill + 2.0
     assert set(after_kill) == set(names) and after_kill[SET_NAME] == pytest.approx(SET_VALUE)
     assert reloaded == pytest.approx(SET_VALUE, abs=1e-6)
     assert log.count("loaded %d parameters" % len(names)) >= 1 or "loaded" in log
     assert rcs["plant"] == 0 and ps["exit_reason"] != "completed", ps   # ran until stopped
-    # the plant saw the silence and put the surfaces to its trim after no_command_s (0.5 s)
+    # the plant saw the silence, said so once, and put the surfaces to its trim after
+    # no_command_s (0.5 s)
     assert ps["no_command_frames"] > 0.5 * 500 * (t_alive - t_kill - 0.5)
+    assert ps["no_command_episodes"] == 1
+    assert plant_log.count("no servo command for") == 1 and "surfaces to trim" in plant_log
+    assert plant_log.count("servo commands back after") == 1
     cmd = np.stack([truth["delta_cmd_left_rad"], truth["delta_cmd_right_rad"],
                     truth["delta_cmd_rudder_rad"]], axis=1)
     t = truth["t_s"]
