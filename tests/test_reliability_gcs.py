@@ -16,9 +16,9 @@
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import math
 import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -264,11 +264,12 @@ def test_promise7_signing_rejects_unsigned_and_wrong_key_accepts_signed_and_mavp
 
 def _mavproxy_set(port: int, name: str, value: float, tmp_path) -> str:
     """A headless MAVProxy session (`signing key`), bounded; returns its output."""
-    exe = shutil.which("mavproxy.py")
-    assert exe is not None, "MAVProxy is a test dependency (pyproject [test])"
+    # MAVProxy of this interpreter: the venv's bin/ is not on PATH under .ci/run
+    assert importlib.util.find_spec("MAVProxy") is not None, \
+        "MAVProxy is a test dependency (pyproject [test])"
     cmd = (f"set param_ftp 0; set requireexit 1; signing key {PASSPHRASE}; "
            f"repeat add 1 param set {name} {value}; repeat add 3 exit")
-    argv = [sys.executable, exe, f"--master=udpout:127.0.0.1:{port}", "--non-interactive",
+    argv = [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpout:127.0.0.1:{port}", "--non-interactive",
             "--no-state", "--default-modules=link,param,signing,misc", f"--cmd={cmd}"]
     r = subprocess.run(argv, cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
                        capture_output=True, text=True, timeout=40)
