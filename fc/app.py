@@ -26,7 +26,8 @@ from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signin
                      mavlink)
 from fc.modes import FlightMode, ModeManager
 from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
-from fc.scheduler import LoopStats, TickPlanner, sleep_until_ns, try_realtime
+from fc.scheduler import (LoopStats, TickPlanner, hold_cpu_wakeup_latency, sleep_until_ns,
+                          try_realtime)
 from fc.timeline import Timeline, load_timeline
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
@@ -471,6 +472,9 @@ class FlightController:
                 (self.log.info if ok else self.log.warning)(msg)
             self._run_realtime(stop)
         else:
+            # each lockstep exchange wakes an idle CPU; keep wake-ups off the hypervisor's path
+            # (docs/performance.md: idle vCPUs halt on this VM and a UDP round trip triples)
+            self.log.info(hold_cpu_wakeup_latency(0))
             self._run_lockstep(stop)
 
     def _run_lockstep(self, stop) -> None:
