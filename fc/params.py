@@ -20,6 +20,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from fc.control.params import Param
+
 __all__ = ["ParamDef", "PROCESS_PARAMS", "ParamTable", "ParamFileError", "build_table",
            "render_markdown", "law_param_defs", "UNITS"]
 
@@ -31,18 +33,9 @@ UNITS = {"deg", "deg/s", "rad", "rad/s", "s", "ms", "us", "Hz", "m", "m/s", "1",
          "1/s", "1/s^2", "rad/s^2", "N m", "kg m^2", "%"}
 
 
-@dataclass(frozen=True, slots=True)
-class ParamDef:
-    """One row of the table. Values are in the human units of ``unit`` (degrees at the edge)."""
-
-    name: str
-    default: float
-    min: float
-    max: float
-    unit: str
-    group: str
-    description: str
-    integer: bool = False
+#: One record type for every parameter, the law's and the process's (fc/control/params.py):
+#: name, default, min, max, unit, group, description, si_scale, integer.
+ParamDef = Param
 
 
 #: Parameters owned by the fc process (not the law). Order is the wire order after the law's.
@@ -79,7 +72,9 @@ PROCESS_DRIVEN = {"CO_ENABLE": "CO_ENABLE follows the flight mode: set COORDINAT
 def law_param_defs(law_params: Iterable) -> list[ParamDef]:
     """Convert the law's ``Param`` rows (fc/control/params.py) to :class:`ParamDef`."""
     return [ParamDef(p.name, float(p.default), float(p.min), float(p.max), str(p.unit),
-                     str(p.group), str(p.description), bool(getattr(p, "integer", False)))
+                     str(p.group), str(p.description),
+                     si_scale=float(getattr(p, "si_scale", 1.0)),
+                     integer=bool(getattr(p, "integer", False)))
             for p in law_params]
 
 

@@ -5,7 +5,7 @@ that calls functions of another module, or reads its module-level index constant
 numba freezes into the machine code), keeps its stale cache when that other module changes:
 it would silently run old code with old array layouts. ``drop_stale(module_file, deps)``
 deletes the cache files of ``module_file`` when any dependency is newer than them; call it at
-import time, before the first call of a cached function.
+module import, before the first call of a cached function.
 
 Only the default cache location (``__pycache__`` next to the module) is handled; with
 NUMBA_CACHE_DIR set, clear that directory after changing the code.
