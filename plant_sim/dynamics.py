@@ -122,6 +122,20 @@ W_N = W_AUX + AX_N_OUT
 
 
 @njit(cache=True)
+def quat_to_dcm_nb(q0, q1, q2, q3):
+    """Direction cosines C_nb (body -> NED) of the attitude quaternion (q0 scalar), row major."""
+    return (q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3,
+            2.0 * (q1 * q2 - q0 * q3),
+            2.0 * (q1 * q3 + q0 * q2),
+            2.0 * (q1 * q2 + q0 * q3),
+            q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3,
+            2.0 * (q2 * q3 - q0 * q1),
+            2.0 * (q1 * q3 - q0 * q2),
+            2.0 * (q2 * q3 + q0 * q1),
+            q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3)
+
+
+@njit(cache=True)
 def disturbance_components(t_s, p):
     """The paper's Section 5 disturbance as body angular acceleration (rad/s^2) at ``t_s``.
 
@@ -261,15 +275,7 @@ def deriv(x, t_s, dl, dr, du, p, w, xdot):
     q2 = x[X_Q2]
     q3 = x[X_Q3]
     # C_nb (body -> NED)
-    c11 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c12 = 2.0 * (q1 * q2 - q0 * q3)
-    c13 = 2.0 * (q1 * q3 + q0 * q2)
-    c21 = 2.0 * (q1 * q2 + q0 * q3)
-    c22 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c23 = 2.0 * (q2 * q3 - q0 * q1)
-    c31 = 2.0 * (q1 * q3 - q0 * q2)
-    c32 = 2.0 * (q2 * q3 + q0 * q1)
-    c33 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = quat_to_dcm_nb(q0, q1, q2, q3)
     xdot[X_PN] = c11 * u + c12 * v + c13 * ww
     xdot[X_PE] = c21 * u + c22 * v + c23 * ww
     xdot[X_PD] = c31 * u + c32 * v + c33 * ww
@@ -438,15 +444,7 @@ def flight_path(x, out4):
     q1 = x[X_Q1]
     q2 = x[X_Q2]
     q3 = x[X_Q3]
-    c11 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c12 = 2.0 * (q1 * q2 - q0 * q3)
-    c13 = 2.0 * (q1 * q3 + q0 * q2)
-    c21 = 2.0 * (q1 * q2 + q0 * q3)
-    c22 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c23 = 2.0 * (q2 * q3 - q0 * q1)
-    c31 = 2.0 * (q1 * q3 - q0 * q2)
-    c32 = 2.0 * (q2 * q3 + q0 * q1)
-    c33 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = quat_to_dcm_nb(q0, q1, q2, q3)
     u = x[X_U]
     v = x[X_V]
     ww = x[X_W]
