@@ -25,6 +25,11 @@ Validation: each measured field must be finite and inside the plausible range of
 its bit in the ``stale`` mask. A frame whose stamp does not advance is flagged FLAG_OLD_STAMP
 and changes nothing. The estimate is healthy when every field the law uses has a good,
 fresh value.
+
+Per-call cost: the Estimator keeps all its arrays (last good values and times, the ranges,
+stale_s, est, the masks and the invalid-frame count) as views of one float64 buffer ``mem``
+(layout EM_*; masks and count as int64 bits), so ``update`` calls one compiled entry point
+with 2 array arguments (``estimate_entry``) instead of 7 plus Python-side bookkeeping.
 """
 from __future__ import annotations
 
@@ -43,8 +48,16 @@ except ImportError:  # the law is not there yet: same layout, section 5
     E_ALPHA, E_BETA, E_MU, E_P, E_Q, E_R, E_V, E_H, E_GAMMA = range(9)
     E_N = 9
 
-__all__ = ["Estimator", "estimate_kernel", "mu_gamma", "LIMITS_LO", "LIMITS_HI",
-           "FLAG_OLD_STAMP", "FLAG_NEVER", "USED_MASK", "E_N"]
+try:  # the kernels below freeze fc.link's M_* and layout's E_* (and the EM_* built on them)
+    import fc.link as _link
+    from fc.control import layout as _layout
+    from fc.control.numba_cache import drop_stale
+    drop_stale(__file__, [_link.__file__, _layout.__file__])
+except ImportError:
+    pass
+
+__all__ = ["Estimator", "estimate_kernel", "estimate_entry", "mu_gamma", "LIMITS_LO",
+           "LIMITS_HI", "FLAG_OLD_STAMP", "FLAG_NEVER", "USED_MASK", "E_N", "EM_N"]
 
 _PI = math.pi
 #: Plausible range of each measurement field (SI, index = M_*); outside = invalid.
@@ -63,6 +76,18 @@ for _i, _lo, _hi in (
 USED_MASK = sum(1 << i for i in (M_ROLL, M_PITCH, M_P, M_Q, M_R, M_AOA, M_SSA, M_AIRSPEED, M_ALT))
 FLAG_OLD_STAMP = 1 << 30   # in the invalid mask: stamp did not advance, frame ignored
 FLAG_NEVER = 1 << 31       # in the stale mask: some used field never had a good value
+
+# Layout of the Estimator's buffer mem (float64[EM_N]); the masks and the invalid-frame count
+# are int64 slots of mem.view(np.int64).
+EM_GOOD = 0                     # float64[M_N] last good values (SI)
+EM_GOOD_T = EM_GOOD + M_N       # float64[M_N] sensor time of the last good value (s), -inf never
+EM_LO = EM_GOOD_T + M_N         # float64[M_N] plausible range, low (copy of LIMITS_LO)
+EM_HI = EM_LO + M_N             # float64[M_N] plausible range, high (copy of LIMITS_HI)
+EM_EST = EM_HI + M_N            # float64[E_N] estimated state
+EM_STALE_S = EM_EST + E_N       # staleness threshold (s)
+EM_MASKS = EM_STALE_S + 1       # int64[2] invalid, stale bit masks
+EM_INVALID_FRAMES = EM_MASKS + 2  # int64 count of frames with a nonzero invalid mask
+EM_N = EM_INVALID_FRAMES + 1
 
 
 @njit(cache=True)
@@ -132,19 +157,62 @@ def estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks):
     return 1 if (stale & (USED_MASK | FLAG_NEVER)) == 0 and good_t[M_T_S] > -np.inf else 0
 
 
+@njit(cache=True)
+def estimate_entry(meas, mem):
+    """estimate_kernel on the views of an Estimator's buffer ``mem`` (layout EM_*); counts
+    the frames with a nonzero invalid mask. Returns True when the estimate is healthy."""
+    iv = mem.view(np.int64)
+    masks = iv[EM_MASKS:EM_MASKS + 2]
+    ok = estimate_kernel(meas, mem[EM_GOOD:EM_GOOD + M_N], mem[EM_GOOD_T:EM_GOOD_T + M_N],
+                         mem[EM_LO:EM_LO + M_N], mem[EM_HI:EM_HI + M_N], mem[EM_STALE_S],
+                         mem[EM_EST:EM_EST + E_N], masks)
+    if masks[0] != 0:
+        iv[EM_INVALID_FRAMES] += 1
+    return ok == 1
+
+
 class Estimator:
-    """Allocates the estimator's arrays once; ``update(meas)`` returns True when healthy."""
+    """Allocates the estimator's arrays once; ``update(meas)`` returns True when healthy.
+
+    Attributes (views of the one buffer ``mem``, never rebind them): est float64[E_N],
+    good float64[M_N], good_t float64[M_N], masks int64[2] (invalid, stale), lo/hi
+    float64[M_N] (copies of LIMITS_LO/HI at construction). ``stale_s`` (s) and
+    ``invalid_frames`` are properties over mem; ``healthy`` is the last update's result.
+    """
 
     def __init__(self, stale_s: float = 0.1) -> None:
-        self.stale_s = float(stale_s)
-        self.est = np.zeros(E_N)
-        self.good = np.zeros(M_N)
-        self.good_t = np.full(M_N, -np.inf)
-        self.masks = np.zeros(2, dtype=np.int64)
+        m = self.mem = np.zeros(EM_N)
+        self.good = m[EM_GOOD:EM_GOOD + M_N]
+        self.good_t = m[EM_GOOD_T:EM_GOOD_T + M_N]
+        self.lo = m[EM_LO:EM_LO + M_N]
+        self.hi = m[EM_HI:EM_HI + M_N]
+        self.est = m[EM_EST:EM_EST + E_N]
+        self._iv = m.view(np.int64)
+        self.masks = self._iv[EM_MASKS:EM_MASKS + 2]
+        self.lo[:] = LIMITS_LO
+        self.hi[:] = LIMITS_HI
+        self.stale_s = stale_s
         self.healthy = False
-        self.invalid_frames = 0
         self.update(np.full(M_N, np.nan))  # compile / load from cache now, not in the loop
         self.reset()
+
+    @property
+    def stale_s(self) -> float:
+        """Staleness threshold (s)."""
+        return float(self.mem[EM_STALE_S])
+
+    @stale_s.setter
+    def stale_s(self, value: float) -> None:
+        self.mem[EM_STALE_S] = float(value)
+
+    @property
+    def invalid_frames(self) -> int:
+        """Frames since reset() with at least one invalid field or an old stamp."""
+        return int(self._iv[EM_INVALID_FRAMES])
+
+    @invalid_frames.setter
+    def invalid_frames(self, value: int) -> None:
+        self._iv[EM_INVALID_FRAMES] = int(value)
 
     def reset(self) -> None:
         self.est[:] = 0.0
@@ -155,12 +223,10 @@ class Estimator:
         self.invalid_frames = 0
 
     def update(self, meas: np.ndarray) -> bool:
-        ok = estimate_kernel(meas, self.good, self.good_t, LIMITS_LO, LIMITS_HI, self.stale_s,
-                             self.est, self.masks)
-        if self.masks[0]:
-            self.invalid_frames += 1
-        self.healthy = bool(ok)
-        return self.healthy
+        """One frame: meas float64[M_N] (SI, fc.link M_*) -> est; True when healthy."""
+        h = estimate_entry(meas, self.mem)
+        self.healthy = h
+        return h
 
     @property
     def invalid_mask(self) -> int:
@@ -169,3 +235,5 @@ class Estimator:
     @property
     def stale_mask(self) -> int:
         return int(self.masks[1])
+
+

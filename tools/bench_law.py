@@ -4,8 +4,9 @@
 
 Two views, both printed as median and p99 (plus p99.9 for the per-call view):
 
-1. **Per call from Python** (what the fc process pays each tick): ``law.slow_step`` +
-   ``law.fast_step`` through the AttitudeLaw wrapper, and the two kernels called directly.
+1. **Per call from Python** (what the fc process pays each tick): ``Estimator.update``,
+   ``law.slow_step``, ``law.fast_step`` (one packed entry point each, 2-3 array arguments),
+   the fc tick (update + fast step), and the two kernels called directly (10 arguments).
    Each call is timed with ``time.perf_counter_ns`` (about 60-90 ns of timer overhead
    included; docs/perf_anchors). numba's dispatch of a call with ~10 array arguments is a
    large share of this figure.
@@ -31,6 +32,8 @@ from fc.control import kernels as K
 from fc.control import layout as L
 from fc.control.law import AttitudeLaw
 from fc.control.nominal import eval_model
+from fc.estimator import Estimator
+from fc.link import M_AIRSPEED, M_ALT, M_AOA, M_N, M_P, M_PITCH, M_Q, M_R, M_SSA, M_T_S
 
 DEG = math.pi / 180.0
 
@@ -100,6 +103,60 @@ def _stats(us):
     return float(np.median(a)), float(np.percentile(a, 99)), float(np.percentile(a, 99.9))
 
 
+def _meas(n: int) -> np.ndarray:
+    """n measurement vectors (2 ms apart) at the paper's point, rates and angles moving."""
+    m = np.zeros((n, M_N))
+    t = 0.002 * np.arange(1, n + 1)
+    m[:, M_T_S] = t
+    m[:, M_PITCH] = 6 * DEG + 0.5 * DEG * np.sin(t)
+    m[:, M_AOA] = 1 * DEG + 0.5 * DEG * np.sin(t)
+    m[:, M_SSA] = 5 * DEG * np.cos(0.3 * t)
+    m[:, M_P] = 0.01 * np.sin(2 * t)
+    m[:, M_Q] = -0.02 * np.cos(t)
+    m[:, M_R] = 0.03 * np.sin(t)
+    m[:, M_AIRSPEED] = 2200.0
+    m[:, M_ALT] = 21000.0
+    return m
+
+
+def bench_fc_steps(calls: int):
+    """Per-call times (us) of the fc's own calls: Estimator.update, law.slow_step,
+    law.fast_step, and the fc tick (update + fast step; the slow step every 5th tick)."""
+    law, est0, cmd = _setup()
+    e = Estimator(0.1)
+    seq = _meas(calls + 200)
+    e.update(seq[0])
+    law.reset(e.est)
+    est = e.est
+    pc = time.perf_counter_ns
+    upd = np.empty(calls)
+    slow = np.empty(calls // 5)
+    fast = np.empty(calls)
+    tick = np.empty(calls)
+    for i in range(1, 200):                                # warm-up
+        e.update(seq[i])
+        law.slow_step(est, cmd, 0.01)
+        law.fast_step(est, 0.002)
+    for i in range(calls):
+        m = seq[200 + i]
+        t0 = pc()
+        e.update(m)
+        t1 = pc()
+        if i % 5 == 0:
+            law.slow_step(est, cmd, 0.01)
+        t2 = pc()
+        law.fast_step(est, 0.002)
+        t3 = pc()
+        upd[i] = (t1 - t0) / 1e3
+        if i % 5 == 0:
+            slow[i // 5] = (t2 - t1) / 1e3
+        fast[i] = (t3 - t2) / 1e3
+        tick[i] = (t3 - t0) / 1e3
+    return {"Estimator.update": _stats(upd), "AttitudeLaw.slow_step": _stats(slow),
+            "AttitudeLaw.fast_step": _stats(fast),
+            "fc tick: update + slow_step/5 + fast_step": _stats(tick)}
+
+
 def bench_per_call(calls: int):
     """Per-call times (us) from Python: wrapper cycle, slow kernel, fast kernel."""
     law, est, cmd = _setup()
@@ -167,6 +224,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     print("control-law cost, microseconds (median / p99 / p99.9)")
     print(f"-- per call from Python ({a.calls} calls, perf_counter_ns) --")
+    for name, (med, p99, p999) in bench_fc_steps(a.calls).items():
+        print(f"{name:52s} {med:7.3f} {p99:8.3f} {p999:8.3f}")
     for name, (med, p99, p999) in bench_per_call(a.calls).items():
         print(f"{name:52s} {med:7.3f} {p99:8.3f} {p999:8.3f}")
     print(f"-- inside numba, per part ({a.batches} batches of {a.batch}) --")

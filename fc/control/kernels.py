@@ -19,6 +19,16 @@ slots in fc/control/params.py) and allocate nothing:
     cycle_kernel(est, cmd, dt_slow, dt_fast, n_fast, par, x, nm, st, tab, atm, grid, delta)
         one slow step then n_fast fast steps.
 
+Packed entry points (the fc's per-tick path, fc.control.law.AttitudeLaw): the same kernels
+on views of one array, so that a call from Python unboxes 2 arrays instead of 10 (numba's
+dispatch costs 40-80 ns per array argument; the fast loop's arithmetic is ~0.45 us):
+
+    mem : float64[MEM_TABLES + tables]   par | x | nm | st | delta | cmd at MEM_PAR, MEM_X,
+          ..., then the law's copy of pack_tables(tab, atm, grid) at MEM_TABLES
+    slow_entry(est, cmd_rad, dt_s, mem)     copies cmd_rad to mem[MEM_CMD:], slow step
+    fast_entry(est, dt_s, mem)              fast step, delta into mem[MEM_DELTA:]
+    cycle_entry(est, cmd_rad, dt_slow_s, dt_fast_s, mem)   slow then one fast step
+
 Conventions: Omega = [alpha, beta, mu] (rad), omega = [p, q, r] (rad/s), surfaces
 [left elevon, right elevon, rudder] (rad), moments [l, m, n] (N m).
 """
@@ -28,7 +38,10 @@ import math
 
 from numba import njit
 
+import numpy as np
+
 from fc.control.layout import (
+    ATM_N, G_N, G_NALPHA, G_NH, G_NMACH, NM_N, S_N, T_N, X_N,
     E_N, E_ALPHA, E_BETA, E_GAMMA, E_MU, E_P, E_Q, E_R, E_V,
     NM_E, NM_G, NM_GCO, NM_GFD, NM_MACH, NM_PSI, NM_QBAR, NM_XI,
     S_ALLOC_SCALE, S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E1, S_E2,
@@ -45,7 +58,7 @@ from fc.control.params import (
     P_DOB_C, P_DOB_ENABLE, P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK,
     P_FST_TH_BND, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN,
     P_REF_PF_ZETA, P_SLW_AW, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX,
-    P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ, P_CO_MAP,
+    P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ, P_CO_MAP, P_N,
 )
 
 from fc.control import layout as _layout, nominal as _nominal, params as _params
@@ -790,3 +803,80 @@ def cycle_kernel(est, cmd, dt_slow, dt_fast, n_fast, par, x, nm, st, tab, atm, g
     slow_kernel(est, cmd, dt_slow, par, x, nm, st, tab, atm, grid)
     for _ in range(n_fast):
         fast_kernel(est, dt_fast, par, x, nm, st, tab, atm, grid, delta_out)
+
+
+# ---------------------------------------------------------------------------------------------
+# Packed entry points: one law's arrays as views of one buffer (fewer arguments to unbox)
+# ---------------------------------------------------------------------------------------------
+MEM_PAR = 0                     # par   float64[P_N]  parameters (SI)
+MEM_X = MEM_PAR + P_N           # x     float64[X_N]  internal state
+MEM_NM = MEM_X + X_N            # nm    float64[NM_N] nominal model
+MEM_ST = MEM_NM + NM_N          # st    float64[S_N]  status
+MEM_DELTA = MEM_ST + S_N        # delta float64[3]    surface command (rad)
+MEM_CMD = MEM_DELTA + 3         # cmd   float64[3]    last attitude command (rad)
+MEM_TABLES = MEM_CMD + 3        # the law's copy of pack_tables: grid | tab | atm
+
+
+def pack_tables(tab, atm, grid) -> np.ndarray:
+    """One float64 array ``grid | tab | atm`` (C order), the tail of a packed ``mem``.
+
+    Allocates; call once per process (fc.control.law does). The shapes come from ``grid``
+    (G_NMACH, G_NALPHA, G_NH); ValueError if the arrays disagree with it.
+    """
+    grid = np.asarray(grid, dtype=np.float64)
+    shape_tab = (int(grid[G_NMACH]), int(grid[G_NALPHA]), T_N)
+    shape_atm = (int(grid[G_NH]), ATM_N)
+    if grid.shape != (G_N,) or tab.shape != shape_tab or atm.shape != shape_atm:
+        raise ValueError(f"tables {tab.shape}, {atm.shape}, {grid.shape} disagree with grid "
+                         f"{shape_tab}, {shape_atm}, ({G_N},)")
+    return np.concatenate((grid, np.ravel(tab), np.ravel(atm))).astype(np.float64)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def unpack_tables(mem, o):
+    """(tab, atm, grid) views of the pack_tables array at mem[o:] (no copy)."""
+    grid = mem[o:o + G_N]
+    n_mach = int(grid[G_NMACH])
+    n_alpha = int(grid[G_NALPHA])
+    n_h = int(grid[G_NH])
+    a = o + G_N
+    b = a + n_mach * n_alpha * T_N
+    tab = mem[a:b].reshape((n_mach, n_alpha, T_N))
+    atm = mem[b:b + n_h * ATM_N].reshape((n_h, ATM_N))
+    return tab, atm, grid
+
+
+@njit(cache=True, error_model="numpy")
+def slow_entry(est, cmd_rad, dt_s, mem):
+    """slow_kernel on a packed ``mem`` (MEM_*); cmd_rad (alpha_c, beta_c, mu_c) rad is copied
+    to mem[MEM_CMD:MEM_CMD + 3] first (as AttitudeLaw.slow_step always did); dt_s (s)."""
+    cmd = mem[MEM_CMD:MEM_CMD + 3]
+    cmd[0] = cmd_rad[0]
+    cmd[1] = cmd_rad[1]
+    cmd[2] = cmd_rad[2]
+    tab, atm, grid = unpack_tables(mem, MEM_TABLES)
+    slow_kernel(est, cmd, dt_s, mem[MEM_PAR:MEM_PAR + P_N], mem[MEM_X:MEM_X + X_N],
+                mem[MEM_NM:MEM_NM + NM_N], mem[MEM_ST:MEM_ST + S_N], tab, atm, grid)
+
+
+@njit(cache=True, error_model="numpy")
+def fast_entry(est, dt_s, mem):
+    """fast_kernel on a packed ``mem``; the surface command (rad) lands in
+    mem[MEM_DELTA:MEM_DELTA + 3]; dt_s (s)."""
+    tab, atm, grid = unpack_tables(mem, MEM_TABLES)
+    fast_kernel(est, dt_s, mem[MEM_PAR:MEM_PAR + P_N], mem[MEM_X:MEM_X + X_N],
+                mem[MEM_NM:MEM_NM + NM_N], mem[MEM_ST:MEM_ST + S_N], tab, atm, grid,
+                mem[MEM_DELTA:MEM_DELTA + 3])
+
+
+@njit(cache=True, error_model="numpy")
+def cycle_entry(est, cmd_rad, dt_slow_s, dt_fast_s, mem):
+    """slow_entry then fast_entry in one call (cycle_kernel with n_fast = 1)."""
+    cmd = mem[MEM_CMD:MEM_CMD + 3]
+    cmd[0] = cmd_rad[0]
+    cmd[1] = cmd_rad[1]
+    cmd[2] = cmd_rad[2]
+    tab, atm, grid = unpack_tables(mem, MEM_TABLES)
+    cycle_kernel(est, cmd, dt_slow_s, dt_fast_s, 1, mem[MEM_PAR:MEM_PAR + P_N],
+                 mem[MEM_X:MEM_X + X_N], mem[MEM_NM:MEM_NM + NM_N],
+                 mem[MEM_ST:MEM_ST + S_N], tab, atm, grid, mem[MEM_DELTA:MEM_DELTA + 3])

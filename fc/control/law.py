@@ -11,13 +11,20 @@ it allocates every array once, converts parameters from the table's human units 
     law.status        # float64[STATUS_N], names in law.STATUS_NAMES
 
 Tools that need speed call the kernels directly with ``law.kernel_args()``.
+
+Per-tick cost: par, x, nm, status, delta_cmd_rad, the last command and the law's copy of
+the nominal tables are views of one buffer ``mem`` (layout kernels.MEM_*), so
+``slow_step``/``fast_step`` call one compiled entry point with 2 array arguments
+(kernels.slow_entry / fast_entry) instead of 10: numba's per-argument unboxing was most of
+the per-call cost. The wrappers do no other Python work (no copies, no conversions).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from fc.control import kernels as K
-from fc.control.layout import E_N, NM_N, S_N, STATUS_NAMES, X_N
+from fc.control.layout import (ATM_N, E_N, G_N, G_NALPHA, G_NH, G_NMACH, NM_N, S_N,
+                               STATUS_NAMES, T_N, X_N)
 from fc.control.nominal import load_tables
 from fc.control.params import LAW_PARAMS, PARAM_INDEX, P_N, default_si_array, to_si
 
@@ -27,11 +34,22 @@ _TABLES = None
 
 
 def _tables():
-    """The nominal tables, loaded once per process (read-only afterwards)."""
+    """The nominal tables packed (kernels.pack_tables: grid | tab | atm), loaded once per
+    process; each law copies them into its ``mem``. Read-only."""
     global _TABLES
     if _TABLES is None:
-        _TABLES = load_tables()
+        _TABLES = K.pack_tables(*load_tables())
     return _TABLES
+
+
+def _table_views(mem: np.ndarray, o: int):
+    """(tab, atm, grid) numpy views of the packed tables at mem[o:] (as K.unpack_tables)."""
+    grid = mem[o:o + G_N]
+    n_mach, n_alpha, n_h = int(grid[G_NMACH]), int(grid[G_NALPHA]), int(grid[G_NH])
+    a = o + G_N
+    b = a + n_mach * n_alpha * T_N
+    return (mem[a:b].reshape(n_mach, n_alpha, T_N),
+            mem[b:b + n_h * ATM_N].reshape(n_h, ATM_N), grid)
 
 
 class AttitudeLaw:
@@ -47,20 +65,28 @@ class AttitudeLaw:
     delta_cmd_rad : float64[3]  surface command (rad): left elevon, right elevon, rudder.
     status : float64[STATUS_N]  internal status record (names in STATUS_NAMES).
     par : float64[P_N]          parameters in SI (read-only for callers; use set_param).
+    x, nm : float64[X_N], float64[NM_N]  internal state and nominal model (layout.py).
+    tab, atm, grid : the nominal tables (layout.py), the law's own copy (read-only).
+    mem : float64[kernels.MEM_TABLES + tables]  the buffer that par, x, nm, status,
+        delta_cmd_rad, tab, atm, grid are views of (allocated once; never rebind those).
     """
 
     STATUS_NAMES = STATUS_NAMES
     STATUS_N = STATUS_N
 
     def __init__(self, overrides: dict[str, float] | None = None):
-        self.par = default_si_array()
-        self.x = np.zeros(X_N)
-        self.nm = np.zeros(NM_N)
-        self.status = np.zeros(S_N)
-        self.delta_cmd_rad = np.zeros(3)
-        self._cmd = np.zeros(3)
+        packed = _tables()
+        m = self.mem = np.zeros(K.MEM_TABLES + packed.size)
+        m[K.MEM_TABLES:] = packed
+        self.par = m[K.MEM_PAR:K.MEM_PAR + P_N]
+        self.par[:] = default_si_array()
+        self.x = m[K.MEM_X:K.MEM_X + X_N]
+        self.nm = m[K.MEM_NM:K.MEM_NM + NM_N]
+        self.status = m[K.MEM_ST:K.MEM_ST + S_N]
+        self.delta_cmd_rad = m[K.MEM_DELTA:K.MEM_DELTA + 3]
+        self._cmd = m[K.MEM_CMD:K.MEM_CMD + 3]
         self._zero3 = np.zeros(3)
-        self.tab, self.atm, self.grid = _tables()
+        self.tab, self.atm, self.grid = _table_views(m, K.MEM_TABLES)
         self._values = {p.name: p.default for p in LAW_PARAMS}
         for name, value in (overrides or {}).items():
             self.set_param(name, value)
@@ -94,28 +120,30 @@ class AttitudeLaw:
         self.delta_cmd_rad[:] = d0
 
     def slow_step(self, est: np.ndarray, cmd_rad, dt_s: float) -> None:
-        """Slow loop (Eqs. 27-30): est float64[E_N]; cmd_rad (alpha_c, beta_c, mu_c) rad."""
-        c = self._cmd
-        c[0] = cmd_rad[0]
-        c[1] = cmd_rad[1]
-        c[2] = cmd_rad[2]
-        K.slow_kernel(est, c, float(dt_s), self.par, self.x, self.nm, self.status,
-                      self.tab, self.atm, self.grid)
+        """Slow loop (Eqs. 27-30): est float64[E_N]; cmd_rad (alpha_c, beta_c, mu_c) rad
+        (a float64[3] array is passed as is; any other sequence is copied first); dt_s (s), a
+        float (an int would compile a second specialization on its first call)."""
+        if type(cmd_rad) is not _ndarray:
+            cmd_rad = self._copy_cmd(cmd_rad)
+        _slow_entry(est, cmd_rad, dt_s, self.mem)
 
     def fast_step(self, est: np.ndarray, dt_s: float) -> None:
         """Fast loop (Eqs. 34-37, 44-47): writes ``delta_cmd_rad`` and ``status``."""
-        K.fast_kernel(est, float(dt_s), self.par, self.x, self.nm, self.status,
-                      self.tab, self.atm, self.grid, self.delta_cmd_rad)
+        _fast_entry(est, dt_s, self.mem)
 
     def cycle(self, est: np.ndarray, cmd_rad, slow_dt_s: float, fast_dt_s: float) -> None:
-        """``slow_step`` then ``fast_step`` in one compiled call (saves one numba dispatch,
-        ~0.6 us): for ticks where both loops are due."""
+        """``slow_step`` then ``fast_step`` in one compiled call (saves one numba dispatch):
+        for ticks where both loops are due."""
+        if type(cmd_rad) is not _ndarray:
+            cmd_rad = self._copy_cmd(cmd_rad)
+        _cycle_entry(est, cmd_rad, slow_dt_s, fast_dt_s, self.mem)
+
+    def _copy_cmd(self, cmd_rad) -> np.ndarray:
         c = self._cmd
         c[0] = cmd_rad[0]
         c[1] = cmd_rad[1]
         c[2] = cmd_rad[2]
-        K.cycle_kernel(est, c, float(slow_dt_s), float(fast_dt_s), 1, self.par, self.x,
-                       self.nm, self.status, self.tab, self.atm, self.grid, self.delta_cmd_rad)
+        return c
 
     def kernel_args(self) -> dict[str, np.ndarray]:
         """The law's arrays for calling fc.control.kernels directly (no copies).
@@ -131,6 +159,12 @@ class AttitudeLaw:
     def status_dict(self) -> dict[str, float]:
         """The status record as name -> value (allocates; for logs and tests, not hot loops)."""
         return {n: float(v) for n, v in zip(STATUS_NAMES, self.status)}
+
+
+_ndarray = np.ndarray
+_slow_entry = K.slow_entry
+_fast_entry = K.fast_entry
+_cycle_entry = K.cycle_entry
 
 
 def _check_est(est) -> None:
