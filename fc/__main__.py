@@ -55,8 +55,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "(key = SHA-256, MAVProxy convention) and must be mode 600")
     ap.add_argument("--rt-priority", type=int, default=50,
                     help="SCHED_FIFO priority in realtime mode, 0 = do not ask (default 50)")
+    ap.add_argument("--sync", choices=("frame", "clock"), default="frame",
+                    help="realtime: run the fast tick when a sensor frame arrives, the deadline "
+                         "standing in for a late one (frame, default), or on the fc's own "
+                         "clock (clock)")
     ap.add_argument("--spin-us", type=int, default=0,
-                    help="realtime: busy-wait this many us before each deadline (default 0)")
+                    help="realtime: busy-wait this many us before each deadline or expected "
+                         "frame (default 0)")
     ap.add_argument("--law-module", default="fc.control",
                     help="module providing AttitudeLaw and LAW_PARAMS (default fc.control; "
                          "tests inject stand-ins)")
@@ -90,13 +95,14 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args, out: str, log: logging.Logger) -> int:
     from fc.app import FcConfig, FlightController
+    from fc.scheduler import freeze_heap
 
     cfg = FcConfig(mode=args.mode, plant_bind=args.plant_bind, plant_sysid=args.plant_sysid,
                    gcs=args.gcs or [("127.0.0.1", 14550)], gcs_bind=args.gcs_bind,
                    fast_hz=args.fast_hz, slow_hz=args.slow_hz, params=args.params,
                    timeline=args.timeline, out=out, arm=args.arm, flight_mode=args.flight_mode,
                    sysid=args.sysid, signing_key_file=args.signing_key_file,
-                   realtime_priority=args.rt_priority, spin_us=args.spin_us,
+                   realtime_priority=args.rt_priority, spin_us=args.spin_us, sync=args.sync,
                    law_module=args.law_module)
     stopping = []
 
@@ -113,6 +119,8 @@ def _run(args, out: str, log: logging.Logger) -> int:
     log.info("fc started: %s", cfg)
     log.info("plant link bound at %s:%d, GCS link bound at %s:%d", *fc.plant.endpoint.address,
              *fc.gcs.endpoint.address)
+    # the start-up heap frozen before READY: the first frames must not wait for that pass
+    log.info(freeze_heap())
     print("READY", flush=True)
     try:
         fc.run(lambda: bool(stopping))

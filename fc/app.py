@@ -8,6 +8,7 @@ time in fc/scheduler.py. The law (fc/control, docs/architecture.md section 11) i
 """
 from __future__ import annotations
 
+import gc
 import importlib
 import logging
 import math
@@ -26,7 +27,8 @@ from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signin
                      mavlink)
 from fc.modes import FlightMode, ModeManager
 from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
-from fc.scheduler import (LoopStats, TickPlanner, hold_cpu_wakeup_latency, sleep_until_ns,
+from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
+                          hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
                           try_realtime)
 from fc.timeline import Timeline, load_timeline
 
@@ -68,6 +70,7 @@ class FcConfig:
     signing_key_file: str | None = None
     realtime_priority: int = 50            # SCHED_FIFO priority, 0 = do not ask
     spin_us: int = 0                       # busy-wait the last microseconds before a deadline
+    sync: str = "frame"                    # realtime: frame (tick on the sensor frame) | clock
     law_module: str = "fc.control"
 
 
@@ -95,6 +98,9 @@ class FlightController:
         if cfg.mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, not {cfg.mode!r}")
         self.stats = LoopStats(self.planner.period_ns)
+        if cfg.sync not in ("frame", "clock"):
+            raise ValueError(f"--sync must be frame or clock, not {cfg.sync!r}")
+        self.gate = FrameGate(self.planner.period_ns)
         # cheap checks of the inputs first: a bad file fails before the law is loaded
         commands = load_timeline(cfg.timeline) if cfg.timeline else None
         key = load_signing_key(cfg.signing_key_file) if cfg.signing_key_file else None
@@ -143,6 +149,8 @@ class FlightController:
         self.timeline = Timeline(commands) if commands is not None else None
         self._exec_ns_sum = 0
         self._exec_n = 0
+        self.gc_us = 0.0                # last 1 Hz garbage collection, us (NAMED_VALUE GC_US)
+        self._chore = 0                 # which of the 1 Hz chores the next housekeeping does
         self._load_permille = 0
         self._named_cache: list = []
         self._relocks_seen = 0
@@ -390,17 +398,31 @@ class FlightController:
             self._event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
                         ML.MAV_SEVERITY_WARNING)
         if now_s >= self._next_1hz:
-            self._next_1hz = now_s + 1.0
-            self.stats.roll()
-            if self._exec_n:
-                self._load_permille = min(1000, int(1000 * self._exec_ns_sum / self._exec_n
-                                                    / self.planner.period_ns))
-            self._exec_ns_sum = self._exec_n = 0
-            self._refresh_telemetry_cache()
-            self.gcs.flush()
-            if self.params_dirty:
-                self.params_dirty = False
-                self.io.submit(self._save_params, self.params.values.copy())
+            # the 1 Hz chores, one per housekeeping call (each after a tick's answer has gone),
+            # so no single call delays the next frame's tick by their sum
+            stage = self._chore
+            if stage == 0:
+                self.stats.roll()
+                if self._exec_n:
+                    self._load_permille = min(1000, int(1000 * self._exec_ns_sum / self._exec_n
+                                                        / self.planner.period_ns))
+                self._exec_ns_sum = self._exec_n = 0
+            elif stage == 1:
+                t_gc = time.perf_counter_ns()
+                collect_garbage()
+                self.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
+            elif stage == 2:
+                self._refresh_telemetry_cache()
+            else:
+                self.gcs.flush()
+                if self.params_dirty:
+                    self.params_dirty = False
+                    self.io.submit(self._save_params, self.params.values.copy())
+            if stage == 3:
+                self._chore = 0
+                self._next_1hz = now_s + 1.0
+            else:
+                self._chore = stage + 1
         self.gcs.service(now_s)
 
     def _save_params(self, values: np.ndarray | None = None) -> None:
@@ -423,12 +445,16 @@ class FlightController:
             return ML.MAV_SYS_STATUS_AHRS
         return 0
 
+    def skipped_ticks(self) -> int:
+        """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
+        return self.planner.skipped + (self.gate.skipped if hasattr(self, "gate") else 0)
+
     def load_permille(self) -> int:
         return self._load_permille
 
     def error_counts(self) -> tuple[int, int, int, int, int]:
         return (self.gcs.rejected_bad + self.gcs.rejected_signing, self.plant.counters.rejected,
-                self.est.invalid_frames, self.stats.overruns + self.planner.skipped,
+                self.est.invalid_frames, self.stats.overruns + self.skipped_ticks(),
                 self.stats.late)
 
     def named_values(self) -> list:
@@ -444,7 +470,9 @@ class FlightController:
             (b"GAMMA_DEG", math.degrees(e[8])),
             (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
             (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
-            (b"SKIPPED", float(self.planner.skipped)),
+            (b"SKIPPED", float(self.skipped_ticks())),
+            (b"TICK_FALLB", float(self.gate.fallback_ticks if hasattr(self, "gate") else 0)),
+            (b"GC_US", float(getattr(self, "gc_us", 0.0))),
             (b"REJ_PLANT", float(c.rejected if c else 0)),
             (b"REJ_GCS", float(self.gcs.rejected_bad if hasattr(self, "gcs") else 0)),
             (b"REJ_SIGN", float(self.gcs.rejected_signing if hasattr(self, "gcs") else 0)),
@@ -466,16 +494,21 @@ class FlightController:
     # ------------------------------------------------------------------ loops
     def run(self, stop) -> None:
         self._next_1hz = 0.0
-        if self.cfg.mode == "realtime":
-            if self.cfg.realtime_priority > 0:
-                ok, msg = try_realtime(self.cfg.realtime_priority)
-                (self.log.info if ok else self.log.warning)(msg)
-            self._run_realtime(stop)
-        else:
-            # each lockstep exchange wakes an idle CPU; keep wake-ups off the hypervisor's path
-            # (docs/performance.md: idle vCPUs halt on this VM and a UDP round trip triples)
-            self.log.info(hold_cpu_wakeup_latency(0))
-            self._run_lockstep(stop)
+        if gc.isenabled():              # python -m fc froze it before READY
+            self.log.info(freeze_heap())
+        try:
+            if self.cfg.mode == "realtime":
+                if self.cfg.realtime_priority > 0:
+                    ok, msg = try_realtime(self.cfg.realtime_priority)
+                    (self.log.info if ok else self.log.warning)(msg)
+                self._run_realtime(stop)
+            else:
+                # each lockstep exchange wakes an idle CPU; keep wake-ups off the hypervisor's
+                # path (docs/performance.md: idle vCPUs halt on this VM, a round trip triples)
+                self.log.info(hold_cpu_wakeup_latency(0))
+                self._run_lockstep(stop)
+        finally:
+            release_heap()      # automatic collection back on (an embedding process goes on)
 
     def _run_lockstep(self, stop) -> None:
         plant_fd = self.plant.endpoint.fileno()
@@ -527,53 +560,118 @@ class FlightController:
             self._log_row(0, time.perf_counter_ns() - t_exec)
 
     def _run_realtime(self, stop) -> None:
+        if self.cfg.sync == "frame":
+            self._run_realtime_frame(stop)
+        else:
+            self._run_realtime_clock(stop)
+
+    def _run_realtime_clock(self, stop) -> None:
+        """Free-running clock (``--sync clock``): ticks on absolute deadlines ``t0 + k T``,
+        each answering the newest frame; the answer's delay is the phase between the fc's
+        clock and the plant's (docs/fc.md)."""
         planner = self.planner
         planner.anchor(time.monotonic_ns() + planner.period_ns)
         spin_ns = self.cfg.spin_us * 1000
         mono_ns = time.monotonic_ns
-        have_frame = False
         while not stop():
             deadline = planner.next_ns
             sleep_until_ns(deadline, spin_ns)
             wake = mono_ns()
             planner.due(wake)
-            now_s = wake * 1e-9
-            for _ in range(64):   # drain: every new frame goes through the estimator
-                stamp = self.plant.read_frame(self._rx_meas)
-                if stamp < 0:
-                    break
-                if stamp == self.last_stamp_us:
-                    self.duplicate_frames += 1
+            self._rt_drain(wake * 1e-9)
+            self._rt_tick(wake, wake - deadline)
+
+    def _run_realtime_frame(self, stop) -> None:
+        """Frame-synchronised (``--sync frame``, the default): the fast tick runs when a new
+        sensor frame arrives, the deadline standing in when a frame is late or missing
+        (:class:`fc.scheduler.FrameGate`). Waits are ``select`` on the plant socket with a
+        microsecond timeout; with ``--spin-us`` the last microseconds before the expected
+        frame are polled instead. Lateness of a frame tick = wake-up time minus the kernel's
+        receive stamp of the frame (``SO_TIMESTAMPNS``); of a deadline tick = wake-up time minus
+        the deadline."""
+        gate = self.gate
+        spin_ns = self.cfg.spin_us * 1000
+        mono_ns = time.monotonic_ns
+        wall_ns = time.time_ns
+        sel = select.select
+        fds = [self.plant.endpoint.fileno()]
+        stamped = self.plant.endpoint.enable_rx_timestamps()
+        gate.start(mono_ns())
+        while not stop():
+            until = gate.wait_until_ns()
+            now = mono_ns()
+            if now < until:
+                sleep_to = until - spin_ns if spin_ns else until
+                try:
+                    ready = sel(fds, [], [], (sleep_to - now) * 1e-9) if sleep_to > now else ()
+                    if not ready and spin_ns:
+                        while not ready and mono_ns() < until:
+                            ready = sel(fds, [], [], 0.0)[0]
+                except InterruptedError:
                     continue
-                if stamp < self.last_stamp_us:
-                    # plant restarted, or a reordered/hostile frame: the estimator starts over
-                    # (it ignores stamps that do not advance); the law keeps running
-                    self.plant_resets += 1
-                    self.est.reset()
-                    if self.last_stamp_us - stamp > 100_000:
-                        self._event("plant time went backwards: estimator restarted",
-                                    ML.MAV_SEVERITY_WARNING)
-                self.meas_scratch[:] = self._rx_meas
-                self.last_stamp_us = stamp
-                self.meas_stamp_us = stamp
-                self._new_frame(now_s)
-                have_frame = True
-                self.last_frame_wall_s = now_s
-                self.law_held = False
-            if (have_frame and not self.law_held and self.modes.law_active
-                    and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
-                self.law_held = True
-                self.law_holds += 1
-            self._sync_mode()
-            self._fast_tick(planner.slow_due())
-            if have_frame:
-                self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
-            exec_ns = mono_ns() - wake
-            self.stats.record(wake - deadline, exec_ns)
-            self._exec_ns_sum += exec_ns
-            self._exec_n += 1
-            self._log_row(wake - deadline, exec_ns)
-            self._housekeeping(now_s)
+            wake = mono_ns()
+            wake_wall = wall_ns()
+            n_new, rx_ns = self._rt_drain(wake * 1e-9)
+            if n_new:
+                if not gate.on_frame(wake):
+                    continue                    # early frame: absorbed, tick at the deadline
+                lateness = wake_wall - rx_ns if (stamped and rx_ns) else 0
+            elif wake < until:
+                continue                        # woken by a duplicate or rejected datagram
+            else:
+                gate.on_timeout(wake)
+                lateness = wake - until
+            self._rt_tick(wake, lateness)
+
+    def _rt_drain(self, now_s: float) -> tuple[int, int]:
+        """Read every waiting frame through the estimator, in arrival order. Returns (new
+        frames, kernel receive stamp of the first of them, ns)."""
+        n_new = 0
+        first_rx_ns = 0
+        for _ in range(64):   # bounded work per wake-up
+            stamp = self.plant.read_frame(self._rx_meas)
+            if stamp < 0:
+                break
+            if stamp == self.last_stamp_us:
+                self.duplicate_frames += 1
+                continue
+            if stamp < self.last_stamp_us:
+                # plant restarted, or a reordered/hostile frame: the estimator starts over
+                # (it ignores stamps that do not advance); the law keeps running
+                self.plant_resets += 1
+                self.est.reset()
+                if self.last_stamp_us - stamp > 100_000:
+                    self._event("plant time went backwards: estimator restarted",
+                                ML.MAV_SEVERITY_WARNING)
+            if n_new == 0:
+                first_rx_ns = self.plant.frame_rx_ns
+            n_new += 1
+            self.meas_scratch[:] = self._rx_meas
+            self.last_stamp_us = stamp
+            self.meas_stamp_us = stamp
+            self._new_frame(now_s)
+            self.last_frame_wall_s = now_s
+            self.law_held = False
+        return n_new, first_rx_ns
+
+    def _rt_tick(self, wake_ns: int, lateness_ns: int) -> None:
+        """One real-time fast tick (woken at ``wake_ns``), its answer and the housekeeping."""
+        now_s = wake_ns * 1e-9
+        have_frame = self.last_frame_wall_s >= 0.0
+        if (have_frame and not self.law_held and self.modes.law_active
+                and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
+            self.law_held = True
+            self.law_holds += 1
+        self._sync_mode()
+        self._fast_tick(self.planner.slow_due())
+        if have_frame:
+            self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
+        exec_ns = time.monotonic_ns() - wake_ns
+        self.stats.record(lateness_ns, exec_ns)
+        self._exec_ns_sum += exec_ns
+        self._exec_n += 1
+        self._log_row(lateness_ns, exec_ns)
+        self._housekeeping(now_s)
 
     # ------------------------------------------------------------------ shutdown
     def close(self) -> None:
@@ -589,7 +687,12 @@ class FlightController:
             c.frames, c.outputs, self.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
             c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
-            self.planner.skipped, self.law_errors)
+            self.skipped_ticks(), self.law_errors)
+        if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
+            g = self.gate
+            self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "
+                          "early frame %d, fallback (no frame) %d; early frames absorbed %d",
+                          g.frame_ticks, g.grid_ticks, g.fallback_ticks, g.absorbed)
         try:
             path = self.ilog.close()
             self.log.info("internals log: %s (%d rows, %d dropped)", path, self.ilog.rows,

@@ -6,6 +6,10 @@ socket or epoll timeout, which CPython rounds to whole milliseconds (shared perf
 section 2); sockets are drained non-blockingly after waking. SCHED_FIFO is requested when the
 OS allows it; a refusal is reported to the caller for the log.
 
+Real time, frame-synchronised (the default, ``--sync frame``): :class:`FrameGate` decides when
+a sensor frame triggers the fast tick and when the deadline has to stand in for it; the
+waiting itself (``select`` on the plant socket, microsecond timeout) is the caller's.
+
 Lockstep: :class:`TickPlanner` turns sensor time stamps into fast/slow ticks, so the
 loops run on sim time and a run is deterministic.
 """
@@ -13,13 +17,17 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import gc
+import math
 import os
 import struct
 import time
 
 import numpy as np
 
-__all__ = ["monotonic_ns", "sleep_until_ns", "try_realtime", "TickPlanner", "LoopStats"]
+__all__ = ["monotonic_ns", "sleep_until_ns", "try_realtime", "freeze_heap", "release_heap",
+           "collect_garbage",
+           "TickPlanner", "FrameGate", "LoopStats"]
 
 monotonic_ns = time.monotonic_ns
 CLOCK_MONOTONIC = 1
@@ -84,6 +92,35 @@ def hold_cpu_wakeup_latency(us: int = 0) -> str:
         return f"CPU wake-up latency request refused ({exc})"
     _pm_qos_fd = fd
     return f"CPU wake-up latency request: {int(us)} us (/dev/cpu_dma_latency)"
+
+
+def freeze_heap() -> str:
+    """Take the garbage collector off the loop's timing path (call once, before the loop).
+
+    CPython's automatic collections run wherever an allocation crosses a threshold, inside a
+    tick or between a frame and its answer; with numba, LLVM bindings and pymavlink loaded a
+    young-generation pass costs 0.1-0.4 ms and a middle one ~1 ms (measured in the fc at 1 kHz,
+    docs/performance.md). So: collect once, move every object alive after start-up to the
+    permanent generation (``gc.freeze``: never scanned again) and turn automatic collection
+    off; the loop calls :func:`collect_garbage` at a moment of its choosing (the fc: in its
+    1 Hz housekeeping, after the tick's answer has gone). Returns a message for the log."""
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    return f"garbage collector: {gc.get_freeze_count()} start-up objects frozen, " \
+           "collections at 1 Hz outside the tick"
+
+
+def release_heap() -> None:
+    """Undo :func:`freeze_heap`: automatic collection on, the frozen objects collectable again."""
+    gc.unfreeze()
+    gc.enable()
+
+
+def collect_garbage() -> int:
+    """One full collection of what was allocated since :func:`freeze_heap` (the start-up heap is
+    frozen, so this scans only the run's own objects). Returns the number of objects freed."""
+    return gc.collect()
 
 
 def try_realtime(priority: int = 50) -> tuple[bool, str]:
@@ -156,6 +193,97 @@ class TickPlanner:
         return due
 
 
+class FrameGate:
+    """When the real-time fast tick runs if it follows the plant's sensor frames.
+
+    Pure bookkeeping on integer CLOCK_MONOTONIC nanoseconds (no clock, no I/O), as the flight
+    stacks run their rate loop on the IMU sample (PX4: on the gyro publication; ArduPilot:
+    ``wait_for_sample``). ``next_ns`` is when the next tick is due, one period after the last
+    one:
+
+    * a new frame arriving at or after ``next_ns - accept_ns`` triggers the tick at once and
+      the grid follows the plant's clock: an early frame re-anchors it (``next_ns = arrival +
+      period``), a late one moves it by 1/8 of its lateness (its successor is expected on the
+      plant's grid, not a period after the late frame). The answer is then one hop plus the
+      tick's work after the frame;
+    * a frame arriving earlier (the plant runs faster than the fast loop, a burst, or the grid
+      is out of phase with the plant at start-up) is only absorbed (estimator); its successor,
+      a plant period later, falls in the window and locks the grid on;
+    * with no acceptable frame by ``next_ns + grace_ns`` the tick runs anyway (on an absorbed
+      frame: a grid tick; on the last data: a fallback tick; both counted) and
+      ``next_ns`` advances by one period, so the loop, its counters and the hold/failsafe
+      logic keep their rate;
+    * more than ``max_behind`` periods behind, the missed ticks are skipped (counted) and the
+      deadlines re-anchored.
+
+    ``accept_frac`` (< 0.5) bounds how early a frame may trigger a tick, so a plant at twice the
+    fast rate cannot drive the law at twice its dt; ``grace_frac`` is how long a late frame is
+    waited for.
+    """
+
+    TICK_FRAME, TICK_GRID, TICK_FALLBACK = 0, 1, 2
+    LATE_GAIN_SHIFT = 3     # a late frame moves the grid by 1/8 of its lateness
+
+    def __init__(self, period_ns: int, accept_frac: float = 0.4, grace_frac: float = 0.5,
+                 max_behind: int = 2) -> None:
+        if not 0.0 <= accept_frac < 0.5:
+            raise ValueError("accept_frac must be in [0, 0.5)")
+        if not 0.0 <= grace_frac < 1.0:
+            raise ValueError("grace_frac must be in [0, 1)")
+        self.period_ns = int(period_ns)
+        self.accept_ns = int(period_ns * accept_frac)
+        self.grace_ns = int(period_ns * grace_frac)
+        self.max_behind = max_behind
+        self.next_ns = 0
+        self.pending = False        # a frame absorbed since the last tick
+        self.frame_ticks = 0
+        self.grid_ticks = 0
+        self.fallback_ticks = 0
+        self.absorbed = 0
+        self.skipped = 0
+
+    def start(self, now_ns: int) -> None:
+        """First tick due one period from ``now_ns`` (or on the first frame)."""
+        self.next_ns = now_ns + self.period_ns
+        self.pending = False
+
+    def wait_until_ns(self) -> int:
+        """Latest time to wait for a frame before the tick runs without one."""
+        return self.next_ns + self.grace_ns
+
+    def on_frame(self, arrival_ns: int) -> bool:
+        """A new frame arrived at ``arrival_ns``: True = run the tick now (re-anchored on the
+        frame), False = absorbed, keep waiting."""
+        if arrival_ns >= self.next_ns - self.accept_ns:
+            err = arrival_ns - self.next_ns
+            # follow the plant's clock: an early frame moves the grid to it at once, a late one
+            # only by a fraction (a late frame is usually the plant's or the network's jitter,
+            # and its successor comes on the plant's grid, not a period after the late one)
+            self.next_ns += self.period_ns + (err if err < 0 else err >> self.LATE_GAIN_SHIFT)
+            self.pending = False
+            self.frame_ticks += 1
+            return True
+        self.pending = True
+        self.absorbed += 1
+        return False
+
+    def on_timeout(self, now_ns: int) -> int:
+        """The wait ended without a new frame at ``now_ns`` (>= ``wait_until_ns()``): the tick
+        runs. Returns TICK_GRID (on an absorbed frame) or TICK_FALLBACK (no new frame)."""
+        kind = self.TICK_GRID if self.pending else self.TICK_FALLBACK
+        if kind == self.TICK_GRID:
+            self.grid_ticks += 1
+        else:
+            self.fallback_ticks += 1
+        self.next_ns += self.period_ns
+        self.pending = False
+        if now_ns - self.next_ns > self.max_behind * self.period_ns:
+            missed = (now_ns - self.next_ns) // self.period_ns
+            self.skipped += int(missed)
+            self.next_ns = now_ns + self.period_ns
+        return kind
+
+
 class LoopStats:
     """Wake-up lateness and execution time of the fast loop (real time), preallocated.
 
@@ -170,6 +298,7 @@ class LoopStats:
         self.late = 0
         self.overruns = 0           # tick work longer than a period
         self.buf = np.zeros(window, dtype=np.int64)
+        self._sorted = np.zeros(window, dtype=np.int64)     # scratch for roll()
         self.n = 0
         self.window_max_us = 0.0
         self.window_p99_us = 0.0
@@ -189,8 +318,14 @@ class LoopStats:
 
     def roll(self) -> None:
         """Summarise the window (called from the slow housekeeping, ~1 Hz)."""
-        if self.n:
-            w = self.buf[:self.n]
-            self.window_max_us = float(w.max()) * 1e-3
-            self.window_p99_us = float(np.percentile(w, 99)) * 1e-3
+        n = self.n
+        if n:
+            # the 99th percentile by selection in a preallocated scratch (np.percentile costs
+            # ~250 us cold at 1 kHz and delayed the next frame's tick); nearest rank
+            w = self._sorted[:n]
+            w[:] = self.buf[:n]
+            k = min(n - 1, int(math.ceil(0.99 * n)) - 1)
+            w.partition(k)
+            self.window_p99_us = float(w[k]) * 1e-3
+            self.window_max_us = float(self.buf[:n].max()) * 1e-3
         self.n = 0

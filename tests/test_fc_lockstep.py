@@ -108,6 +108,68 @@ def test_realtime_mode_echoes_newest_stamp(tmp_path):
         assert "scheduling" in f.read()      # SCHED_FIFO granted or the refusal logged
 
 
+def _realtime_session(out: str, *extra: str, n_frames: int = 150) -> tuple[list, list, str]:
+    """Frames 10 ms apart (with a few ms of jitter) to a 100 Hz real-time fc; each frame waits
+    (bounded) for the first answer echoing its own stamp. Returns (stamps sent, stamps of the
+    answers seen, fc.log)."""
+    rng = np.random.default_rng(7)
+    sent, echoed = [], []
+    with FcProcess(out, "--mode", "realtime", "--fast-hz", "100", "--slow-hz", "20",
+                   *extra) as fc:
+        plant = ScriptedPlant(fc.plant_port)
+        try:
+            t_next = time.monotonic()
+            for k in range(1, n_frames + 1):
+                t_next += 0.010 + rng.uniform(-0.002, 0.002)
+                while time.monotonic() < t_next:
+                    ans = plant.recv_servo(max(0.0, t_next - time.monotonic()))
+                    if ans is not None:
+                        echoed.append(ans.time_usec)
+                stamp = 10_000 * k
+                plant.send_frame(level_meas(stamp * 1e-6))
+                sent.append(stamp)
+        finally:
+            plant.close()
+        assert fc.stop() == 0
+    with open(os.path.join(out, "fc.log")) as f:
+        return sent, echoed, f.read()
+
+
+def _frame_ticks(log_text: str) -> int:
+    import re
+    m = re.search(r"frame-synchronised ticks: on a frame (\d+)", log_text)
+    assert m, "the fc did not report its frame-synchronised ticks"
+    return int(m.group(1))
+
+
+def test_realtime_frame_sync_runs_a_tick_on_each_frame(tmp_path):
+    """The default real-time schedule: a sensor frame triggers the fast tick (and its answer)
+    instead of waiting for the fc's own clock; the deadline only stands in for missing frames."""
+    sent, echoed, log_text = _realtime_session(str(tmp_path))
+    assert set(echoed) <= set(sent)
+    assert len(set(echoed)) >= 0.9 * len(sent)          # (nearly) every frame answered
+    # the frames came at the fast rate, so (nearly) every one triggered its own tick
+    assert _frame_ticks(log_text) >= 0.9 * len(sent)
+    assert "garbage collector:" in log_text             # the collector is off the schedule
+    log = load(str(tmp_path))
+    lat = np.asarray(log["lateness_us"])
+    assert lat.size >= 0.9 * len(sent) and (lat >= -1000).all()   # wake minus kernel arrival
+
+
+def test_realtime_clock_sync_still_available(tmp_path):
+    sent, echoed, log_text = _realtime_session(str(tmp_path), "--sync", "clock", n_frames=60)
+    assert set(echoed) <= set(sent) and len(set(echoed)) >= 30
+    assert "frame-synchronised ticks" not in log_text
+
+
+def test_bad_sync_choice_is_refused():
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-m", "fc", "--sync", "gps"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and "--sync" in r.stderr
+
+
 def test_plant_reset_restarts_loops_and_timeline(tmp_path):
     tl = tmp_path / "timeline.toml"
     tl.write_text("[[command]]\nt_s = 0.0\nalpha_deg = 1.0\n[[command]]\nt_s = 0.02\nalpha_deg = 3.0\n")

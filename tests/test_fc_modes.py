@@ -1,6 +1,7 @@
 """fc/modes.py, fc/scheduler.py TickPlanner, fc/timeline.py: pure logic, no sockets."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from fc.modes import FS_DATA, FS_NONE, FS_REQUESTED, FlightMode, ModeManager
@@ -95,6 +96,21 @@ def test_loop_stats_counts_late_ticks():
     assert s.ticks == 5 and s.late == 2 and s.overruns == 1
     s.roll()
     assert s.window_max_us == 3000.0
+
+
+def test_loop_stats_window_p99_is_the_nearest_rank_percentile():
+    s = LoopStats(1_000_000, window=1024)
+    rng = np.random.default_rng(3)
+    lat = rng.integers(0, 400_000, 1000)
+    for v in lat:
+        s.record(int(v), 10_000)
+    s.roll()
+    expect = np.sort(lat)[int(np.ceil(0.99 * 1000)) - 1] * 1e-3
+    assert s.window_p99_us == pytest.approx(expect)
+    assert s.window_max_us == pytest.approx(lat.max() * 1e-3)
+    s.record(7_000, 0)                  # the next window starts empty
+    s.roll()
+    assert s.window_p99_us == pytest.approx(7.0) and s.window_max_us == pytest.approx(7.0)
 
 
 def test_timeline_load_and_due(tmp_path):
