@@ -17,6 +17,8 @@ schedule is re-based on the current time (counted as a resync) instead of bursti
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import json
 import logging
 import math
@@ -119,10 +121,11 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     n_frames = int(round(cfg.duration_s / sim.frame_dt_s))
     t_wall0 = time.perf_counter()
     try:
-        if cfg.mode == "lockstep":
-            _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log)
-        else:
-            _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
+        with gc_off_schedule():
+            if cfg.mode == "lockstep":
+                _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log)
+            else:
+                _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
         # the final state, measured but not sent
         if stats.exit_reason == "completed":
             sim.truth_row(writer.row())      # t_end: state and the measurement taken there
@@ -188,6 +191,22 @@ def _progress(cfg, sim, t_wall0, now):
     print(f"PROGRESS t_s={sim.t_s:.3f} rtf={rtf:.1f}", flush=True)
 
 
+@contextlib.contextmanager
+def gc_off_schedule():
+    """The garbage collector off the frame schedule: start-up objects frozen (never scanned
+    again), automatic passes off (0.1-1 ms each, wherever an allocation crosses a threshold);
+    the loops collect once a second right after a frame has gone (as the fc does,
+    docs/performance.md). Restored on exit."""
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+        gc.enable()
+
+
 def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
     meas = sim.last_meas
     cmd = np.zeros(3)
@@ -199,6 +218,7 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t_wall0 = perf()
     next_progress = t_wall0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
+    next_gc = t_wall0 + 1.0
     sim.measure(meas)
     for k in range(n_frames):
         stamp = int(round(k * frame_dt * 1e6))
@@ -235,6 +255,9 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
         stats.frames += 1
         if k & 63 == 0:
             now = perf()
+            if now >= next_gc:
+                gc.collect()
+                next_gc = now + 1.0
             if now >= next_progress:
                 _progress(cfg, sim, t_wall0, now)
                 next_progress = now + cfg.progress_every_s
@@ -258,6 +281,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t0 = perf()
     next_progress = t0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
+    next_gc = t0 + 1.0
     last_cmd_wall = -math.inf
     silent = False
     last_count = 0
@@ -320,6 +344,9 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             _warn_clip(sim, stats, log)
         stats.frames += 1
         k += 1
+        if now >= next_gc:                         # after the frame went: 1 Hz, bounded
+            gc.collect()
+            next_gc = now + 1.0
         if now >= next_progress:
             _progress(cfg, sim, t0, now)
             next_progress = now + cfg.progress_every_s

@@ -146,3 +146,14 @@ def test_realtime_without_commands_goes_to_trim(tmp_path):
     assert abs(expect[0]) > 0.1                      # the nominal initial state needs ~ -10 deg
     for i, n in enumerate(("delta_cmd_left_rad", "delta_cmd_right_rad", "delta_cmd_rudder_rad")):
         assert t[n][:-1] == pytest.approx(expect[i], abs=1e-12)
+
+
+def test_gc_off_schedule_freezes_and_restores_the_collector():
+    import gc
+
+    from plant_sim.process import gc_off_schedule
+    assert gc.isenabled()
+    with gc_off_schedule():
+        assert not gc.isenabled()
+        assert gc.get_freeze_count() > 0
+    assert gc.isenabled() and gc.get_freeze_count() == 0
