@@ -27,7 +27,7 @@ EXPECTED = (
     "lockstep_500_rtf", "lockstep_1000_rtf", "lockstep_500_exchange_median_us",
     "rt_1000_lateness_median_us", "rt_1000_lateness_p99_us", "rt_1000_lateness_max_us",
     "rt_1000_late_20pct_pct", "rt_1000_latency_median_us", "rt_1000_latency_p99_us",
-    "rt_500_lateness_p99_us", "rt_500_latency_p99_us", "rt_1000_spin_lateness_p99_us",
+    "rt_500_lateness_p99_us", "rt_500_latency_p99_us", "rt_1000_clock_lateness_p99_us",
     "startup_warm_first_servo_s",
     "fc_peak_rss_mb", "standin_peak_rss_mb", "fc_rss_growth_mb_per_min",
     "closed_loop_sim_s_per_wall_s",

@@ -101,11 +101,7 @@ def _echo_links(sock: socket.socket) -> int:
     import select
 
     from fc.link import PlantLink, UdpEndpoint
-    ep = UdpEndpoint.__new__(UdpEndpoint)       # wrap the bound socket: same port as printed
-    sock.setblocking(False)
-    ep.sock = sock
-    ep.address = sock.getsockname()
-    ep.send_errors = 0
+    ep = UdpEndpoint.wrap(sock)                 # the bound socket: same port as printed
     link = PlantLink(ep, plant_sysid=PLANT_SYSID, sysid=FC_SYSID)
     meas = np.zeros(14)
     pwm = [1500, 1500, 1500]
@@ -120,7 +116,13 @@ def _echo_links(sock: socket.socket) -> int:
             return 0
 
 
-def _run_links(sock: socket.socket, peer: tuple, n: int, warm: int) -> dict:
+def _child_alive(child) -> None:
+    """A lost exchange: fail at once if the echo child died (instead of n timeouts)."""
+    if child is not None and child.poll() is not None:
+        raise RuntimeError(f"udp_pingpong echo child exited with code {child.returncode}")
+
+
+def _run_links(sock: socket.socket, peer: tuple, n: int, warm: int, child=None) -> dict:
     """Parent side of ``links``: the plant's link (its own socket) against the child."""
     from plant_sim.link import PlantLink, PwmMap
     link = PlantLink(peer, ("127.0.0.1", 0), PwmMap(1000, 1500, 2000, 0.349))
@@ -140,6 +142,7 @@ def _run_links(sock: socket.socket, peer: tuple, n: int, warm: int) -> dict:
             while True:
                 if not link.wait_readable(TIMEOUT_S):
                     lost += 1
+                    _child_alive(child)
                     break
                 _acc, match = link.poll_for(stamp & 0xFFFFFFFF)
                 if match:
@@ -171,7 +174,7 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
         peer = ("127.0.0.1", int(line.split()[1]))
         warm = max(n // 20, 10)
         if payload == "links":
-            return _run_links(sock, peer, n, warm)
+            return _run_links(sock, peer, n, warm, child)
         sock.bind(("127.0.0.1", 0))
         sock.settimeout(TIMEOUT_S)
         if payload == "mavlink":
@@ -194,6 +197,7 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
                 data, _ = sock.recvfrom(2048)
             except socket.timeout:
                 lost += 1
+                _child_alive(child)
                 continue
             if payload == "mavlink":
                 msgs, _b = decode_datagram(rx, data)

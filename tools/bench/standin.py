@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 from fc.link import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P,
-                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, decode_datagram,
+                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, UdpEndpoint, decode_datagram,
                      mavlink, new_codec, parse_hostport, pwm_to_deflection)
 
 PLANT_SYSID = 2
@@ -94,16 +94,23 @@ class PlantWire:
         self.link = PlantLink(fc, ("127.0.0.1", 0), self.pwm)
         self.sock = self.link.sock
         self._generic = FrameCodec()
+        self._rx = UdpEndpoint.wrap(self.sock)      # the fc's receive path (kernel stamps)
 
     def send(self, meas: np.ndarray, stamp_us: int) -> None:
         self.link.build_sensors(stamp_us, meas, 0.0)
         self.link.send_sensors()
 
+    def enable_rx_timestamps(self) -> bool:
+        """Kernel receive stamps on this socket (``SO_TIMESTAMPNS``, CLOCK_REALTIME): ``recv``
+        then sets ``rx_ns``, the time an echo arrived whatever this process was doing."""
+        return self._rx.enable_rx_timestamps()
+
+    @property
+    def rx_ns(self) -> int:
+        return self._rx.rx_ns
+
     def recv(self):
-        try:
-            return self.sock.recvfrom(2048)
-        except (BlockingIOError, InterruptedError, ConnectionRefusedError):
-            return None
+        return self._rx.recv()
 
     def servo(self, data: bytes):
         """(time_usec, (s1, s2, s3)) of a SERVO_OUTPUT_RAW datagram, or None."""
@@ -187,9 +194,19 @@ def run_lockstep(ep: PlantWire, fc: tuple, sim, duration_s: float, rerequest_s: 
 
 
 def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
-    """Wall-clock frames; latency of frame k = first echo of k - send time of k."""
-    from fc.scheduler import try_realtime
+    """Wall-clock frames; latency of frame k = first echo of k - send time of k.
+
+    Both ends of the latency are on CLOCK_REALTIME: the send time is read right after
+    ``sendto`` returns, the echo's is the kernel's receive stamp (``SO_TIMESTAMPNS``), so an
+    echo that arrives while this process is busy (physics, encoding) or descheduled is not
+    charged to the fc. Where the stamps are not available the echo is timed when this process
+    reads it (an upper bound). The garbage collector is kept off the loop (``freeze_heap``),
+    as in the fc."""
+    from fc.scheduler import freeze_heap, try_realtime
     rt_ok, rt_msg = try_realtime(50)
+    freeze_heap()
+    stamped = ep.enable_rx_timestamps()
+    wall = time.time_ns
     codec = ep
     meas = np.zeros(M_N)
     cmd = sim.cmd_rad.copy()
@@ -215,7 +232,7 @@ def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
             r, _, _ = select.select([fd], [], [], (nxt - now) * 1e-9)
             if not r:
                 continue
-            t_rx = mono()
+            t_rx = wall()
             for _ in range(64):
                 got = ep.recv()
                 if got is None:
@@ -224,10 +241,10 @@ def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
                 if s is None:
                     continue
                 echoes += 1
-                last_echo_ns = t_rx
+                last_echo_ns = mono()
                 j = int(round(((s[0] - stamp0) & 0xFFFFFFFF) / period_us))
                 if 0 <= j < k and echo_ns[j] == 0:
-                    echo_ns[j] = t_rx
+                    echo_ns[j] = ep.rx_ns if (stamped and ep.rx_ns) else t_rx
                 else:
                     stale += 1
                 _apply(cmd, s[1], ep)
@@ -239,7 +256,7 @@ def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
         sim.measure(meas)
         stamp = int(round(sim.t_s * 1e6))
         ep.send(meas, stamp)
-        sent_ns[k] = mono()
+        sent_ns[k] = wall()
         k += 1
         nxt += period_ns
         if mono() - nxt > 50 * period_ns:       # far behind (stall): re-anchor, do not burst
@@ -251,20 +268,21 @@ def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
     while mono() < t_end:
         r, _, _ = select.select([fd], [], [], 0.001)
         if r:
-            t_rx = mono()
+            t_rx = wall()
             got = ep.recv()
             if got is not None:
                 s = codec.servo(got[0])
                 if s is not None:
                     j = int(round(((s[0] - stamp0) & 0xFFFFFFFF) / period_us))
                     if 0 <= j < n and echo_ns[j] == 0:
-                        echo_ns[j] = t_rx
+                        echo_ns[j] = ep.rx_ns if (stamped and ep.rx_ns) else t_rx
     sl = slice(WARMUP_FRAMES, n)
     answered = echo_ns[sl] > 0
     lat = (echo_ns[sl] - sent_ns[sl])[answered]
     return {"mode": "realtime", "frames": n - WARMUP_FRAMES, "frame_hz": 1e9 / period_ns,
             "answered_share": float(answered.mean()) if answered.size else 0.0,
             "stale_echoes": stale, "sched_fifo": rt_ok, "sched_msg": rt_msg,
+            "echo_time": "kernel receive stamp" if stamped else "read time",
             "latency": _summ(lat), "send_lateness": _summ(send_late_ns[sl])}
 
 
