@@ -263,7 +263,8 @@ def lockstep(fast_hz: float, sim_s: float, keep: str | None = None,
                     [PY, "-m", "tools.bench.standin", "--fc", f"127.0.0.1:{port}", "--mode",
                      "lockstep", "--frame-hz", f"{fast_hz:g}", "--duration",
                      f"{standin_sim_s:g}", "--out", str(s.dir / "standin.json")], pin_cpu))
-            rss = RssSampler({"fc": fc.pid, kind: pl.pid})
+            # 20 Hz: a quick stand-in run lasts well under a second of wall time
+            rss = RssSampler({"fc": fc.pid, kind: pl.pid}, every_s=0.05)
             rss.start()
             rc = _wait_exit(pl, 60.0 + 10.0 * max(sim_s, standin_sim_s))
             rss.stop()
