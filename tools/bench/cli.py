@@ -146,14 +146,29 @@ def part_plant(rep: Report, quick: bool) -> None:
             f"(batches {_f(lo, '.1f')}-{_f(hi, '.1f')})", "", "", "", "plant")
 
 
-def part_pingpong(rep: Report, quick: bool) -> None:
+def part_pingpong(rep: Report, quick: bool, qos_held: bool = False) -> None:
+    """The floor under the same conditions as the fc's runs: the fc holds the 0 us wake-up
+    latency request in both modes, so the ping-pong holds it too (without it an idle vCPU
+    halts and every wake-up waits for the hypervisor); one more pass of the links payload
+    without the request shows what the machine costs when nothing holds it."""
     from tools.udp_pingpong import run_pingpong
     n = 2000 if quick else 20000
     rounds = 1 if quick else 4      # payloads interleaved, so a load change hits all three
     runs: dict = {"mavlink": [], "links": [], "raw": []}
-    for _ in range(rounds):
-        for payload in runs:
-            runs[payload].append(run_pingpong(n // rounds, payload))
+    fd = None if qos_held else hold_pm_qos()
+    try:
+        for _ in range(rounds):
+            for payload in runs:
+                runs[payload].append(run_pingpong(n // rounds, payload))
+    finally:
+        if fd is not None:
+            os.close(fd)
+    held = qos_held or fd is not None
+    rep.details["pingpong_pm_qos_held"] = held
+    if fd is not None:          # only when this part held it can it compare without
+        idle = run_pingpong(n // rounds, "links")
+        rep.details["pingpong_links_no_pm_qos"] = idle
+        rep.fig("pingpong_links_no_pm_qos_median_us", idle["median_us"])
 
     def pool(rs):      # medians / p99 of the rounds (each round has n/rounds exchanges)
         out = dict(rs[0])
@@ -182,6 +197,15 @@ def part_pingpong(rep: Report, quick: bool) -> None:
     rep.row("3 floor: UDP ping-pong, 64 raw bytes",
             f"median {_f(raw['median_us'], '.1f')} us, p99 {_f(raw['p99_us'], '.1f')} us",
             "", "", "", "pingpong")
+    if not held:
+        rep.row("3 floor: (the rows above without the 0 us wake-up latency request the fc "
+                "holds: not root or no /dev/cpu_dma_latency)", "", "", "", "", "pingpong")
+    idle = rep.details.get("pingpong_links_no_pm_qos")
+    if idle:
+        rep.row("3 floor: UDP ping-pong through the links, idle vCPUs allowed to halt (no "
+                "wake-up latency request; the rows above hold it, as the fc does)",
+                f"median {_f(idle['median_us'], '.1f')} us, p99 {_f(idle['p99_us'], '.1f')} us",
+                "", "", "", "pingpong")
 
 
 def part_fcpath(rep: Report, quick: bool) -> None:
@@ -500,7 +524,7 @@ def main(argv=None) -> int:
           f"load {_load():.2f}, python {platform.python_version()}", file=sys.stderr)
     runners = {"law": lambda: part_law(rep, args.quick),
                "plant": lambda: part_plant(rep, args.quick),
-               "pingpong": lambda: part_pingpong(rep, args.quick),
+               "pingpong": lambda: part_pingpong(rep, args.quick, qos_fd is not None),
                "fcpath": lambda: part_fcpath(rep, args.quick),
                "lockstep": lambda: (part_lockstep(rep, args.quick, args.keep),
                                     part_lockstep_pinned(rep, args.quick, args.keep)),
