@@ -235,5 +235,3 @@ class Estimator:
     @property
     def stale_mask(self) -> int:
         return int(self.masks[1])
-
-

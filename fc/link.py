@@ -162,35 +162,34 @@ class UdpEndpoint:
     """A bound, non-blocking UDP socket. ``recv`` returns None when nothing is waiting."""
 
     def __init__(self, host: str, port: int) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.setblocking(False)
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
         except OSError:
             pass
         try:
-            self.sock.bind((host, port))
+            sock.bind((host, port))
         except OSError as exc:
-            self.sock.close()
+            sock.close()
             raise OSError(f"cannot bind UDP {host}:{port}: {exc}") from exc
-        self.address = self.sock.getsockname()
-        self.send_errors = 0
-        #: kernel receive time of the last datagram ``recv`` returned (CLOCK_REALTIME, ns);
-        #: 0 unless :meth:`enable_rx_timestamps` succeeded
-        self.rx_ns = 0
-        self._stamped = False
+        self._adopt(sock)
 
     @classmethod
     def wrap(cls, sock: socket.socket) -> "UdpEndpoint":
         """An endpoint over an already bound socket (made non-blocking)."""
         ep = cls.__new__(cls)
-        sock.setblocking(False)
-        ep.sock = sock
-        ep.address = sock.getsockname()
-        ep.send_errors = 0
-        ep.rx_ns = 0
-        ep._stamped = False
+        ep._adopt(sock)
         return ep
+
+    def _adopt(self, sock: socket.socket) -> None:
+        sock.setblocking(False)
+        self.sock = sock
+        self.address = sock.getsockname()
+        self.send_errors = 0
+        #: kernel receive time of the last datagram ``recv`` returned (CLOCK_REALTIME, ns);
+        #: 0 unless :meth:`enable_rx_timestamps` succeeded
+        self.rx_ns = 0
+        self._stamped = False
 
     def enable_rx_timestamps(self) -> bool:
         """Ask the kernel to stamp each datagram on arrival (``SO_TIMESTAMPNS``); ``recv``
