@@ -226,6 +226,9 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
     next_gc = t_wall0 + 1.0
     sim.measure(meas)
     for k in range(n_frames) if n_frames is not None else itertools.count():
+        if stop.requested:            # also when the fc answers every frame at once
+            stats.exit_reason = f"stopped by {stop.signal_name}"
+            return
         stamp = int(round(k * frame_dt * 1e6))
         want = stamp % U32
         link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
@@ -361,7 +364,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
 class LatenessHistogram:
     """Real-time frame lateness in fixed memory, whatever the length of the run: counts in
     1 us bins up to ``max_us`` (a later frame counts in the last bin) and the exact maximum.
-    Percentiles are read to 1 us (the middle of the bin, never above the maximum)."""
+    Percentiles are read to 1 us (the middle of the bin, never above the maximum); one that
+    falls in the last bin (beyond ``max_us``) reads as the maximum."""
 
     def __init__(self, max_us: int = 100_000):
         self.counts = np.zeros(max_us + 1, dtype=np.int64)
@@ -384,6 +388,8 @@ class LatenessHistogram:
         cum = np.cumsum(self.counts)
         rank = max(1, math.ceil(q / 100.0 * int(cum[-1])))
         i = int(np.searchsorted(cum, rank))
+        if i >= self.top_bin:
+            return self.max_s * 1e6
         return min(i + 0.5, self.max_s * 1e6)
 
 
