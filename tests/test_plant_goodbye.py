@@ -18,10 +18,10 @@ import pytest
 from fc.link import PlantLink as FcPlantLink
 from fc.link import UdpEndpoint
 from plant_sim.link import PlantLink, PwmMap
-from tests.fc_harness import ClosedLoop, FcProcess, GcsClient, free_udp_port, level_meas
+from tests.fc_harness import level_meas
 from tests.fc_harness import mavlink as ML
-
-FS_TIMEOUT_S = 0.3
+# the fc as a process, armed in COORDINATED with FS_TIMEOUT_S 0.3 s, flown by a ClosedLoop
+from tests.test_fc_failsafe import flying  # noqa: F401 - a fixture
 
 
 def _goodbye_bytes(sysid: int = 2) -> bytes:
@@ -67,23 +67,6 @@ def test_fc_plant_link_recognises_the_plants_goodbye_only_from_the_plant():
     finally:
         plant.close()
         fc_end.close()
-
-
-@pytest.fixture()
-def flying(tmp_path):
-    out = str(tmp_path)
-    with open(os.path.join(out, "params.parm"), "w") as f:
-        f.write(f"FS_TIMEOUT_S {FS_TIMEOUT_S}\nFS_RECOVER_S 0.2\nCMD_ALPHA_DEG 3\n")
-    gcs_port = free_udp_port()
-    with FcProcess(out, "--arm", "--flight-mode", "COORDINATED", gcs_ports=(gcs_port,)) as fc:
-        gcs = GcsClient(gcs_port)
-        loop = ClosedLoop(fc.plant_port)
-        try:
-            assert gcs.wait("HEARTBEAT", 10) is not None
-            yield fc, gcs, loop
-        finally:
-            loop.close()
-            gcs.close()
 
 
 def _texts_over_heartbeats(gcs, n_heartbeats: int, timeout_s: float = 10.0) -> tuple[list, list]:
