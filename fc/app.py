@@ -146,6 +146,7 @@ class FlightController:
         self.law_errors = 0
         self.duplicate_frames = 0
         self.plant_resets = 0
+        self._goodbyes_seen = 0
         self.timeline = Timeline(commands) if commands is not None else None
         self._exec_ns_sum = 0
         self._exec_n = 0
@@ -255,7 +256,7 @@ class FlightController:
 
     def arm(self, armed: bool) -> tuple[bool, str]:
         ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
-                                        and not self.modes.data_lost)
+                                        and not self.modes.data_lost and not self.plant.ended)
         self._sync_mode()
         return ok, text
 
@@ -383,7 +384,9 @@ class FlightController:
     def _housekeeping(self, now_s: float) -> None:
         """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
         self.gcs.poll(now_s)
-        if (self.seen_data and not self.modes.data_lost
+        if self.plant.counters.goodbyes != self._goodbyes_seen:
+            self._plant_said_goodbye()
+        if (self.seen_data and not self.modes.data_lost and not self.plant.ended
                 and now_s - self.last_good_wall_s > self.fs_timeout_s):
             text = self.modes.on_data_lost()
             self.plant.relock_allowed = True   # a restarted plant may come from a new port
@@ -425,6 +428,16 @@ class FlightController:
                 self._chore = stage + 1
         self.gcs.service(now_s)
 
+    def _plant_said_goodbye(self) -> None:
+        """The plant ended its run on purpose (docs/wire.md section 5): the silence that
+        follows is not a loss of plant data, so no FAILSAFE and no warning; the next plant
+        may come from a new address. A frame arriving later clears ``plant.ended``."""
+        self._goodbyes_seen = self.plant.counters.goodbyes
+        self.plant.relock_allowed = True
+        text = f"plant ended its run at t={self.meas[0]:.3f} s"
+        self.log.info(text)
+        self.gcs.statustext(ML.MAV_SEVERITY_INFO, text)
+
     def _save_params(self, values: np.ndarray | None = None) -> None:
         """Write the parameter file (runs on the I/O thread; ``values`` is a snapshot)."""
         try:
@@ -439,7 +452,7 @@ class FlightController:
 
     # telemetry sources for fc/gcs.py
     def health_failed_bits(self) -> int:
-        if self.modes.data_lost:
+        if self.modes.data_lost or self.plant.ended:
             return DATA_LOSS_BITS
         if self.seen_data and not self.est.healthy:
             return ML.MAV_SYS_STATUS_AHRS

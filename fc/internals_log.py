@@ -97,18 +97,25 @@ class InternalsLog:
         self._full.put(None)
         self._thread.join(timeout=10.0)
         self._raw.close()
-        data = _read_raw(self.raw_path, self.columns)
+        # from a read-only map of the raw file, one column at a time (np.savez streams each
+        # into the archive): bounded memory however long the fc has run
+        data = _read_raw(self.raw_path, self.columns, mapped=True)
         tmp = self.npz_path + ".tmp.npz"
         np.savez(tmp, **data)
+        del data
         os.replace(tmp, self.npz_path)
         os.unlink(self.raw_path)
         return self.npz_path
 
 
-def _read_raw(raw_path: str, columns: list[str]) -> dict[str, np.ndarray]:
-    flat = np.fromfile(raw_path, dtype=np.float64)
-    n = flat.size // len(columns)
-    table = flat[: n * len(columns)].reshape(n, len(columns))
+def _read_raw(raw_path: str, columns: list[str], mapped: bool = False) -> dict[str, np.ndarray]:
+    """One array per column; ``mapped``: views of a read-only map of the file (no copy)."""
+    ncol = len(columns)
+    n = os.path.getsize(raw_path) // (8 * ncol)
+    if mapped and n:
+        table = np.memmap(raw_path, dtype=np.float64, mode="r", shape=(n, ncol))
+        return {c: table[:, i] for i, c in enumerate(columns)}
+    table = np.fromfile(raw_path, dtype=np.float64, count=n * ncol).reshape(n, ncol)
     return {c: table[:, i].copy() for i, c in enumerate(columns)}
 
 

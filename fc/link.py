@@ -397,6 +397,7 @@ class LinkCounters:
     rejected_incomplete: int = 0  # datagram without the ATTITUDE+AOA_SSA+VFR_HUD triple
     outputs: int = 0
     relocks: int = 0              # new source address accepted after a data loss
+    goodbyes: int = 0             # the plant said its run is over (docs/wire.md section 5)
 
     @property
     def rejected(self) -> int:
@@ -426,6 +427,8 @@ class PlantLink:
     #: kernel receive time of the datagram of the last frame ``read_frame`` returned
     #: (CLOCK_REALTIME ns, 0 unless the endpoint stamps arrivals)
     frame_rx_ns: int = 0
+    #: the plant said goodbye (its run is over) and no frame has come since
+    ended: bool = False
     _tx_codec: mavlink.MAVLink = None
     _lean: _LeanSensorDecoder | None = None
     _packer: _LeanServoPacker | None = None
@@ -467,6 +470,7 @@ class PlantLink:
                 self.relock_allowed = False
             self.counters.frames += 1
             self.frame_rx_ns = self.endpoint.rx_ns
+            self.ended = False
             return stamp
         return -1
 
@@ -478,6 +482,8 @@ class PlantLink:
         msgs, n_bad = decode_datagram(self.codec, data)
         if n_bad:
             self.counters.rejected_bad += 1
+            return -1
+        if self.peer is not None and self._is_goodbye(msgs):
             return -1
         att = aoa = hud = None
         for m in msgs:
@@ -510,6 +516,19 @@ class PlantLink:
         meas_out[M_GROUNDSPEED] = hud.groundspeed
         meas_out[M_HEADING] = math.radians(hud.heading)
         return stamp
+
+    def _is_goodbye(self, msgs: list) -> bool:
+        """A datagram of the plant's HEARTBEAT with MAV_STATE_POWEROFF: its run is over
+        (docs/wire.md section 5). Sets ``ended``; counted once per run (the plant sends
+        a few copies)."""
+        if not msgs or any(m.get_srcSystem() != self.plant_sysid
+                           or m.get_msgId() != mavlink.MAVLINK_MSG_ID_HEARTBEAT
+                           or m.system_status != mavlink.MAV_STATE_POWEROFF for m in msgs):
+            return False
+        if not self.ended:
+            self.ended = True
+            self.counters.goodbyes += 1
+        return True
 
     def send_servo(self, stamp_us: int, pwm_us: tuple[int, int, int]) -> bool:
         """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import sys
 import time
@@ -38,7 +39,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default=None, metavar="DIR",
                    help="run directory (default: a new directory under runs/)")
     r.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="sim time to run (default: the scenario's duration_s)")
+                   help="sim time to run (default: the scenario's duration_s); 0: open-ended, "
+                        "until SIGINT/SIGTERM (then the logs are written and the exit is 0)")
     r.add_argument("--seed", type=int, default=None, metavar="N",
                    help="sensor-noise seed (default: the scenario's seed)")
     r.add_argument("--sysid", type=int, default=2, help="the plant's MAVLink system id (default 2)")
@@ -95,8 +97,8 @@ def main(argv=None) -> int:
     except ValueError as e:
         return _fail(str(e))
     duration = sc.duration_s if args.duration is None else args.duration
-    if not duration > 0:
-        return _fail("--duration must be > 0")
+    if not (duration >= 0 and math.isfinite(duration)):
+        return _fail("--duration must be >= 0 (0: until SIGINT/SIGTERM)")
     if args.rerequest_timeout <= 0:
         return _fail("--rerequest-timeout must be > 0")
     for flag, v in (("--sysid", args.sysid), ("--fc-sysid", args.fc_sysid)):
@@ -111,8 +113,12 @@ def main(argv=None) -> int:
     except OSError as e:
         return _fail(f"cannot create --out {out}: {e}")
     sc.data["seed"] = seed
-    sc.data["duration_s"] = duration
-    (out / "scenario.toml").write_text(sc.to_toml())
+    head = ""
+    if duration > 0:
+        sc.data["duration_s"] = duration
+    else:
+        head = "# flown open-ended (--duration 0): until SIGINT/SIGTERM, not duration_s\n"
+    (out / "scenario.toml").write_text(head + sc.to_toml())
     log = logging.getLogger("plant_sim")
     log.setLevel(logging.INFO)
     fh = logging.FileHandler(out / "plant.log", mode="w")

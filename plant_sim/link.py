@@ -262,6 +262,22 @@ class PlantLink:
         self.frames_sent += 1
         return True
 
+    def send_goodbye(self, copies: int = 3) -> int:
+        """Tell the fc that the run is over (docs/wire.md section 5): HEARTBEAT with
+        ``system_status`` MAV_STATE_POWEROFF, sent ``copies`` times. Returns how many went."""
+        mav = self.mav
+        sent = 0
+        for _ in range(copies):
+            data = mav.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID,
+                                        0, 0, mavlink.MAV_STATE_POWEROFF).pack(mav)
+            mav.seq = (mav.seq + 1) & 0xFF
+            try:
+                self.sock.sendto(data, self.fc_addr)
+                sent += 1
+            except OSError:
+                self.send_errors += 1
+        return sent
+
     # ---- receiving ----
     def wait_readable(self, timeout_s: float) -> bool:
         """Block up to ``timeout_s`` for the socket to become readable (select: us resolution)."""

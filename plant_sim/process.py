@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import itertools
 import json
 import logging
 import math
@@ -49,7 +50,7 @@ class RunConfig:
     fc_addr: tuple = ("127.0.0.1", 14560)
     bind_addr: tuple = ("127.0.0.1", 14561)
     out_dir: Path = Path("runs")
-    duration_s: float = 20.0
+    duration_s: float = 20.0              # sim time to run; 0: open-ended, until SIGINT/SIGTERM
     seed: int = 1
     sysid: int = 2
     fc_sysid: int = 1
@@ -118,7 +119,8 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     writer = TruthWriter(out, sim.TRUTH_NAMES)
     stop = _Stop()
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    n_frames = int(round(cfg.duration_s / sim.frame_dt_s))
+    # None: open-ended; nothing below is sized by the requested duration
+    n_frames = int(round(cfg.duration_s / sim.frame_dt_s)) if cfg.duration_s > 0 else None
     t_wall0 = time.perf_counter()
     try:
         with gc_off_schedule():
@@ -129,6 +131,9 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
         # the final state, measured but not sent
         if stats.exit_reason == "completed":
             sim.truth_row(writer.row())      # t_end: state and the measurement taken there
+        # a planned end (complete or stopped by a signal, not a failure): say so before the
+        # logs are written, so the fc does not take the silence for a loss of plant data
+        stats.extra["goodbye_sent"] = link.send_goodbye()
     finally:
         stats.wall_time_s = time.perf_counter() - t_wall0
         for s, h in old.items():
@@ -138,16 +143,16 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
         if stop.requested and stats.exit_reason == "completed":
             stats.exit_reason = f"stopped by {stop.signal_name}"
         stats.aero_clip_frames = sim.clip_frames
-        lat = stats.extra.pop("lateness_s", None)
-        if lat is not None and stats.frames:
-            lat_us = lat[:stats.frames] * 1e6
-            stats.extra.update(lateness_us_p50=float(np.percentile(lat_us, 50)),
-                               lateness_us_p99=float(np.percentile(lat_us, 99)),
-                               lateness_us_max=float(lat_us.max()))
+        lat = stats.extra.pop("lateness", None)
+        if lat is not None and lat.n:
+            stats.extra.update(lateness_us_p50=lat.percentile_us(50),
+                               lateness_us_p99=lat.percentile_us(99),
+                               lateness_us_max=lat.max_s * 1e6)
         summary = {
             "scenario": sc.name,
             "mode": cfg.mode,
             "seed": cfg.seed,
+            "open_ended": n_frames is None,
             "sim_time_s": sim.t_s,
             "wall_time_s": stats.wall_time_s,
             "real_time_factor": sim.t_s / stats.wall_time_s if stats.wall_time_s > 0 else 0.0,
@@ -220,7 +225,10 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
     next_progress = t_wall0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
     next_gc = t_wall0 + 1.0
     sim.measure(meas)
-    for k in range(n_frames):
+    for k in range(n_frames) if n_frames is not None else itertools.count():
+        if stop.requested:            # also when the fc answers every frame at once
+            stats.exit_reason = f"stopped by {stop.signal_name}"
+            return
         stamp = int(round(k * frame_dt * 1e6))
         want = stamp % U32
         link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
@@ -287,10 +295,11 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     last_count = 0
     k = 0
     base_k = 0
-    lateness = np.zeros(max(n_frames, 1))
-    stats.extra["lateness_s"] = lateness          # summarised and removed by run()
+    lateness = LatenessHistogram()
+    stats.extra["lateness"] = lateness            # summarised and removed by run()
+    limit = n_frames if n_frames is not None else math.inf
     sim.measure(meas)
-    while k < n_frames:
+    while k < limit:
         if stop.requested:
             stats.exit_reason = f"stopped by {stop.signal_name}"
             return
@@ -313,7 +322,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
                          now - last_cmd_wall, k * frame_dt)
             last_cmd_wall = now
         late = now - deadline
-        lateness[k] = late
+        lateness.add(late)
         if late > frame_dt:
             stats.late_frames += 1
             if late > 50 * frame_dt:
@@ -350,6 +359,38 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
         if now >= next_progress:
             _progress(cfg, sim, t0, now)
             next_progress = now + cfg.progress_every_s
+
+
+class LatenessHistogram:
+    """Real-time frame lateness in fixed memory, whatever the length of the run: counts in
+    1 us bins up to ``max_us`` (a later frame counts in the last bin) and the exact maximum.
+    Percentiles are read to 1 us (the middle of the bin, never above the maximum); one that
+    falls in the last bin (beyond ``max_us``) reads as the maximum."""
+
+    def __init__(self, max_us: int = 100_000):
+        self.counts = np.zeros(max_us + 1, dtype=np.int64)
+        self.top_bin = max_us
+        self.max_s = 0.0
+
+    @property
+    def n(self) -> int:
+        return int(self.counts.sum())
+
+    def add(self, late_s: float) -> None:
+        """Count one frame ``late_s`` seconds after its deadline."""
+        i = int(late_s * 1e6)
+        self.counts[i if i < self.top_bin else self.top_bin] += 1
+        if late_s > self.max_s:
+            self.max_s = late_s
+
+    def percentile_us(self, q: float) -> float:
+        """The ``q``-th percentile (0..100) of the lateness, us."""
+        cum = np.cumsum(self.counts)
+        rank = max(1, math.ceil(q / 100.0 * int(cum[-1])))
+        i = int(np.searchsorted(cum, rank))
+        if i >= self.top_bin:
+            return self.max_s * 1e6
+        return min(i + 0.5, self.max_s * 1e6)
 
 
 class _Fatal(RuntimeError):

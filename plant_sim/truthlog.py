@@ -51,20 +51,27 @@ class TruthWriter:
         """Flush, write truth.npz, remove the raw pair; returns the npz path."""
         self.flush()
         self._f.close()
-        data = _read_raw(self.raw_path, self.names)
+        # column by column from a map of the raw file: memory stays bounded however long
+        # the run was (np.savez streams each array into the archive in 16 MiB pieces)
+        data = _read_raw(self.raw_path, self.names, mapped=True)
         tmp = self.dir / "truth.tmp.npz"
         np.savez(tmp, **data)
+        del data
         os.replace(tmp, self.npz_path)
         self.raw_path.unlink(missing_ok=True)
         self.meta_path.unlink(missing_ok=True)
         return self.npz_path
 
 
-def _read_raw(raw: Path, names) -> dict[str, np.ndarray]:
-    flat = np.fromfile(raw, dtype="<f8")
+def _read_raw(raw: Path, names, mapped: bool = False) -> dict[str, np.ndarray]:
+    """Columns of a raw file; ``mapped``: strided views of a read-only map of it (no copy)."""
     n = len(names)
-    rows = flat.size // n
-    arr = flat[:rows * n].reshape(rows, n)
+    rows = os.path.getsize(raw) // (8 * n)
+    if mapped and rows:
+        arr = np.memmap(raw, dtype="<f8", mode="r", shape=(rows, n))
+        return {name: arr[:, i] for i, name in enumerate(names)}
+    flat = np.fromfile(raw, dtype="<f8", count=rows * n)
+    arr = flat.reshape(rows, n)
     return {name: np.ascontiguousarray(arr[:, i]) for i, name in enumerate(names)}
 
 

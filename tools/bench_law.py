@@ -218,9 +218,12 @@ def bench_parts(batches: int, batch: int):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--batches", type=int, default=2000)
-    ap.add_argument("--batch", type=int, default=50)
-    ap.add_argument("--calls", type=int, default=20000)
+    ap.add_argument("--batches", type=int, default=2000,
+                    help="timed batches per part, inside numba (default 2000)")
+    ap.add_argument("--batch", type=int, default=50,
+                    help="calls per batch, inside numba (default 50)")
+    ap.add_argument("--calls", type=int, default=20000,
+                    help="calls timed one by one from Python (default 20000)")
     a = ap.parse_args(argv)
     print("control-law cost, microseconds (median / p99 / p99.9)")
     print(f"-- per call from Python ({a.calls} calls, perf_counter_ns) --")

@@ -149,7 +149,8 @@ def bench_jsbsim(batches: int = 7, steps: int = 2000):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.bench_plant", description=__doc__.split("\n")[0])
-    ap.add_argument("--scenario", default="paper")
+    ap.add_argument("--scenario", default="paper",
+                    help="plant scenario name or TOML path (default paper)")
     ap.add_argument("--seconds", type=float, default=20.0, help="sim seconds for the RK4 batches")
     ap.add_argument("--lockstep-seconds", type=float, default=10.0, help="sim seconds of the lockstep run")
     ap.add_argument("--no-jsbsim", action="store_true", help="skip the JSBSim X-15 comparison")

@@ -418,13 +418,20 @@ def perturbed_comparison(n: int = 40, seed: int = 7, command_shaping: str = "ste
 def main(argv=None) -> int:
     import argparse
     ap = argparse.ArgumentParser(description="Fly a scenario in process and print the figures.")
-    ap.add_argument("scenario", nargs="?", default="paper")
-    ap.add_argument("--duration", type=float, default=None)
-    ap.add_argument("--shaping", choices=("steps", "prefilter"), default="steps")
-    ap.add_argument("--variant", choices=("coordinated", "uncoordinated", "both"), default="both")
+    ap.add_argument("scenario", nargs="?", default="paper",
+                    help="plant scenario name or TOML path (default paper)")
+    ap.add_argument("--duration", type=float, default=None, metavar="S",
+                    help="sim seconds to fly (default: the scenario's)")
+    ap.add_argument("--shaping", choices=("steps", "prefilter"), default="steps",
+                    help="the paper's step commands or the law's reference prefilter "
+                         "(default steps)")
+    ap.add_argument("--variant", choices=("coordinated", "uncoordinated", "both"), default="both",
+                    help="controller variant(s) to fly (default both)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable")
-    ap.add_argument("--estimate", choices=("truth", "sensors"), default="truth")
+    ap.add_argument("--estimate", choices=("truth", "sensors"), default="truth",
+                    help="the law sees the plant's truth, or the sensors through the fc's "
+                         "estimator (default truth)")
     ap.add_argument("--perturbed", type=int, default=0, metavar="N",
                     help="compare the variants over N perturbed copies of the scenario")
     ap.add_argument("--table", action="store_true",

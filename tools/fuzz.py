@@ -352,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="long fuzz run against the real processes (by hand)")
     r.add_argument("--duration", type=float, default=600.0, help="seconds (600)")
-    r.add_argument("--seed", type=int, default=1)
+    r.add_argument("--seed", type=int, default=1, help="random seed of the fuzzer (1)")
     r.add_argument("--rate", type=float, default=2000.0, help="fuzz datagrams per second (2000)")
     r.add_argument("--corrupt", type=float, default=0.1,
                    help="fraction of plant-link datagrams mutated in flight (0.1)")
@@ -360,7 +360,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--targets", default=",".join(TARGETS),
                    help="comma-separated ports to fuzz (default: all: fc-plant,fc-gcs,plant)")
     c = sub.add_parser("corpus", help="write the recorded corpus")
-    c.add_argument("--write", required=True, metavar="DIR")
+    c.add_argument("--write", required=True, metavar="DIR",
+                   help="directory to write the corpus files into")
     args = ap.parse_args(argv)
     if args.cmd == "corpus":
         print(f"{write_corpus(args.write)} datagrams written to {args.write}")

@@ -148,7 +148,9 @@ def compare(path: Path = TABLE_PATH) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="compare with the committed file")
-    ap.add_argument("--out", type=Path, default=TABLE_PATH)
+    ap.add_argument("--out", type=Path, default=TABLE_PATH,
+                    help="where to write the table (default: the committed file the law loads, "
+                         "fc/control/data/)")
     a = ap.parse_args(argv)
     if a.check:
         d = compare(a.out)

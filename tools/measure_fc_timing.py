@@ -145,13 +145,18 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.measure_fc_timing", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--fast-hz", type=float, nargs="+", default=[500.0, 1000.0])
-    ap.add_argument("--slow-hz", type=float, default=100.0)
+    ap.add_argument("--fast-hz", type=float, nargs="+", default=[500.0, 1000.0],
+                    help="fast-loop rates to measure, one run each, Hz (default 500 1000)")
+    ap.add_argument("--slow-hz", type=float, default=100.0,
+                    help="the fc's slow-loop rate, Hz (default 100)")
     ap.add_argument("--duration", type=float, default=20.0, help="measured wall seconds per rate")
     ap.add_argument("--warmup", type=float, default=3.0, help="seconds dropped at the start")
-    ap.add_argument("--scenario", default="paper")
-    ap.add_argument("--spin-us", type=int, default=0)
-    ap.add_argument("--rt-priority", type=int, default=50)
+    ap.add_argument("--scenario", default="paper",
+                    help="plant scenario name or TOML path (default paper)")
+    ap.add_argument("--spin-us", type=int, default=0,
+                    help="passed to the fc: busy-wait this many us before a deadline (default 0)")
+    ap.add_argument("--rt-priority", type=int, default=50,
+                    help="passed to the fc: SCHED_FIFO priority, 0 = do not ask (default 50)")
     ap.add_argument("--gcs-flood", action="store_true",
                     help="also flood the fc's GCS port (PARAM_REQUEST_LIST + garbage) during the run")
     ap.add_argument("--out", help="directory for the runs (default: a temporary one)")

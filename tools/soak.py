@@ -531,6 +531,39 @@ def flood_main(target: tuple[str, int], rate_hz: float, duration_s: float, seed:
 
 
 # ---------------------------------------------------------------------- soak CLI
+class _Say:
+    """Progress lines on stderr (the figures go to stdout as JSON); silent if every_s <= 0."""
+
+    def __init__(self, every_s: float):
+        self.every_s = every_s
+
+    def __call__(self, text: str) -> None:
+        if self.every_s > 0:
+            print(text, file=sys.stderr, flush=True)
+
+
+def progress_line(rig: Rig, duration_s: float) -> str:
+    """One line of a running soak: sim time, the fc's late ticks and rejected input (its
+    NAMED_VALUE_FLOAT counters), FAILSAFE entries so far, what the relay dropped."""
+    nv = rig.gcs.named
+    with rig.gcs.cv:
+        failsafes = sum(1 for _, _, t in rig.gcs.texts if "FAILSAFE" in t)
+    dropped = sum(d.get("dropped", 0) for d in rig.relay.counters.values()) if rig.relay else 0
+    return (f"soak: t = {rig.plant_time_now():7.1f} / {duration_s:g} s   late ticks "
+            f"{nv.get('LATE_CNT', 0):.0f}   rejected gcs {nv.get('REJ_GCS', 0):.0f} plant "
+            f"{nv.get('REJ_PLANT', 0):.0f}   failsafes {failsafes}   relay dropped {dropped}")
+
+
+def watch_progress(rig: Rig, duration_s: float, say) -> None:
+    """Until the plant has finished (bounded): a progress line every ``say.every_s`` s."""
+    deadline = time.monotonic() + duration_s * 3 + 60
+    every = say.every_s if say.every_s > 0 else 1.0
+    while time.monotonic() < deadline:
+        if rig.plant.wait_exit(min(every, max(0.0, deadline - time.monotonic()))) is not None:
+            return
+        say(progress_line(rig, duration_s))
+
+
 def soak(args) -> int:
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-soak-"))
     imp = Impairment(loss=args.loss, jitter_s=args.jitter_ms * 1e-3, dup=args.dup,
@@ -539,14 +572,20 @@ def soak(args) -> int:
                     impair_down=imp)
     fig: dict = {"duration_s": args.duration, "seed": args.seed, "impairment": imp.__dict__,
                  "flood_rate_hz": args.flood_rate, "out": str(out)}
+    say = _Say(args.progress_every)
+    say(f"soak: {args.duration:g} s in real time, seed {args.seed}, run directory {out}")
     with Rig(cfg) as rig:
         rig.start()
+        say(f"soak: fc (pid {rig.fc.pid}) and plant (pid {rig.plant.pid}) flying, armed")
         flood = None
         if args.flood_rate > 0:
             rig.wait_plant_time(1.0, 60)
             flood = Flood(("127.0.0.1", rig.gcs_bind_port), args.flood_rate,
                           max(0.0, args.duration - 2.0), seed=args.seed).start()
+            say(f"soak: ground-station flood started ({args.flood_rate:g} datagrams/s)")
+        watch_progress(rig, args.duration, say)
         rcs = rig.finish()
+        say(f"soak: done (exit codes plant {rcs['plant']}, fc {rcs['fc']}); figures follow")
         if flood is not None:
             fig["flood_sent"] = flood.wait(30)
         truth, internals = rig.truth(), rig.internals()
@@ -577,21 +616,31 @@ def main(argv: list[str] | None = None) -> int:
                                              "figures of docs/reliability.md as JSON.")
     sub = ap.add_subparsers(dest="cmd")
     f = sub.add_parser("flood", help="send a bounded ground-station flood (used by the soak)")
-    f.add_argument("--target", required=True)
-    f.add_argument("--rate", type=float, default=2000.0)
-    f.add_argument("--duration", type=float, default=5.0)
-    f.add_argument("--seed", type=int, default=0)
-    f.add_argument("--sysid", type=int, default=251)
+    f.add_argument("--target", required=True, metavar="HOST:PORT",
+                   help="the fc's ground-station socket")
+    f.add_argument("--rate", type=float, default=2000.0,
+                   help="datagrams per second, up to 100000 (2000)")
+    f.add_argument("--duration", type=float, default=5.0, help="seconds, up to 3600 (5)")
+    f.add_argument("--seed", type=int, default=0, help="seed of the message mix (0)")
+    f.add_argument("--sysid", type=int, default=251,
+                   help="MAVLink system id the flood sends as (251)")
     for p in (ap,):
         p.add_argument("--duration", type=float, default=60.0, help="wall/sim seconds (60)")
-        p.add_argument("--seed", type=int, default=1)
-        p.add_argument("--loss", type=float, default=0.05)
-        p.add_argument("--jitter-ms", type=float, default=5.0)
-        p.add_argument("--dup", type=float, default=0.01)
-        p.add_argument("--reorder", type=float, default=0.01)
+        p.add_argument("--seed", type=int, default=1,
+                       help="seed of the plant and of the link impairment (1)")
+        p.add_argument("--loss", type=float, default=0.05,
+                       help="plant link: fraction of datagrams dropped, each way (0.05)")
+        p.add_argument("--jitter-ms", type=float, default=5.0,
+                       help="plant link: extra delay, uniform 0..J ms, each way (5)")
+        p.add_argument("--dup", type=float, default=0.01,
+                       help="plant link: fraction of datagrams duplicated (0.01)")
+        p.add_argument("--reorder", type=float, default=0.01,
+                       help="plant link: fraction of datagrams reordered (0.01)")
         p.add_argument("--flood-rate", type=float, default=2000.0,
                        help="ground-station datagrams per second, 0 = no flood (2000)")
         p.add_argument("--out", help="run directory (default: a new temp directory)")
+        p.add_argument("--progress-every", type=float, default=5.0, metavar="S",
+                       help="a progress line on stderr every S wall seconds, 0 = none (5)")
     args = ap.parse_args(argv)
     if args.cmd == "flood":
         from tools.linkimpair import parse_hostport

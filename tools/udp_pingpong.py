@@ -227,7 +227,10 @@ def main(argv=None) -> int:
                                  description="Loopback UDP ping-pong between two processes "
                                              "(the lockstep floor); prints figures.")
     ap.add_argument("--n", type=int, default=20000, help="timed round trips (default 20000)")
-    ap.add_argument("--payload", choices=PAYLOADS + ("both",), default="both")
+    ap.add_argument("--payload", choices=PAYLOADS + ("both",), default="both",
+                    help="mavlink: the lockstep exchange with pymavlink; links: through the "
+                         "plant's and the fc's link modules; raw: 64 bytes echoed; both: "
+                         "all three (default both)")
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     ap.add_argument("--echo", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

@@ -4,18 +4,20 @@
 """
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 
 from tools.bench.cli import Report, print_table
 
 
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        print("usage: python -m tools.bench.report BENCH.json", file=sys.stderr)
-        return 2
-    with open(argv[0], encoding="utf-8") as f:
+    ap = argparse.ArgumentParser(prog="python -m tools.bench.report",
+                                 description="Print the markdown table of a tools.bench --json "
+                                             "file (for docs/performance.md).")
+    ap.add_argument("bench_json", metavar="BENCH.json",
+                    help="figures written by 'python -m tools.bench --json FILE'")
+    args = ap.parse_args(argv)
+    with open(args.bench_json, encoding="utf-8") as f:
         data = json.load(f)
     rep = Report()
     rep.rows = data["rows"]

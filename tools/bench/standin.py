@@ -289,13 +289,20 @@ def run_realtime(ep: PlantWire, fc: tuple, sim, duration_s: float) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.bench.standin")
     ap.add_argument("--fc", required=True, help="HOST:PORT the fc binds for the plant link")
-    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    ap.add_argument("--frame-hz", type=float, default=500.0)
+    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                    help="lockstep: wait for each frame's echo; realtime: frames on wall-clock "
+                         "deadlines (default lockstep)")
+    ap.add_argument("--frame-hz", type=float, default=500.0,
+                    help="sensor frame rate, Hz (default 500)")
     ap.add_argument("--duration", type=float, default=5.0, help="sim seconds (lockstep) or "
                     "wall seconds (realtime) measured, after a short warm-up")
-    ap.add_argument("--scenario", default="paper")
-    ap.add_argument("--rerequest-timeout", type=float, default=0.2)
-    ap.add_argument("--give-up", type=float, default=10.0)
+    ap.add_argument("--scenario", default="paper",
+                    help="plant scenario name or TOML path (default paper)")
+    ap.add_argument("--rerequest-timeout", type=float, default=0.2, metavar="S",
+                    help="lockstep: re-send a frame not echoed within S seconds (default 0.2)")
+    ap.add_argument("--give-up", type=float, default=10.0, metavar="S",
+                    help="lockstep: exit 2 when a frame stays unanswered for S seconds "
+                         "(default 10)")
     ap.add_argument("--out", required=True, help="JSON file for the figures")
     args = ap.parse_args(argv)
     try:

@@ -66,7 +66,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--fc-cmd", default=None, metavar="CMD",
                    help="advanced: command that starts the controller instead of 'python -m fc'")
     rep = sub.add_parser("report", help="regenerate summary.json and plots from a run's logs")
-    rep.add_argument("run_dir", type=Path, metavar="RUN_DIR")
+    rep.add_argument("run_dir", type=Path, metavar="RUN_DIR",
+                     help="a run directory written by 'run' (holds run.json)")
     rep.add_argument("--no-plots", action="store_true", help="only summary.json")
     return p
 

@@ -20,6 +20,7 @@ import os
 import socket
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,26 +36,53 @@ CMD_PARAMS = ("CMD_ALPHA_DEG", "CMD_BETA_DEG", "CMD_MU_DEG")
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_USER_1 = mavlink.MAV_CMD_USER_1   # fc/gcs.py CMD_ATTITUDE
+#: telemetry records kept (the newest; about 7 h of ATTITUDE at the fc's default 10 Hz)
+RECORD_ROWS = 1 << 18
 
 
 class GcsError(RuntimeError):
     """The vehicle did not do what the ground station asked within the time allowed."""
 
 
+class RingRecord:
+    """The newest ``capacity`` rows of ``width`` floats in fixed memory (the oldest row is
+    overwritten), so an open-ended session does not grow. ``len()`` counts every row added."""
+
+    def __init__(self, width: int, capacity: int = RECORD_ROWS):
+        self.buf = np.zeros((capacity, width))
+        self.count = 0
+
+    def append(self, row) -> None:
+        self.buf[self.count % len(self.buf)] = row
+        self.count += 1
+
+    def __len__(self) -> int:
+        return self.count
+
+    def array(self) -> np.ndarray:
+        """The rows kept, oldest first (a copy)."""
+        cap = len(self.buf)
+        if self.count <= cap:
+            return self.buf[:self.count].copy()
+        k = self.count % cap
+        return np.concatenate((self.buf[k:], self.buf[:k]))
+
+
 @dataclass
 class Telemetry:
-    """What the ground station heard from the vehicle (grown by the receive thread)."""
+    """What the ground station heard from the vehicle (filled by the receive thread; the
+    records are rings of the newest RECORD_ROWS rows)."""
 
-    att_t_s: list = field(default_factory=list)       # sim time of the last AOA_SSA stamp, s
-    att: list = field(default_factory=list)           # roll, pitch, yaw, p, q, r (rad, rad/s)
-    aoa_t_s: list = field(default_factory=list)       # AOA_SSA.time_usec / 1e6 (sim time)
-    aoa: list = field(default_factory=list)           # AOA, SSA (deg, as on the wire)
+    #: ATTITUDE: sim time of the last AOA_SSA stamp (s), roll, pitch, yaw, p, q, r (rad, rad/s)
+    att: RingRecord = field(default_factory=lambda: RingRecord(7))
+    #: AOA_SSA: time_usec / 1e6 (sim time, s), AOA, SSA (deg, as on the wire)
+    aoa: RingRecord = field(default_factory=lambda: RingRecord(3))
     sim_t_s: float | None = None                      # newest sim time stamp seen
     heartbeats: int = 0
     last_heartbeat: object = None
     base_mode: int = 0
     custom_mode: int = -1
-    statustext: list = field(default_factory=list)
+    statustext: deque = field(default_factory=lambda: deque(maxlen=1000))
     param_values: dict = field(default_factory=dict)  # name -> last PARAM_VALUE value
     acks: list = field(default_factory=list)          # (command, result)
     bad_datagrams: int = 0
@@ -114,12 +142,11 @@ class ScriptedGcs:
         tel = self.tel
         if t == "ATTITUDE":
             if tel.sim_t_s is not None:
-                tel.att_t_s.append(tel.sim_t_s)
-                tel.att.append((m.roll, m.pitch, m.yaw, m.rollspeed, m.pitchspeed, m.yawspeed))
+                tel.att.append((tel.sim_t_s, m.roll, m.pitch, m.yaw, m.rollspeed,
+                                m.pitchspeed, m.yawspeed))
         elif t == "AOA_SSA":
             tel.sim_t_s = m.time_usec / 1e6
-            tel.aoa_t_s.append(tel.sim_t_s)
-            tel.aoa.append((m.AOA, m.SSA))
+            tel.aoa.append((tel.sim_t_s, m.AOA, m.SSA))
         elif t == "HEARTBEAT":
             tel.heartbeats += 1
             tel.base_mode = m.base_mode
@@ -210,10 +237,10 @@ class ScriptedGcs:
             if r == mavlink.MAV_RESULT_ACCEPTED:
                 return
             if r != mavlink.MAV_RESULT_DENIED or time.monotonic() > deadline:
-                texts = "; ".join(self.tel.statustext[-3:])
+                texts = "; ".join(list(self.tel.statustext)[-3:])
                 raise GcsError(f"arming refused (MAV_RESULT {r}){': ' + texts if texts else ''}")
-            n = len(self.tel.aoa_t_s)
-            self.wait_for(lambda tel: len(tel.aoa_t_s) > n, 5.0, "telemetry after a refused arm")
+            n = len(self.tel.aoa)
+            self.wait_for(lambda tel: len(tel.aoa) > n, 5.0, "telemetry after a refused arm")
 
     def set_mode(self, custom_mode: int) -> None:
         r = self.command_long(MAV_CMD_DO_SET_MODE,
@@ -233,15 +260,14 @@ class ScriptedGcs:
 
     # ---- records ---------------------------------------------------------------------------
     def telemetry_arrays(self) -> dict:
-        """ATTITUDE (stamped with the newest AOA_SSA sim time) and AOA_SSA records."""
+        """ATTITUDE (stamped with the newest AOA_SSA sim time) and AOA_SSA records (the newest
+        RECORD_ROWS of each)."""
         with self._cond:
-            t = np.asarray(self.tel.att_t_s, dtype=float)
-            a = np.asarray(self.tel.att, dtype=float).reshape(-1, 6)
-            ta = np.asarray(self.tel.aoa_t_s, dtype=float)
-            aa = np.asarray(self.tel.aoa, dtype=float).reshape(-1, 2)
-        return {"t_s": t, "roll_rad": a[:, 0], "pitch_rad": a[:, 1], "yaw_rad": a[:, 2],
-                "p_rad_s": a[:, 3], "q_rad_s": a[:, 4], "r_rad_s": a[:, 5],
-                "aoa_t_s": ta, "aoa_deg": aa[:, 0], "ssa_deg": aa[:, 1]}
+            a = self.tel.att.array()
+            aa = self.tel.aoa.array()
+        return {"t_s": a[:, 0], "roll_rad": a[:, 1], "pitch_rad": a[:, 2], "yaw_rad": a[:, 3],
+                "p_rad_s": a[:, 4], "q_rad_s": a[:, 5], "r_rad_s": a[:, 6],
+                "aoa_t_s": aa[:, 0], "aoa_deg": aa[:, 1], "ssa_deg": aa[:, 2]}
 
     def close(self) -> None:
         self._stop.set()

@@ -21,8 +21,6 @@ CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
 READY_TIMEOUT_S = 180.0
 #: the controller's data-loss failsafe timeout in lockstep runs (s; see write_params)
 LOCKSTEP_FS_TIMEOUT_S = 30.0
-#: lockstep duration used for "--duration 0" in realtime (until Ctrl-C)
-FOREVER_S = 1.0e7
 
 
 @dataclass
@@ -228,7 +226,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                       "--bind", "127.0.0.1:0", "--out", str(vdir), "--seed", str(cfg.seed),
                       "--progress-every", str(cfg.progress_every_s)]
         if forever:
-            plant_argv += ["--duration", repr(FOREVER_S)]
+            plant_argv += ["--duration", "0"]       # the plant's open-ended run
         elif cfg.duration_s is not None:
             plant_argv += ["--duration", repr(float(cfg.duration_s))]
         plant = Child("plant", plant_argv, vdir / "plant.console.log")

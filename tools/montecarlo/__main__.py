@@ -2,6 +2,7 @@
 
     python -m tools.montecarlo --scenario NAME --runs N [--variant coordinated|uncoordinated|both]
                                [--dispersions NAME|FILE] [--workers K] [--scheduler ADDRESS]
+                               [--connect-timeout S]
                                [--out DIR] [--seed S] [--hil] [--duration S] [--spec FILE]
     python -m tools.montecarlo rerun OUT_DIR --case I [--variant V] [--out DIR]
     python -m tools.montecarlo summary OUT_DIR [--spec FILE] [--no-plots]
@@ -76,6 +77,8 @@ def _run_parser() -> argparse.ArgumentParser:
                    help="LocalCluster worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None,
                    help="address of an existing Dask scheduler, tcp://host:port")
+    p.add_argument("--connect-timeout", type=_positive_float, default=10.0, metavar="S",
+                   help="with --scheduler: give up connecting after S seconds (default 10)")
     p.add_argument("--out", default=None, help="campaign directory (default runs/mc-...); "
                    "an existing one with the same options is resumed")
     p.add_argument("--seed", type=int, default=1, help="campaign seed (default 1)")
@@ -147,6 +150,7 @@ def main_run(argv) -> int:
         f"{time.strftime('%Y%m%d-%H%M%S')}")
     try:
         res = run_campaign(cfg, args.runs, out, workers=args.workers, scheduler=args.scheduler,
+                           connect_timeout_s=args.connect_timeout,
                            progress_stream=open("/dev/null", "w") if args.quiet else None)
     except CampaignError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -178,9 +182,9 @@ def main_summary(argv) -> int:
     p = argparse.ArgumentParser(prog="python -m tools.montecarlo summary",
                                 description="Summary, table and plots of a campaign directory "
                                             "(recomputed from its rows).")
-    p.add_argument("out_dir")
+    p.add_argument("out_dir", help="campaign directory")
     p.add_argument("--spec", default=None, help="TOML file with a [spec] table")
-    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     args = p.parse_args(argv)
     try:
         cfg, _ = load_manifest(args.out_dir)
@@ -219,8 +223,8 @@ def main_compare(argv) -> int:
     p = argparse.ArgumentParser(prog="python -m tools.montecarlo compare",
                                 description="Compare two campaigns case by case (e.g. a --hil "
                                             "subset against the in-process campaign).")
-    p.add_argument("dir_a")
-    p.add_argument("dir_b")
+    p.add_argument("dir_a", help="first campaign directory")
+    p.add_argument("dir_b", help="second campaign directory (same cases and variants)")
     args = p.parse_args(argv)
     try:
         c = compare(args.dir_a, args.dir_b)

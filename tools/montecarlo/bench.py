@@ -28,13 +28,18 @@ from tools.montecarlo.case import CampaignConfig
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m tools.montecarlo.bench")
-    p.add_argument("--runs", type=int, default=1000)
+    p.add_argument("--runs", type=int, default=1000, help="cases per campaign (default 1000)")
     p.add_argument("--workers", default="1,2", help="comma-separated worker counts")
-    p.add_argument("--scenario", default="paper")
-    p.add_argument("--dispersions", default="paper")
-    p.add_argument("--duration", type=float, default=None)
-    p.add_argument("--backend", default="closed_loop", choices=("closed_loop", "standin"))
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--scenario", default="paper",
+                   help="plant scenario name or path (default paper)")
+    p.add_argument("--dispersions", default="paper",
+                   help="shipped dispersions name or path (default paper)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds per case (default: the scenario's)")
+    p.add_argument("--backend", default="closed_loop", choices=("closed_loop", "standin"),
+                   help="closed_loop (default) or standin (the toy model of the campaign "
+                        "machinery)")
+    p.add_argument("--seed", type=int, default=1, help="campaign seed (default 1)")
     p.add_argument("--keep", default=None, help="keep the campaigns under this directory")
     args = p.parse_args(argv)
     disp = dsp.load(args.dispersions)

@@ -113,12 +113,63 @@ def check_applicable(cfg: CampaignConfig) -> None:
         raise CampaignError(str(exc)) from None
 
 
+#: default bound of the connection to an existing scheduler (s)
+CONNECT_TIMEOUT_S = 10.0
+
+
+def scheduler_address(text: str) -> tuple[str, str, int]:
+    """(address, host, port) of a Dask scheduler given as ``tcp://host:port`` (also
+    ``tls://``, or ``host:port`` meaning tcp); CampaignError naming the expected form."""
+    form = "expected tcp://host:port"
+    scheme, sep, rest = text.strip().partition("://")
+    if not sep:
+        scheme, rest = "tcp", text.strip()
+    host, colon, port_s = rest.rpartition(":")
+    host = host.strip("[]")
+    if scheme not in ("tcp", "tls") or not colon or not host or "/" in rest:
+        raise CampaignError(f"--scheduler {text!r}: malformed address ({form})")
+    try:
+        port = int(port_s)
+    except ValueError:
+        port = -1
+    if not 1 <= port <= 65535:
+        raise CampaignError(f"--scheduler {text!r}: port must be 1..65535 ({form})")
+    return f"{scheme}://{rest}", host, port
+
+
+def _connect(scheduler: str, timeout_s: float):
+    """A Client connected to ``scheduler`` within ``timeout_s``, or CampaignError (one line)."""
+    import select
+    import socket
+    from distributed import Client
+    address, host, port = scheduler_address(scheduler)
+    # a plain TCP connection first: a dead address fails at once, not after the client's
+    # retries; on tcp:// a Dask scheduler speaks first (its handshake), and the client would
+    # wait for it without a bound, so a silent listener is refused here
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s) as sock:
+            if address.startswith("tcp://") and not select.select([sock], [], [], timeout_s)[0]:
+                raise CampaignError(f"{address} accepts connections but is not a Dask "
+                                    f"scheduler (no handshake within {timeout_s:g} s)")
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise CampaignError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+    try:
+        return Client(address, timeout=f"{timeout_s}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise CampaignError(f"cannot connect to the Dask scheduler at {address}: {first}") \
+            from None
+
+
 @contextlib.contextmanager
-def cluster_client(workers: int | None = None, scheduler: str | None = None):
-    """A distributed.Client: to ``scheduler`` if given, else to a new LocalCluster."""
+def cluster_client(workers: int | None = None, scheduler: str | None = None,
+                   connect_timeout_s: float = CONNECT_TIMEOUT_S):
+    """A distributed.Client: to ``scheduler`` if given (connected within
+    ``connect_timeout_s``), else to a new LocalCluster."""
     from distributed import Client, LocalCluster
     if scheduler:
-        with Client(scheduler, timeout="30s") as client:
+        with _connect(scheduler, connect_timeout_s) as client:
             try:  # an existing cluster may still be starting its workers
                 client.wait_for_workers(1, timeout=120)
             except TimeoutError:
@@ -135,6 +186,7 @@ def cluster_client(workers: int | None = None, scheduler: str | None = None):
 
 def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
                  client=None, workers: int | None = None, scheduler: str | None = None,
+                 connect_timeout_s: float = CONNECT_TIMEOUT_S,
                  progress_stream=None, on_case=None, window: int | None = None,
                  flush_rows: int = 200, flush_s: float = 2.0) -> CampaignResult:
     """Run (or resume) ``runs`` cases of ``cfg`` into ``out_dir``.
@@ -142,6 +194,9 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
     Parameters
     ----------
     client : an existing distributed.Client (else one is made from workers / scheduler).
+    scheduler : address of an existing scheduler; connected (within ``connect_timeout_s``)
+        before the campaign directory is created, so a dead or malformed address raises
+        CampaignError and leaves nothing behind.
     progress_stream : where the progress bar goes (default stderr).
     on_case : called with (case index, rows) after each case's rows are buffered.
     window : tasks in flight at most (default 8 per worker thread, at least 32).
@@ -154,6 +209,17 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
         raise ValueError(f"runs must be >= 1, got {runs}")
     disp = dispersions_of(cfg)  # validates the text before anything starts
     check_applicable(cfg)
+    with contextlib.ExitStack() as stack:
+        if client is None and scheduler:
+            client = stack.enter_context(cluster_client(scheduler=scheduler,
+                                                        connect_timeout_s=connect_timeout_s))
+        return _run_in_dir(cfg, runs, out_dir, client, workers, progress_stream, on_case,
+                           window, flush_rows, flush_s, t_start)
+
+
+def _run_in_dir(cfg, runs, out_dir, client, workers, progress_stream, on_case, window,
+                flush_rows, flush_s, t_start) -> CampaignResult:
+    disp = dispersions_of(cfg)
     prepare_dir(cfg, runs, out_dir)
     res = CampaignResult(out_dir=Path(out_dir), runs=runs)
     done = results.finished_cases(out_dir, cfg.variants)
@@ -165,8 +231,7 @@ def run_campaign(cfg: CampaignConfig, runs: int, out_dir: os.PathLike, *,
     writer = results.RowWriter(out_dir, list(disp.dists), flush_rows=flush_rows,
                                flush_s=flush_s)
     bar = Progress(runs, already=res.skipped, stream=progress_stream)
-    ctx = contextlib.nullcontext(client) if client is not None else \
-        cluster_client(workers, scheduler)
+    ctx = contextlib.nullcontext(client) if client is not None else cluster_client(workers)
     try:
         with ctx as cl:
             res.cluster_start_s = time.monotonic() - t_start

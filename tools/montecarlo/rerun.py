@@ -46,8 +46,9 @@ def _same(a, b) -> bool:
 def rerun(out_dir, case: int, variants=None, out=None) -> str:
     """Re-run case ``case``; returns a short text report (also written as case.json)."""
     cfg, runs = load_manifest(out_dir)
-    if case < 0:
-        raise ValueError(f"--case must be >= 0, got {case}")
+    if not 0 <= case < runs:
+        raise ValueError(f"--case {case} is not a case of the campaign in {out_dir}: "
+                         f"it has cases 0..{runs - 1}")
     variants = tuple(variants or cfg.variants)
     dest = Path(out) if out else Path(out_dir) / f"case-{case}"
     dest.mkdir(parents=True, exist_ok=True)
