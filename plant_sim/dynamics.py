@@ -124,7 +124,8 @@ AX_SIDE = 13
 AX_GRAV = 14
 AX_SOUND = 15
 AX_THRUST = 16     # speed-model thrust (N)
-AX_N_OUT = 17
+AX_THR_POS = 17    # engine throttle position used by thrust_n over the step (copy of x[X_THR])
+AX_N_OUT = 18
 W_N = W_AUX + AX_N_OUT
 
 
@@ -238,11 +239,13 @@ def thrust_n(x, p, w):
 
     SPEED_HOLD, an ideal autothrottle: T cos(alpha) cos(beta) = D + m g sin(gamma)
     + m k_V (V_ref - V), clipped to [0, T_max]. SPEED_ENGINE: T = thr C_T,max qbar S with the
-    throttle position thr = x[X_THR] (0..1), capped at T_max. SPEED_NONE gives 0.
+    throttle position thr = w[W_AUX + AX_THR_POS] (0..1; the RK4 trial states hold only the
+    rigid-body states, so the position is handed over in ``w``), capped at T_max.
+    SPEED_NONE gives 0.
     """
     mode = p[P_SPEED_MODE]
     if mode == SPEED_ENGINE:
-        t = x[X_THR] * p[P_ENG_CT] * w[W_AUX + AX_QBAR] * S_REF_M2
+        t = w[W_AUX + AX_THR_POS] * p[P_ENG_CT] * w[W_AUX + AX_QBAR] * S_REF_M2
         return t if t < p[P_TMAX] else p[P_TMAX]
     if mode != SPEED_HOLD:
         return 0.0
@@ -388,6 +391,7 @@ def rk4_step(x, p, w):
     t = x[X_STEP] * dt
     actuator_step(x, p, dt)
     engine_step(x, p, dt)
+    w[W_AUX + AX_THR_POS] = x[X_THR]
     dl = x[X_DL]
     dr = x[X_DR]
     du = x[X_DU]

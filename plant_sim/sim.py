@@ -58,6 +58,7 @@ def truth_kernel(x, p, w, meas, out):
     aero slots are overwritten).
     """
     flags = dy.aero_eval(x, x[X_DL], x[X_DL + 1], x[X_DL + 2], p, w)
+    w[W_AUX + dy.AX_THR_POS] = x[dy.X_THR]
     thrust = dy.thrust_n(x, p, w)
     t = x[X_STEP] * p[dy.P_DT]
     o = W_AUX

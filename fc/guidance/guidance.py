@@ -97,7 +97,8 @@ class Guidance:
     def reset(self, est: np.ndarray, thr_now: float = -1.0) -> None:
         """Start at the current state (bumpless); ``thr_now`` the throttle in use (0..1), or
         negative to start at the first step's own throttle."""
-        K.guidance_reset(est, self.par, self.gx, float(thr_now))
+        K.guidance_reset(est, self.par, self.mass_kg, self.xcg_m, self.gx, float(thr_now),
+                         self.work, self.tab, self.atm, self.grid)
 
     def step(self, est: np.ndarray, chi_rad: float, dt_s: float) -> int:
         """One guidance step; writes ``out`` and ``status``; returns the limit bitfield."""

@@ -34,7 +34,10 @@ GX_V_INT = 5     # integral of the speed error (m)
 GX_V_REF = 6     # speed reference, rate-limited toward the target (m/s)
 GX_ALPHA_FF = 7  # last feed-forward alpha (rad), the start of the next inversion
 GX_READY = 8     # 1 after reset
-GX_N = 9
+GX_G_INT = 9     # integral of the flight-path angle error (rad s)
+GX_CHI_ERR_F = 10  # low-passed course error (rad)
+GX_GDOT_F = 11   # low-passed gamma_c_dot (rad/s)
+GX_N = 12
 
 # --- limit bitfield (gs[GS_LIMITS]): the envelope limit in force ------------------------------
 LIM_ALPHA_MAX = 1 << 0
@@ -64,7 +67,7 @@ LIMIT_NAMES = ("alpha_max", "alpha_min", "alpha_rate", "nz_max", "nz_min", "gamm
 # --- status record (gs) ------------------------------------------------------------------------
 GS_LIMITS = 0        # bitfield LIM_* (as float)
 GS_H_ERR = 1         # h_t - h (m)
-GS_CHI_ERR = 2       # wrap(chi_t - chi) (rad)
+GS_CHI_ERR = 2       # wrap(chi_t - chi) after the low-pass GH_CHI_TAU (rad)
 GS_V_ERR = 3         # V_ref - V (m/s)
 GS_V_REF = 4         # speed reference (m/s)
 GS_HDOT_C = 5        # climb-rate demand (m/s)
@@ -84,13 +87,14 @@ GS_MACH = 18         # Mach number (-)
 GS_DRAG = 19         # nominal drag (N)
 GS_H_INT = 20        # altitude integral (m s)
 GS_V_INT = 21        # speed integral (m)
-GS_N = 22
+GS_G_INT = 22        # flight-path integral (rad s)
+GS_N = 23
 
 GUIDANCE_STATUS_NAMES = (
     "limits", "h_err_m", "chi_err_rad", "V_err_m_s", "V_ref_m_s", "hdot_c_m_s", "gamma_c_rad",
     "gamma_dot_des_rad_s", "CL_req", "nz_c", "alpha_ff_rad", "alpha_c_rad", "chi_dot_c_rad_s",
     "mu_c_rad", "acc_c_m_s2", "thr_ff", "thr_c", "qbar_Pa", "mach", "drag_N", "h_int_m_s",
-    "V_int_m",
+    "V_int_m", "gamma_int_rad_s",
 )
 assert len(GUIDANCE_STATUS_NAMES) == GS_N
 assert len(LIMIT_NAMES) == 19

@@ -52,7 +52,13 @@ P_GM_CT_MAX = 22
 P_GM_T_MAX = 23
 P_GA_HI_MAX = 24
 P_GS_VI_MAX = 25
-P_N = 26
+P_GA_K_GAMI = 26
+P_GA_GI_MAX = 27
+P_GH_CHI_TAU = 28
+P_GA_HI_ZONE = 29
+P_GA_GI_ZONE = 30
+P_GA_GDOT_TAU = 31
+P_N = 32
 
 GUIDANCE_PARAMS: tuple[Param, ...] = (
     _p("GA_K_H", 0.05, 0, 2, "1/s", "GA",
@@ -91,9 +97,11 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
        si_scale=DEG),
     _p("GE_MU_RATE", 3.0, 0.01, 60, "deg/s", "GE", "Rate limit of the bank command.", si_scale=DEG),
     _p("GE_NZ_MIN", 0.3, -2, 1, "1", "GE",
-       "Lowest load factor n = L / (m g) the alpha command may ask for."),
+       "Lowest load factor n = L / (m g) the flight-path loop may ask for (the demand "
+       "(g cos(gamma) + V gamma_dot) / (g cos(mu)) before the model-error correction)."),
     _p("GE_NZ_MAX", 1.6, 1, 10, "1", "GE",
-       "Highest load factor n = L / (m g) the alpha command may ask for."),
+       "Highest load factor n = L / (m g) the flight-path loop may ask for (as GE_NZ_MIN); also "
+       "bounds the bank: 1 / cos(mu) <= GE_NZ_MAX."),
     _p("GE_QBAR_MIN", 25000, 0, 1e6, "Pa", "GE",
        "Dynamic-pressure floor: within GE_QBAR_BAND above it the upper flight-path limit falls "
        "linearly to 0, below it to -GE_GAM_MAX (the vehicle descends)."),
@@ -112,6 +120,25 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
        "Clamp of the altitude integral's contribution GA_K_HI int(h_t - h) dt to the climb-rate demand."),
     _p("GS_VI_MAX", 2.0, 0, 100, "m/s^2", "GS",
        "Clamp of the speed integral's contribution GS_K_VI int(V_ref - V) dt to the acceleration demand."),
+    _p("GA_K_GAMI", 0.04, 0, 1, "1/s^2", "GA",
+       "Flight-path integral gain: gamma_dot_des += GA_K_GAMI int(gamma_c - gamma) dt (takes out "
+       "the nominal model's lift error; anti-windup as GA_K_HI; initialised at engage so that the "
+       "lift demand equals the present trimmed lift)."),
+    _p("GA_GI_MAX", 0.1, 0, 10, "deg/s", "GA",
+       "Clamp of the flight-path integral's contribution to gamma_dot_des.", si_scale=DEG),
+    _p("GH_CHI_TAU", 2.0, 0, 60, "s", "GH",
+       "Time constant of the first-order low-pass on the course error (0 = none): at V K_chi / g "
+       "~ 12 deg of bank per deg of course error, heading noise would reach the bank command."),
+    _p("GA_HI_ZONE", 150, 1, 1e5, "m", "GA",
+       "The altitude error is integrated only while |h_t - h| < GA_HI_ZONE (no windup over a "
+       "climb or descent; the integral trims the last metres)."),
+    _p("GA_GI_ZONE", 0.2, 0.001, 10, "deg", "GA",
+       "The flight-path error is integrated only while |gamma_c - gamma| < GA_GI_ZONE (at "
+       "hypersonic speed a small gamma-rate bias is a large load factor: 0.1 deg/s at 2250 m/s "
+       "is 0.4 g)."),
+    _p("GA_GDOT_TAU", 1.0, 0, 30, "s", "GA",
+       "Time constant of the first-order low-pass on the feed-forward gamma_c_dot (0 = none): 1 m "
+       "of altitude noise differentiated at 50 Hz would be 0.25 g of load-factor demand."),
 )
 
 PARAM_INDEX = {p.name: i for i, p in enumerate(GUIDANCE_PARAMS)}
@@ -125,7 +152,10 @@ _EXPECTED = {"GA_K_H": P_GA_K_H, "GA_K_HI": P_GA_K_HI, "GA_HDOT_MAX": P_GA_HDOT_
              "GE_NZ_MIN": P_GE_NZ_MIN, "GE_NZ_MAX": P_GE_NZ_MAX, "GE_QBAR_MIN": P_GE_QBAR_MIN,
              "GE_QBAR_MAX": P_GE_QBAR_MAX, "GE_QBAR_BAND": P_GE_QBAR_BAND,
              "GE_THR_RATE": P_GE_THR_RATE, "GM_CT_MAX": P_GM_CT_MAX, "GM_T_MAX": P_GM_T_MAX,
-             "GA_HI_MAX": P_GA_HI_MAX, "GS_VI_MAX": P_GS_VI_MAX}
+             "GA_HI_MAX": P_GA_HI_MAX, "GS_VI_MAX": P_GS_VI_MAX,
+             "GA_K_GAMI": P_GA_K_GAMI, "GA_GI_MAX": P_GA_GI_MAX, "GH_CHI_TAU": P_GH_CHI_TAU,
+             "GA_HI_ZONE": P_GA_HI_ZONE, "GA_GI_ZONE": P_GA_GI_ZONE,
+             "GA_GDOT_TAU": P_GA_GDOT_TAU}
 assert len(GUIDANCE_PARAMS) == P_N and all(PARAM_INDEX[k] == v for k, v in _EXPECTED.items())
 assert all(len(p.name) <= 16 and p.min <= p.default <= p.max for p in GUIDANCE_PARAMS)
 
