@@ -83,9 +83,9 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
     _p("GS_ACC_MAX", 1.5, 0.01, 20, "m/s^2", "GS",
        "Rate limit of the speed reference V_ref toward the speed target (the commanded acceleration)."),
     _p("GE_ALPHA_MIN", 0, -5, 12, "deg", "GE",
-       "Lowest alpha command (the aerodynamic data start at 0 deg)."),
+       "Lowest alpha command (the aerodynamic data start at 0 deg).", si_scale=DEG),
     _p("GE_ALPHA_MAX", 10, 0, 12, "deg", "GE",
-       "Highest alpha command (the aerodynamic data end at 12 deg)."),
+       "Highest alpha command (the aerodynamic data end at 12 deg).", si_scale=DEG),
     _p("GE_ALPHA_RATE", 1.0, 0.01, 20, "deg/s", "GE", "Rate limit of the alpha command.",
        si_scale=DEG),
     _p("GE_GAM_MAX", 3.0, 0.1, 30, "deg", "GE",
@@ -135,7 +135,7 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
     _p("GA_GI_ZONE", 0.2, 0.001, 10, "deg", "GA",
        "The flight-path error is integrated only while |gamma_c - gamma| < GA_GI_ZONE (at "
        "hypersonic speed a small gamma-rate bias is a large load factor: 0.1 deg/s at 2250 m/s "
-       "is 0.4 g)."),
+       "is 0.4 g).", si_scale=DEG),
     _p("GA_GDOT_TAU", 1.0, 0, 30, "s", "GA",
        "Time constant of the first-order low-pass on the feed-forward gamma_c_dot (0 = none): 1 m "
        "of altitude noise differentiated at 50 Hz would be 0.25 g of load-factor demand."),
@@ -158,6 +158,7 @@ _EXPECTED = {"GA_K_H": P_GA_K_H, "GA_K_HI": P_GA_K_HI, "GA_HDOT_MAX": P_GA_HDOT_
              "GA_GDOT_TAU": P_GA_GDOT_TAU}
 assert len(GUIDANCE_PARAMS) == P_N and all(PARAM_INDEX[k] == v for k, v in _EXPECTED.items())
 assert all(len(p.name) <= 16 and p.min <= p.default <= p.max for p in GUIDANCE_PARAMS)
+assert all((p.si_scale == DEG) == p.unit.startswith("deg") for p in GUIDANCE_PARAMS)
 
 
 def check_value(name: str, value: float) -> float:
