@@ -343,20 +343,25 @@ def actuator_step(x, p, dt):
             cmd = lim
         elif cmd < -lim:
             cmd = -lim
-        pos = x[X_DL + k]
-        step = (cmd - pos) * frac
-        if rate > 0.0:
-            mx = rate * dt
-            if step > mx:
-                step = mx
-            elif step < -mx:
-                step = -mx
-        pos += step
+        pos = _lag_rate_step(x[X_DL + k], cmd, frac, rate * dt)
         if pos > lim:
             pos = lim
         elif pos < -lim:
             pos = -lim
         x[X_DL + k] = pos
+
+
+@njit(cache=True, inline="always")
+def _lag_rate_step(pos, cmd, frac, step_max):
+    """pos moved toward cmd by the lag fraction ``frac``, the move limited to +-step_max
+    (step_max <= 0: no limit)."""
+    step = (cmd - pos) * frac
+    if step_max > 0.0:
+        if step > step_max:
+            step = step_max
+        elif step < -step_max:
+            step = -step_max
+    return pos + step
 
 
 @njit(cache=True)
@@ -372,15 +377,7 @@ def engine_step(x, p, dt):
         return
     tau = p[P_ENG_TAU]
     frac = 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
-    step = (cmd - x[X_THR]) * frac
-    rate = p[P_ENG_RATE]
-    if rate > 0.0:
-        mx = rate * dt
-        if step > mx:
-            step = mx
-        elif step < -mx:
-            step = -mx
-    x[X_THR] = min(max(x[X_THR] + step, 0.0), 1.0)
+    x[X_THR] = min(max(_lag_rate_step(x[X_THR], cmd, frac, p[P_ENG_RATE] * dt), 0.0), 1.0)
 
 
 @njit(cache=True)

@@ -27,16 +27,15 @@ from numba import njit
 from fc.control import layout as L
 from fc.control.kernels import fast_kernel, reset_kernel, slow_kernel
 from fc.control.law import AttitudeLaw
-from fc.control.params import PARAM_INDEX as LAW_INDEX
-from fc.estimator import LIMITS_HI, LIMITS_LO, estimate_kernel
+from fc.estimator import LIMITS_HI, LIMITS_LO
 from fc.guidance import layout as G
 from fc.guidance.guidance import Guidance, limit_names
 from fc.guidance.kernels import course_from_air_data, guidance_reset, guidance_step
 from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
-from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW, measure
-from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim, truth_kernel
-from tools.closed_loop import _TRUTH_EST0, _divisor
+from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW
+from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
+from tools.closed_loop import _divisor, sense_frame
 
 from fc.control.numba_cache import drop_stale
 
@@ -75,17 +74,13 @@ def _run_guided(n_frames, n_fast, n_slow, n_guid, dt_fast, dt_slow, dt_guid, rec
     frame_dt = pp[dy.P_FRAME_DT]
     t0 = px[dy.X_STEP] * pp[dy.P_DT]
     for k in range(n_frames):
+        sense_frame(use_sensors, px, pp, pw, meas, row, est, ring, ring_count, rng_state,
+                    meas_work, good, good_t, lo, hi, stale_s, masks)
         if use_sensors:
-            measure(px, pp, ring, ring_count, rng_state, meas_work, meas)
-        truth_kernel(px, pp, pw, meas, row)
-        if use_sensors:
-            estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks)
             chi = course_from_air_data(meas[M_ROLL], meas[M_PITCH], meas[M_YAW], meas[M_AOA],
                                        meas[M_SSA])
         else:
-            for i in range(L.E_N):
-                est[i] = row[1 + i]
-            chi = row[10]
+            chi = row[_T_CHI]
         t = t0 + k * frame_dt
         while k_tg + 1 < n_tg and tg_t[k_tg + 1] <= t + 1e-9:
             k_tg += 1
@@ -190,7 +185,9 @@ class GuidedResult:
         deg, speed m/s), the inner loop's max abs error of alpha/beta/mu to the guidance's
         command (deg) and to the law's filtered reference (e1, deg), time with a surface at
         its limit (s), the range of the adaptive estimates and disturbance estimate, the
-        throttle range and the limits that were in force (names)."""
+        throttle range, the guidance's integrators (altitude m s, speed m, flight path rad s:
+        max abs value in the first and second half of the window) and the limits that were in
+        force (names)."""
         sel = self.t_s >= t_from_s
         tg = self.target_at(self.t_s[sel])
         h_err = self.col("h_m")[sel] - tg[:, G.TG_H]
@@ -209,6 +206,7 @@ class GuidedResult:
         bits = np.bitwise_or.reduce(self.gstatus[sel, G.GS_LIMITS].astype(np.int64)) \
             if sel.any() else 0
         half = len(rho) // 2
+        gi = self.gstatus[sel][:, [G.GS_H_INT, G.GS_V_INT, G.GS_G_INT]]
         return {
             "t_from_s": t_from_s, "t_to_s": float(self.t_s[-1]),
             "alt_err_max_m": float(np.max(np.abs(h_err))),
@@ -224,6 +222,9 @@ class GuidedResult:
             "rho_abs_max_second_half": float(np.max(np.abs(rho[half:]))) if half else 0.0,
             "d_hat_abs_max_rad_s2": float(np.max(np.abs(self.status[sel][:, L.S_D_HAT:L.S_D_HAT + 3]))),
             "throttle_range": [float(np.min(self.cmd[sel, 4])), float(np.max(self.cmd[sel, 4]))],
+            "guidance_integrals_abs_max_halves": [
+                [float(v) for v in np.max(np.abs(part), axis=0)] if len(part) else []
+                for part in (gi[:half], gi[half:])],
             "limits_seen": limit_names(int(bits)),
         }
 
@@ -436,14 +437,18 @@ def main(argv=None) -> int:
     print(f"{name}: {res.t_s[-1]:.0f} s sim in {res.wall_s:.1f} s wall, diverged={res.diverged}")
     if a.what == "mission":
         tt = list(res.targets_t_s) + [res.t_s[-1]]
+        nz = res.load_factor()
         for i in range(len(tt) - 1):
-            r = res.hold_figures(tt[i])
             sel = (res.t_s >= tt[i]) & (res.t_s < tt[i + 1])
+            bits = int(np.bitwise_or.reduce(res.gstatus[sel, G.GS_LIMITS].astype(np.int64)))
             print(f"leg {i} t {tt[i]:.0f}-{tt[i + 1]:.0f} s: target h {res.targets[i, 0]:.0f} m "
                   f"chi {math.degrees(res.targets[i, 1]):.0f} deg V {res.targets[i, 2]:.0f} m/s; "
                   f"end h {res.col('h_m')[sel][-1]:.0f} chi "
                   f"{math.degrees(res.col('chi_rad')[sel][-1]):.2f} V {res.col('V_m_s')[sel][-1]:.1f}; "
-                  f"limits {r['limits_seen']}")
+                  f"peak alpha {math.degrees(res.col('alpha_rad')[sel].max()):.2f} deg, |mu| "
+                  f"{math.degrees(np.abs(res.col('mu_rad')[sel]).max()):.2f} deg, n "
+                  f"{nz[sel][2:-2].max():.3f}; limits {limit_names(bits)}")
+        print(_fmt(res.hold_figures(0.0)))
         return 0
     print(_fmt(res.hold_figures(a.transient)))
     return 0

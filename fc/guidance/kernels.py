@@ -134,6 +134,16 @@ def _rate_limit(prev, target, step_max):
 
 
 @njit(cache=True, inline="always")
+def _clip_flag(v, lo, hi, bit_lo, bit_hi):
+    """(v clipped to [lo, hi], the bit of the bound that held it, or 0)."""
+    if v > hi:
+        return hi, bit_hi
+    if v < lo:
+        return lo, bit_lo
+    return v, 0
+
+
+@njit(cache=True, inline="always")
 def _wrap_pi(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -266,14 +276,9 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     e_h = tgt[TG_H] - h
     hi = gp[P_GA_K_HI] * gx[GX_H_INT]
     hi = min(max(hi, -gp[P_GA_HI_MAX]), gp[P_GA_HI_MAX])
-    hdot_c = gp[P_GA_K_H] * e_h + hi
     hmax = gp[P_GA_HDOT_MAX]
-    if hdot_c > hmax:
-        hdot_c = hmax
-        lim |= LIM_HDOT
-    elif hdot_c < -hmax:
-        hdot_c = -hmax
-        lim |= LIM_HDOT
+    hdot_c, b = _clip_flag(gp[P_GA_K_H] * e_h + hi, -hmax, hmax, LIM_HDOT, LIM_HDOT)
+    lim |= b
     gam_raw = math.asin(min(max(hdot_c / V, -1.0), 1.0))
     gmax = gp[P_GE_GAM_MAX]
     g_hi = gmax
@@ -289,13 +294,8 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
         lim |= LIM_QBAR_HIGH
     if g_lo > g_hi:                   # both ramps at once (a band wider than the corridor)
         g_lo = g_hi = 0.5 * (g_lo + g_hi)
-    gam_lim = gam_raw
-    if gam_lim > g_hi:
-        gam_lim = g_hi
-        lim |= LIM_GAM_MAX
-    elif gam_lim < g_lo:
-        gam_lim = g_lo
-        lim |= LIM_GAM_MIN
+    gam_lim, b = _clip_flag(gam_raw, g_lo, g_hi, LIM_GAM_MIN, LIM_GAM_MAX)
+    lim |= b
     gc_prev = gx[GX_GAM_C]
     gam_c, rl = _rate_limit(gc_prev, gam_lim, gp[P_GE_GAM_RATE] * dt_s)
     if rl:
@@ -316,25 +316,17 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gi = min(max(gi, -gp[P_GA_GI_MAX]), gp[P_GA_GI_MAX])
     cmu = max(math.cos(mu), _COS_MU_MIN)
     gdot_kin = gamc_dot + gp[P_GA_K_GAM] * e_g
-    nz = (g * math.cos(gam) + V * gdot_kin) / (g * cmu)
-    if nz > gp[P_GE_NZ_MAX]:
-        nz = gp[P_GE_NZ_MAX]
-        lim |= LIM_NZ_MAX
-    elif nz < gp[P_GE_NZ_MIN]:
-        nz = gp[P_GE_NZ_MIN]
-        lim |= LIM_NZ_MIN
+    nz, b = _clip_flag((g * math.cos(gam) + V * gdot_kin) / (g * cmu), gp[P_GE_NZ_MIN],
+                       gp[P_GE_NZ_MAX], LIM_NZ_MIN, LIM_NZ_MAX)
+    lim |= b
     gdot_des = (nz * g * cmu - g * math.cos(gam)) / V + gi
     t_est = _thrust_model(gx[GX_THR_C], qS, gp)
     cl_req = (nz * m * g * (1.0 + V * gi / g) - t_est * math.sin(alpha)) / qS
     a_ff = alpha_for_lift(cl_req, mach, gx[GX_ALPHA_FF], xcg_m, tab, grid, gw)
     gx[GX_ALPHA_FF] = a_ff
-    a_lim = a_ff
-    if a_lim > gp[P_GE_ALPHA_MAX]:
-        a_lim = gp[P_GE_ALPHA_MAX]
-        lim |= LIM_ALPHA_MAX
-    elif a_lim < gp[P_GE_ALPHA_MIN]:
-        a_lim = gp[P_GE_ALPHA_MIN]
-        lim |= LIM_ALPHA_MIN
+    a_lim, b = _clip_flag(a_ff, gp[P_GE_ALPHA_MIN], gp[P_GE_ALPHA_MAX], LIM_ALPHA_MIN,
+                          LIM_ALPHA_MAX)
+    lim |= b
     alpha_c, rl = _rate_limit(gx[GX_ALPHA_C], a_lim, gp[P_GE_ALPHA_RATE] * dt_s)
     if rl:
         lim |= LIM_ALPHA_RATE
@@ -349,27 +341,18 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
         e_chi = _wrap_pi(e_prev + (1.0 - math.exp(-dt_s / gp[P_GH_CHI_TAU]))
                          * _wrap_pi(e_raw - e_prev))
     gx[GX_CHI_ERR_F] = e_chi
-    chid = gp[P_GH_K_CHI] * e_chi
     cdm = gp[P_GH_CHIDOT_MAX]
-    if chid > cdm:
-        chid = cdm
-        lim |= LIM_CHIDOT
-    elif chid < -cdm:
-        chid = -cdm
-        lim |= LIM_CHIDOT
-    mu_raw = math.atan(V * chid * math.cos(gam) / g)
+    chid, b = _clip_flag(gp[P_GH_K_CHI] * e_chi, -cdm, cdm, LIM_CHIDOT, LIM_CHIDOT)
+    lim |= b
     mu_max = gp[P_GE_MU_MAX]
     nzm = gp[P_GE_NZ_MAX]
     if nzm > 1.0:
         mu_max = min(mu_max, math.acos(1.0 / nzm))
     else:
         mu_max = 0.0
-    if mu_raw > mu_max:
-        mu_raw = mu_max
-        lim |= LIM_MU_MAX
-    elif mu_raw < -mu_max:
-        mu_raw = -mu_max
-        lim |= LIM_MU_MAX
+    mu_raw, b = _clip_flag(math.atan(V * chid * math.cos(gam) / g), -mu_max, mu_max,
+                           LIM_MU_MAX, LIM_MU_MAX)
+    lim |= b
     mu_c, rl = _rate_limit(gx[GX_MU_C], mu_raw, gp[P_GE_MU_RATE] * dt_s)
     if rl:
         lim |= LIM_MU_RATE
@@ -386,13 +369,9 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     proj = max(math.cos(alpha) * math.cos(beta), 0.1)
     thr_ff = (drag + m * g * math.sin(gam) + m * vref_dot) / (proj * t_full)
     thr_raw = (drag + m * g * math.sin(gam) + m * acc_c) / (proj * t_full)
-    thr_hi = min(1.0, gp[P_GM_T_MAX] / t_full)
-    if thr_raw > thr_hi:
-        thr_raw = thr_hi
-        lim |= LIM_THR_MAX
-    elif thr_raw < 0.0:
-        thr_raw = 0.0
-        lim |= LIM_THR_MIN
+    thr_raw, b = _clip_flag(thr_raw, 0.0, min(1.0, gp[P_GM_T_MAX] / t_full), LIM_THR_MIN,
+                            LIM_THR_MAX)
+    lim |= b
     if math.isnan(gx[GX_THR_C]):
         thr_c = thr_raw
     else:
