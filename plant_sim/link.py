@@ -427,7 +427,8 @@ class ServoResponder:
     """A minimal fc stand-in for tests and benchmarks: answers sensor frames with
     SERVO_OUTPUT_RAW echoing the frame stamp (codec here so pymavlink stays in this module).
 
-    ``answer(fn)`` is called with (stamp_us, meas_dict) and returns three deflections (rad).
+    ``serve_one(fn)`` calls fn(stamp_us, meas_dict), which returns three deflections (rad),
+    or four values with a throttle (0..1) last, sent on servo4 (docs/wire.md s. 3).
     """
 
     def __init__(self, bind_addr=("127.0.0.1", 0), sysid: int = 1, pwm: PwmMap | None = None):
@@ -471,8 +472,12 @@ class ServoResponder:
         if stamp is None:
             return False
         d = fn(stamp, vals)
-        pw = [self.pwm.to_pwm(v) for v in d]
-        msg = self.mav.servo_output_raw_encode(stamp % U32, 0, pw[0], pw[1], pw[2], 0, 0, 0, 0, 0)
+        pw = [self.pwm.to_pwm(v) for v in d[:3]]
+        s4 = 0
+        if len(d) > 3:
+            s4 = int(round(THROTTLE_PWM_MIN_US
+                           + min(max(d[3], 0.0), 1.0) * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)))
+        msg = self.mav.servo_output_raw_encode(stamp % U32, 0, pw[0], pw[1], pw[2], s4, 0, 0, 0, 0)
         b = msg.pack(self.mav)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.sock.sendto(b, addr)

@@ -114,3 +114,42 @@ def test_target_timeline_parses_round_trips_and_rejects_bad_rows():
         parse(base.replace('model = "hold"', 'model = "rocket"'), src="x")
     with pytest.raises(ScenarioError, match="throttle_initial"):
         parse(base.replace("throttle_initial = -1.0", "throttle_initial = 1.5"), src="x")
+
+
+@pytest.mark.hil
+def test_plant_process_flies_the_throttle_from_servo4(tmp_path):
+    """The plant process (lockstep, cruise scenario) applies servo4 as the engine throttle."""
+    import json
+    import subprocess
+    import sys
+    import time
+
+    from plant_sim import truthlog
+    from plant_sim.link import ServoResponder
+    trim = list(PlantSim(load("cruise")).trim_rad)
+    resp = ServoResponder()
+    out = tmp_path / "engine"
+    proc = subprocess.Popen([sys.executable, "-m", "plant_sim", "run", "--scenario", "cruise",
+                             "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0",
+                             "--out", str(out), "--duration", "2.0", "--progress-every", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while proc.poll() is None and time.monotonic() < deadline:
+            resp.serve_one(lambda stamp, vals: trim + [0.9 if stamp >= 1_000_000 else -1.0],
+                           timeout_s=0.2)
+        _stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+        resp.close()
+    assert proc.returncode == 0, stderr
+    assert json.loads((out / "plant_summary.json").read_text())["frames"] == 1000
+    tr = truthlog.load(out)
+    t, thrust = tr["t_s"], tr["thrust_N"]
+    # GIVEN throttle 0 (PWM 1000) for the first second, THEN the thrust decays with the lag
+    assert thrust[np.searchsorted(t, 0.99)] < 0.2 * thrust[0]
+    # WHEN servo4 asks 0.9, THEN the thrust rises toward 0.9 C_T qbar S
+    q = tr["qbar_pa"][-1]
+    assert thrust[-1] > 0.8 * 0.9 * 0.02576 * q * S_REF_M2
