@@ -402,6 +402,48 @@ def step_responses(scenario: str = "cruise", t_step_s: float = 100.0, after_s: f
     return out
 
 
+def plot_flight(res: GuidedResult, path, title: str = "") -> Path:
+    """One PNG of a guided flight: altitude, course, speed and throttle against their targets
+    (left), alpha, beta, mu against the guidance's commands and the surfaces (right)."""
+    from tools.plots import CMD_STYLE, R2D, SURFACE_LABELS, _finish_axis, _save, _stairs, plt
+    t = res.t_s
+    fig, ax = plt.subplots(4, 2, figsize=(13, 10), sharex=True)
+    line = dict(color="tab:blue", linewidth=1.3)
+    tt, tv = res.targets_t_s, res.targets
+    rows = ((ax[0, 0], res.col("h_m") / 1000.0, tv[:, G.TG_H] / 1000.0, "altitude [km]"),
+            (ax[1, 0], np.degrees(np.unwrap(res.col("chi_rad"))), np.degrees(tv[:, G.TG_CHI]),
+             "course [deg]"),
+            (ax[2, 0], res.col("V_m_s"), tv[:, G.TG_V], "speed [m/s]"))
+    for a, y, tgt, lab in rows:
+        a.plot(t, y, label="flown", **line)
+        a.plot(*_stairs(tt, tgt, t[-1]), label="target", **CMD_STYLE)
+        _finish_axis(a, lab)
+    ax[2, 0].plot(t, res.col("V_ref_m_s"), color="tab:green", linewidth=0.9, label="V_ref")
+    ax[2, 0].legend(loc="best", fontsize=8)
+    ax[3, 0].plot(t, res.cmd[:, 3], label="command", **CMD_STYLE)
+    ax[3, 0].plot(t, res.cmd[:, 4], label="engine", **line)
+    _finish_axis(ax[3, 0], "throttle [0..1]")
+    for i, (name, lab) in enumerate((("alpha_rad", "alpha [deg]"), ("beta_rad", "beta [deg]"),
+                                     ("mu_rad", "mu [deg]"))):
+        a = ax[i, 1]
+        a.plot(t, res.col(name) * R2D, label="flown", **line)
+        a.plot(t, res.cmd[:, i] * R2D, label="guidance command", **CMD_STYLE)
+        _finish_axis(a, lab)
+    d0 = TRUTH_NAMES.index("delta_left_rad")
+    for k, lab in enumerate(SURFACE_LABELS):
+        ax[3, 1].plot(t, res.truth[:, d0 + k] * R2D, linewidth=1.0, label=lab)
+    for sgn in (1, -1):
+        ax[3, 1].axhline(sgn * res.surface_limit_rad * R2D, color="grey", linestyle="--",
+                         linewidth=0.8)
+    _finish_axis(ax[3, 1], "surfaces [deg]")
+    for a in ax[3]:
+        a.set_xlabel("time [s]")
+    fig.suptitle(title or f"guided flight: scenario '{res.scenario}', {res.estimate}, "
+                 f"{'coordinated' if res.coordinated else 'uncoordinated'} law", fontsize=11)
+    fig.tight_layout()
+    return _save(fig, Path(path))
+
+
 def _fmt(d: dict) -> str:
     parts = []
     for k, v in d.items():
@@ -425,6 +467,8 @@ def main(argv=None) -> int:
     ap.add_argument("--estimate", choices=("truth", "sensors"), default="sensors")
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--uncoordinated", action="store_true")
+    ap.add_argument("--plot", default=None, metavar="PNG",
+                    help="cruise/mission: write a plot of the flight to this file")
     a = ap.parse_args(argv)
     co = not a.uncoordinated
     if a.what == "steps":
@@ -435,6 +479,8 @@ def main(argv=None) -> int:
     name = a.scenario or a.what
     res = fly(name, duration_s=a.duration, estimate=a.estimate, coordinated=co, seed=a.seed)
     print(f"{name}: {res.t_s[-1]:.0f} s sim in {res.wall_s:.1f} s wall, diverged={res.diverged}")
+    if a.plot:
+        print(f"plot: {plot_flight(res, a.plot)}")
     if a.what == "mission":
         tt = list(res.targets_t_s) + [res.t_s[-1]]
         nz = res.load_factor()
