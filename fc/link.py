@@ -153,6 +153,20 @@ def pwm_to_deflection(pwm_us: int, trim_us: int = PWM_TRIM_US) -> float:
     return (pwm_us - trim_us) / (trim_us - PWM_MIN_US) * DEFLECTION_LIMIT_RAD
 
 
+#: Throttle on SERVO_OUTPUT_RAW servo4 (docs/wire.md s. 3): PWM 1000..2000 us = 0..1.
+THROTTLE_PWM_MIN_US = 1000
+THROTTLE_PWM_MAX_US = 2000
+
+
+def throttle_to_pwm(throttle: float) -> int:
+    """Throttle 0..1 -> servo4 PWM (us), clipped to 1000..2000; 0 (no output: the plant keeps
+    its last throttle) for a value that is not finite."""
+    if not math.isfinite(throttle):
+        return 0
+    us = int(round(THROTTLE_PWM_MIN_US + throttle * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)))
+    return min(max(us, THROTTLE_PWM_MIN_US), THROTTLE_PWM_MAX_US)
+
+
 _SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)   # Linux value where Python lacks it
 _TIMESPEC = struct.Struct("=qq")                          # struct timespec on 64-bit Linux
 _ANC_B = socket.CMSG_SPACE(_TIMESPEC.size) if hasattr(socket, "CMSG_SPACE") else 64
@@ -324,7 +338,7 @@ class _LeanSensorDecoder:
 
 
 class _LeanServoPacker:
-    """SERVO_OUTPUT_RAW with channels 1-3 only (port 0, other channels 0), framed as the
+    """SERVO_OUTPUT_RAW with channels 1-4 only (port 0, other channels 0), framed as the
     codec's ``msg.pack`` does (MAVLink 2, unsigned, trailing-zero truncation), from the
     codec's own payload layout and CRC_EXTRA. Checked byte for byte against the codec by
     ``_lean_self_check``."""
@@ -333,16 +347,16 @@ class _LeanServoPacker:
 
     def __init__(self, sysid: int, compid: int) -> None:
         import struct
-        # wire order: time_usec (u32), servo1..3 (u16) lead the payload; the rest is zero
-        assert self._CLS.unpacker.format.startswith("<IHHH")
-        self.head = struct.Struct("<IHHH")
+        # wire order: time_usec (u32), servo1..4 (u16) lead the payload; the rest is zero
+        assert self._CLS.unpacker.format.startswith("<IHHHH")
+        self.head = struct.Struct("<IHHHH")
         self.hdr = bytearray((_MAGIC2, 0, 0, 0, 0, sysid & 0xFF, compid & 0xFF,
                               self._CLS.id & 0xFF, (self._CLS.id >> 8) & 0xFF,
                               self._CLS.id >> 16))
         self.extra = bytes((self._CLS.crc_extra,))
 
-    def pack(self, seq: int, time_usec: int, s1: int, s2: int, s3: int) -> bytes:
-        payload = self.head.pack(time_usec, s1, s2, s3).rstrip(b"\0") or b"\0"
+    def pack(self, seq: int, time_usec: int, s1: int, s2: int, s3: int, s4: int = 0) -> bytes:
+        payload = self.head.pack(time_usec, s1, s2, s3, s4).rstrip(b"\0") or b"\0"
         h = self.hdr
         h[1] = len(payload)
         h[4] = seq
@@ -372,11 +386,11 @@ def _lean_self_check(link: "PlantLink") -> bool:
         if not (sa == sb == 1_234_567 and bool(np.array_equal(a, b))):
             return False
         c = new_codec(link.sysid, link.compid)
-        for seq, args in ((0, (0, 1500, 1500, 1500)), (7, (123456, 1000, 2000, 1500)),
-                          (255, (0xFFFFFFFF, 0, 0, 0)), (3, (256, 0, 0, 0))):
+        for seq, args in ((0, (0, 1500, 1500, 1500, 0)), (7, (123456, 1000, 2000, 1500, 1420)),
+                          (255, (0xFFFFFFFF, 0, 0, 0, 0)), (3, (256, 0, 0, 0, 2000))):
             c.seq = seq
             ref = c.servo_output_raw_encode(args[0], 0, args[1], args[2], args[3],
-                                            0, 0, 0, 0, 0).pack(c)
+                                            args[4], 0, 0, 0, 0).pack(c)
             if link._packer.pack(seq, *args) != ref:
                 return False
         return True
@@ -530,16 +544,21 @@ class PlantLink:
             self.counters.goodbyes += 1
         return True
 
-    def send_servo(self, stamp_us: int, pwm_us: tuple[int, int, int]) -> bool:
-        """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3)."""
+    def send_servo(self, stamp_us: int, pwm_us) -> bool:
+        """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3).
+
+        ``pwm_us``: (left, right, rudder) or (left, right, rudder, throttle) in us; the
+        throttle channel (servo4, ``throttle_to_pwm``) is 0 = no output when absent.
+        """
         if self.peer is None:
             return False
+        s4 = pwm_us[3] if len(pwm_us) > 3 else 0
         if self._packer is not None:    # same bytes as the codec's pack (self-checked)
             buf = self._packer.pack(self._tx_codec.seq, stamp_us & 0xFFFFFFFF,
-                                    pwm_us[0], pwm_us[1], pwm_us[2])
+                                    pwm_us[0], pwm_us[1], pwm_us[2], s4)
         else:
             buf = self._tx_codec.servo_output_raw_encode(
-                stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], 0, 0, 0, 0,
+                stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], s4, 0, 0, 0,
                 0).pack(self._tx_codec)
         ok = self.endpoint.send(buf, self.peer)
         self._tx_codec.seq = (self._tx_codec.seq + 1) % 256

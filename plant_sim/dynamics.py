@@ -12,7 +12,8 @@ Equations (per physics step dt, RK4 on the 13 rigid-body states, surfaces held o
 with F_aero_b = C_bw [-D, Y, -L] (wind axes: D along -V, L in the body x-z plane), the
 aerodynamic moment about the MRC plus the transfer r_MRC/cg x F_aero_b with
 r_MRC/cg = (x_cg, 0, 0) (x_cg = MRC -> c.g., + aft; winged_cone.md section 3), thrust T along
-body x through the c.g. (speed model), and d(t) the paper's disturbance as an angular
+body x through the c.g. (speed model: an ideal speed hold, or an engine with a throttle
+command, its limits and a first-order lag), and d(t) the paper's disturbance as an angular
 acceleration (or as a moment divided by the inertia, per scenario).
 
 All kernels work on flat float64 arrays with the index constants below; nothing allocates.
@@ -57,7 +58,9 @@ X_CMD_U = 18
 X_STEP = 19       # physics step counter (t = step * dt, exact)
 X_THRUST = 20     # thrust at the last derivative evaluation (N)
 X_CLIP = 21       # OR of aero clip flags since the last frame began
-X_N = 22
+X_CMD_THR = 22    # latched throttle command (0..1; engine speed model only)
+X_THR = 23        # engine throttle position (0..1) after its lag and rate limit
+X_N = 24
 
 # ---- parameter vector p (float64[P_N]) ----
 P_MASS = 0
@@ -85,10 +88,14 @@ P_BIAS = 47        # 47..60: bias per measurement channel (SI)
 P_DELAY = 61       # 61..74: latency per channel in frames (integer valued)
 P_SENSORS_ON = 75
 P_DIST_PHASE = 76  # 76..78: phase added to the roll, pitch, yaw sine arguments (rad)
-P_N = 79
+P_ENG_CT = 79      # engine: thrust coefficient at full throttle, T = thr C_T qbar S (capped P_TMAX)
+P_ENG_TAU = 80     # engine: first-order lag of the throttle position (s), 0 = none
+P_ENG_RATE = 81    # engine: throttle rate limit (1/s), 0 = none
+P_N = 82
 
 SPEED_NONE = 0
 SPEED_HOLD = 1
+SPEED_ENGINE = 2
 
 # ---- work array w (float64[W_N]) ----
 W_ATM = 0          # 0..4 atmosphere output
@@ -117,7 +124,8 @@ AX_SIDE = 13
 AX_GRAV = 14
 AX_SOUND = 15
 AX_THRUST = 16     # speed-model thrust (N)
-AX_N_OUT = 17
+AX_THR_POS = 17    # engine throttle position used by thrust_n over the step (copy of x[X_THR])
+AX_N_OUT = 18
 W_N = W_AUX + AX_N_OUT
 
 
@@ -227,12 +235,19 @@ def aero_eval(x, dl, dr, du, p, w):
 
 @njit(cache=True)
 def thrust_n(x, p, w):
-    """Speed-hold thrust (N) along body x, from the last aero_eval in ``w``.
+    """Speed-model thrust (N) along body x, from the last aero_eval in ``w``.
 
-    Ideal autothrottle: T cos(alpha) cos(beta) = D + m g sin(gamma) + m k_V (V_ref - V),
-    clipped to [0, T_max]; SPEED_NONE gives 0.
+    SPEED_HOLD, an ideal autothrottle: T cos(alpha) cos(beta) = D + m g sin(gamma)
+    + m k_V (V_ref - V), clipped to [0, T_max]. SPEED_ENGINE: T = thr C_T,max qbar S with the
+    throttle position thr = w[W_AUX + AX_THR_POS] (0..1; the RK4 trial states hold only the
+    rigid-body states, so the position is handed over in ``w``), capped at T_max.
+    SPEED_NONE gives 0.
     """
-    if p[P_SPEED_MODE] != SPEED_HOLD:
+    mode = p[P_SPEED_MODE]
+    if mode == SPEED_ENGINE:
+        t = w[W_AUX + AX_THR_POS] * p[P_ENG_CT] * w[W_AUX + AX_QBAR] * S_REF_M2
+        return t if t < p[P_TMAX] else p[P_TMAX]
+    if mode != SPEED_HOLD:
         return 0.0
     o = W_AUX
     V = w[o + AX_V]
@@ -328,15 +343,7 @@ def actuator_step(x, p, dt):
             cmd = lim
         elif cmd < -lim:
             cmd = -lim
-        pos = x[X_DL + k]
-        step = (cmd - pos) * frac
-        if rate > 0.0:
-            mx = rate * dt
-            if step > mx:
-                step = mx
-            elif step < -mx:
-                step = -mx
-        pos += step
+        pos = _lag_rate_step(x[X_DL + k], cmd, frac, rate * dt)
         if pos > lim:
             pos = lim
         elif pos < -lim:
@@ -344,12 +351,44 @@ def actuator_step(x, p, dt):
         x[X_DL + k] = pos
 
 
+@njit(cache=True, inline="always")
+def _lag_rate_step(pos, cmd, frac, step_max):
+    """pos moved toward cmd by the lag fraction ``frac``, the move limited to +-step_max
+    (step_max <= 0: no limit)."""
+    step = (cmd - pos) * frac
+    if step_max > 0.0:
+        if step > step_max:
+            step = step_max
+        elif step < -step_max:
+            step = -step_max
+    return pos + step
+
+
+@njit(cache=True)
+def engine_step(x, p, dt):
+    """Advance the engine's throttle position one physics step toward the latched command
+    (SPEED_ENGINE only): command clipped to [0, 1]; first-order lag with time constant
+    P_ENG_TAU (exact discretisation, 0 = none); change per step limited to P_ENG_RATE x dt
+    (0 = none); position clipped to [0, 1]."""
+    if p[P_SPEED_MODE] != SPEED_ENGINE:
+        return
+    cmd = min(max(x[X_CMD_THR], 0.0), 1.0)
+    if not cmd == cmd:           # NaN command: hold the position
+        return
+    tau = p[P_ENG_TAU]
+    frac = 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
+    x[X_THR] = min(max(_lag_rate_step(x[X_THR], cmd, frac, p[P_ENG_RATE] * dt), 0.0), 1.0)
+
+
 @njit(cache=True)
 def rk4_step(x, p, w):
-    """One physics step: actuators, then classic RK4 of the rigid body with the surfaces held."""
+    """One physics step: actuators and engine, then classic RK4 of the rigid body with the
+    surfaces and throttle held."""
     dt = p[P_DT]
     t = x[X_STEP] * dt
     actuator_step(x, p, dt)
+    engine_step(x, p, dt)
+    w[W_AUX + AX_THR_POS] = x[X_THR]
     dl = x[X_DL]
     dr = x[X_DR]
     du = x[X_DU]

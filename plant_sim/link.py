@@ -105,6 +105,17 @@ def parse_hostport(text: str, what: str) -> tuple[str, int]:
     return host, p
 
 
+#: Throttle on SERVO_OUTPUT_RAW servo4 (docs/wire.md s. 3): PWM 1000..2000 us = 0..1.
+THROTTLE_PWM_MIN_US = 1000
+THROTTLE_PWM_MAX_US = 2000
+
+
+def throttle_from_pwm(pwm_us: int) -> float:
+    """servo4 PWM (us) -> throttle 0..1, clipped (1000 us = 0, 2000 us = 1)."""
+    f = (pwm_us - THROTTLE_PWM_MIN_US) / (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)
+    return 0.0 if f < 0.0 else 1.0 if f > 1.0 else f
+
+
 class PwmMap:
     """PWM (us) <-> deflection (rad) as ArduPilot's SERVOn_MIN/TRIM/MAX (docs/wire.md s. 3)."""
 
@@ -167,6 +178,7 @@ class PlantLink:
         self._rx_mv = memoryview(self._rxbuf)
         # latest accepted servo frame
         self.cmd_rad = [0.0, 0.0, 0.0]
+        self.cmd_throttle = -1.0    # servo4 as throttle 0..1; -1 until a frame carries it
         self.cmd_stamp_u32 = -1
         self.cmd_count = 0          # valid servo frames accepted
         self.applied_count = 0      # of which applied (lockstep: the answer; real time: newest)
@@ -246,9 +258,9 @@ class PlantLink:
         if lean != ref:
             return False
         m = mavlink.MAVLink(None, srcSystem=self.fc_sysid, srcComponent=1)
-        frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 0, 0, 0, 0, 0).pack(m)
+        frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 1500, 0, 0, 0, 0).pack(m)
         got = self._decode_servo_fast(frame, len(frame))
-        return got == (self.fc_sysid, 987654, 1234, 1766, 0)
+        return got == (self.fc_sysid, 987654, 1234, 1766, 0, 1500)
 
     def send_sensors(self) -> bool:
         """Send the last built sensor frame (again). Returns False if the OS refused it."""
@@ -318,7 +330,7 @@ class PlantLink:
                 continue
             fast = self._decode_servo_fast(self._rxbuf, n) if self.lean else None
             if fast is not None:
-                sysid, stamp, s1, s2, s3 = fast
+                sysid, stamp, s1, s2, s3, s4 = fast
                 if sysid != self.fc_sysid:
                     self.rejected_sysid += 1
                     continue
@@ -327,11 +339,11 @@ class PlantLink:
                 if want >= 0:
                     if stamp != want:
                         continue
-                    self._apply(stamp, s1, s2, s3)
+                    self._apply(stamp, s1, s2, s3, s4)
                     return accepted, True     # lockstep: the rest waits for the next drain
                 if self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
                     continue
-                self._apply(stamp, s1, s2, s3)
+                self._apply(stamp, s1, s2, s3, s4)
                 continue
             try:
                 msgs = mav.parse_buffer(self._rx_mv[:n])
@@ -364,10 +376,11 @@ class PlantLink:
                     match = True
                 elif self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
                     continue        # older than the command already applied
-                self._apply(stamp, m.servo1_raw, m.servo2_raw, m.servo3_raw)
+                self._apply(stamp, m.servo1_raw, m.servo2_raw, m.servo3_raw, m.servo4_raw)
 
-    def _apply(self, stamp: int, s1: int, s2: int, s3: int) -> None:
-        """Latch a servo frame: PWM -> rad per channel; a channel value 0 keeps its command."""
+    def _apply(self, stamp: int, s1: int, s2: int, s3: int, s4: int = 0) -> None:
+        """Latch a servo frame: PWM -> rad per surface channel, servo4 PWM -> throttle 0..1
+        (``throttle_from_pwm``); a channel value 0 keeps its command."""
         pwm = self.pwm
         c = self.cmd_rad
         if s1:
@@ -376,17 +389,19 @@ class PlantLink:
             c[1] = pwm.to_rad(s2)
         if s3:
             c[2] = pwm.to_rad(s3)
+        if s4:
+            self.cmd_throttle = throttle_from_pwm(s4)
         self.cmd_stamp_u32 = stamp
         self.applied_count += 1
 
     def decode_servo(self, data) -> tuple | None:
-        """(sysid, time_usec, servo1, servo2, servo3) of a one-frame SERVO_OUTPUT_RAW datagram
-        (lean path), or None if the datagram needs the general parser."""
+        """(sysid, time_usec, servo1, servo2, servo3, servo4) of a one-frame SERVO_OUTPUT_RAW
+        datagram (lean path), or None if the datagram needs the general parser."""
         return self._decode_servo_fast(data, len(data))
 
     def _decode_servo_fast(self, buf, n: int):
         """Decode a datagram that is exactly one unsigned MAVLink 2 SERVO_OUTPUT_RAW with a good
-        CRC: returns (sysid, time_usec, servo1, servo2, servo3), else None (the caller then
+        CRC: returns (sysid, time_usec, servo1, servo2, servo3, servo4), else None (the caller then
         takes the codec's general parser, which also counts malformed input)."""
         if n < HDR2 + 3 or buf[0] != MAGIC2 or buf[2] != 0:
             return None
@@ -405,7 +420,7 @@ class PlantLink:
         pad[0:mlen] = buf[HDR2:end]
         pad[mlen:] = _ZEROS[mlen:]
         v = _SERVO.unpacker.unpack_from(pad, 0)
-        return buf[5], v[0], v[1], v[2], v[3]
+        return buf[5], v[0], v[1], v[2], v[3], v[4]
 
     def counters(self) -> dict:
         return {
@@ -428,7 +443,8 @@ class ServoResponder:
     """A minimal fc stand-in for tests and benchmarks: answers sensor frames with
     SERVO_OUTPUT_RAW echoing the frame stamp (codec here so pymavlink stays in this module).
 
-    ``answer(fn)`` is called with (stamp_us, meas_dict) and returns three deflections (rad).
+    ``serve_one(fn)`` calls fn(stamp_us, meas_dict), which returns three deflections (rad),
+    or four values with a throttle (0..1) last, sent on servo4 (docs/wire.md s. 3).
     """
 
     def __init__(self, bind_addr=("127.0.0.1", 0), sysid: int = 1, pwm: PwmMap | None = None):
@@ -472,8 +488,12 @@ class ServoResponder:
         if stamp is None:
             return False
         d = fn(stamp, vals)
-        pw = [self.pwm.to_pwm(v) for v in d]
-        msg = self.mav.servo_output_raw_encode(stamp % U32, 0, pw[0], pw[1], pw[2], 0, 0, 0, 0, 0)
+        pw = [self.pwm.to_pwm(v) for v in d[:3]]
+        s4 = 0
+        if len(d) > 3:
+            s4 = int(round(THROTTLE_PWM_MIN_US
+                           + min(max(d[3], 0.0), 1.0) * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)))
+        msg = self.mav.servo_output_raw_encode(stamp % U32, 0, pw[0], pw[1], pw[2], s4, 0, 0, 0, 0)
         b = msg.pack(self.mav)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.sock.sendto(b, addr)

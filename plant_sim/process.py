@@ -258,6 +258,8 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
         cmd[0] = c[0]
         cmd[1] = c[1]
         cmd[2] = c[2]
+        if link.cmd_throttle >= 0.0:          # servo4 (engine model only; else ignored)
+            x[dy.X_CMD_THR] = link.cmd_throttle
         if sim.frame(cmd, writer.row()) and "aero_clip_first_t_s" not in stats.extra:
             _warn_clip(sim, stats, log)
         stats.frames += 1
@@ -346,6 +348,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             cmd[0] = c[0]
             cmd[1] = c[1]
             cmd[2] = c[2]
+            if link.cmd_throttle >= 0.0:      # servo4 (engine model only; else ignored)
+                x[dy.X_CMD_THR] = link.cmd_throttle
         stamp = int(round(k * frame_dt * 1e6))
         link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
         link.send_sensors()

@@ -67,11 +67,22 @@ SCHEMA: dict[str, Any] = {
         "x_cg_m": Key("float", 0.0, -10.0, 10.0, doc="MRC -> c.g. distance, + aft"),
     },
     "speed": {
-        "model": Key("str", "hold", choices=("hold", "none"),
-                     doc="hold: thrust along body x holds V_ref; none: no thrust, V decays"),
+        "model": Key("str", "hold", choices=("hold", "none", "engine"),
+                     doc="hold: thrust along body x holds V_ref; none: no thrust, V decays; "
+                         "engine: thrust from the throttle command (SERVO_OUTPUT_RAW servo4)"),
         "V_ref_m_s": Key("float", 0.0, 0.0, 8000.0, doc="held speed; 0 = the initial V"),
         "k_1_s": Key("float", 0.5, 0.0, 100.0, doc="speed-hold gain"),
         "thrust_max_N": Key("float", 1.468e6, 0.0, 1e8, doc="330,000 lbf (S2 engine deck)"),
+        "thrust_coef_max": Key("float", 0.02576, 0.0, 1.0,
+                               doc="engine: C_T at full throttle, T = thr C_T qbar S (Wang & "
+                                   "Stengel 2000), capped at thrust_max_N"),
+        "throttle_tau_s": Key("float", 0.5, 0.0, 100.0, doc="engine: first-order lag; 0 = none"),
+        "throttle_rate_1_s": Key("float", 0.0, 0.0, 1000.0,
+                                 doc="engine: throttle rate limit (per s); 0 = none"),
+        "throttle_initial": Key("float", -1.0, -1.0, 1.0,
+                                doc="engine: throttle position and command at t = 0 (0..1); -1 = "
+                                    "the throttle that balances drag and gravity at the initial "
+                                    "state"),
     },
     "uncertainty": {
         # coefficient used = (1 + value) x model
@@ -144,6 +155,11 @@ SCHEMA: dict[str, Any] = {
 
 COMMAND_KEYS = {"t_s": (0.0, 1e6), "alpha_deg": (-10.0, 30.0), "beta_deg": (-20.0, 20.0),
                 "mu_deg": (-90.0, 90.0)}
+#: Guidance targets ``[[target]]`` (guided scenarios: cruise, mission): altitude, course and
+#: speed from ``t_s`` on. Like the command timeline they belong to the controller; the plant
+#: ignores them and the in-process guided loop (tools.guided_loop) reads them.
+TARGET_KEYS = {"t_s": (0.0, 1e6), "alt_m": (0.0, 80000.0), "course_deg": (-360.0, 360.0),
+               "speed_m_s": (100.0, 8000.0)}
 
 
 def _check_value(where: str, key: Key, value: Any) -> Any:
@@ -201,6 +217,7 @@ class Scenario:
     path: str
     data: dict
     commands: list = field(default_factory=list)   # [(t_s, alpha_deg, beta_deg, mu_deg)]
+    targets: list = field(default_factory=list)    # [(t_s, alt_m, course_deg, speed_m_s)]
 
     def get(self, dotted: str) -> Any:
         node: Any = self.data
@@ -252,6 +269,9 @@ class Scenario:
             lines.append("\n[[command]]")
             lines.append(f"t_s = {float(t)!r}\nalpha_deg = {float(a)!r}\nbeta_deg = {float(b)!r}\n"
                          f"mu_deg = {float(m)!r}")
+        for row in self.targets:
+            lines.append("\n[[target]]")
+            lines.extend(f"{k} = {float(v)!r}" for k, v in zip(TARGET_KEYS, row))
         return "\n".join(lines) + "\n"
 
 
@@ -280,27 +300,10 @@ def parse(text: str, src: str = "<string>", name: str = "") -> Scenario:
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"{src}: not valid TOML: {e}") from None
     cmds_raw = raw.pop("command", [])
-    if not isinstance(cmds_raw, list):
-        raise ScenarioError(f"{src}: 'command' must be an array of tables ([[command]])")
+    tgts_raw = raw.pop("target", [])
     data = _apply(src, SCHEMA, raw, "")
-    commands = []
-    last_t = -1.0
-    for i, c in enumerate(cmds_raw):
-        if not isinstance(c, dict):
-            raise ScenarioError(f"{src}: command[{i}] must be a table")
-        for k in c:
-            if k not in COMMAND_KEYS:
-                raise ScenarioError(f"{src}: unknown key 'command[{i}].{k}' "
-                                    f"(known: {', '.join(COMMAND_KEYS)})")
-        row = []
-        for k, (lo, hi) in COMMAND_KEYS.items():
-            if k not in c:
-                raise ScenarioError(f"{src}: 'command[{i}].{k}' is missing")
-            row.append(_check_value(f"{src}: 'command[{i}].{k}'", Key("float", 0.0, lo, hi), c[k]))
-        if row[0] < last_t:
-            raise ScenarioError(f"{src}: 'command[{i}].t_s' goes back in time ({row[0]} < {last_t})")
-        last_t = row[0]
-        commands.append(tuple(row))
+    commands = _timeline(src, "command", cmds_raw, COMMAND_KEYS)
+    targets = _timeline(src, "target", tgts_raw, TARGET_KEYS)
     t = data["timing"]
     ratio = t["physics_hz"] / t["frame_hz"]
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -312,7 +315,33 @@ def parse(text: str, src: str = "<string>", name: str = "") -> Scenario:
                             f"does not hold ({sv['pwm_min_us']}, {sv['pwm_trim_us']}, {sv['pwm_max_us']})")
     if not data["name"]:
         data["name"] = name or Path(src).stem
-    return Scenario(name=data["name"], path=src, data=data, commands=commands)
+    return Scenario(name=data["name"], path=src, data=data, commands=commands, targets=targets)
+
+
+def _timeline(src: str, what: str, raw: Any, keys: dict) -> list:
+    """Validate an array of tables ``[[what]]`` with the float ``keys`` {name: (lo, hi)}, the
+    first being ``t_s`` (non-decreasing); returns a list of tuples in ``keys`` order."""
+    if not isinstance(raw, list):
+        raise ScenarioError(f"{src}: '{what}' must be an array of tables ([[{what}]])")
+    rows = []
+    last_t = -1.0
+    for i, c in enumerate(raw):
+        if not isinstance(c, dict):
+            raise ScenarioError(f"{src}: {what}[{i}] must be a table")
+        for k in c:
+            if k not in keys:
+                raise ScenarioError(f"{src}: unknown key '{what}[{i}].{k}' "
+                                    f"(known: {', '.join(keys)})")
+        row = []
+        for k, (lo, hi) in keys.items():
+            if k not in c:
+                raise ScenarioError(f"{src}: '{what}[{i}].{k}' is missing")
+            row.append(_check_value(f"{src}: '{what}[{i}].{k}'", Key("float", 0.0, lo, hi), c[k]))
+        if row[0] < last_t:
+            raise ScenarioError(f"{src}: '{what}[{i}].t_s' goes back in time ({row[0]} < {last_t})")
+        last_t = row[0]
+        rows.append(tuple(row))
+    return rows
 
 
 def load(name_or_path: str | os.PathLike) -> Scenario:

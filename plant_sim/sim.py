@@ -58,6 +58,7 @@ def truth_kernel(x, p, w, meas, out):
     aero slots are overwritten).
     """
     flags = dy.aero_eval(x, x[X_DL], x[X_DL + 1], x[X_DL + 2], p, w)
+    w[W_AUX + dy.AX_THR_POS] = x[dy.X_THR]
     thrust = dy.thrust_n(x, p, w)
     t = x[X_STEP] * p[dy.P_DT]
     o = W_AUX
@@ -156,6 +157,11 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
     p[dy.P_VREF] = s["V_ref_m_s"] if s["V_ref_m_s"] > 0.0 else d["initial"]["V_m_s"]
     p[dy.P_KV] = s["k_1_s"]
     p[dy.P_TMAX] = s["thrust_max_N"]
+    if s["model"] == "engine":
+        p[dy.P_SPEED_MODE] = dy.SPEED_ENGINE
+    p[dy.P_ENG_CT] = s["thrust_coef_max"]
+    p[dy.P_ENG_TAU] = s["throttle_tau_s"]
+    p[dy.P_ENG_RATE] = s["throttle_rate_1_s"]
     a = d["actuators"]
     p[dy.P_ACT_LIMIT] = a["limit_deg"] * DEG
     p[dy.P_ACT_RATE] = a["rate_limit_deg_s"] * DEG
@@ -244,12 +250,41 @@ class PlantSim:
         self.x[X_CMD_L:X_CMD_L + 3] = self.trim_rad
         self.cmd_rad[:] = self.trim_rad
         self.w[:] = 0.0
+        thr = self.initial_throttle()
+        self.x[dy.X_THR] = thr
+        self.x[dy.X_CMD_THR] = thr
+        self.w[:] = 0.0
         self.ring[:] = 0.0
         self.ring_count[0] = 0
         self.rng_state[0] = np.uint64(self.seed & 0xFFFFFFFFFFFFFFFF)
         self.last_meas[:] = 0.0
         self.clip_frames = 0
         self.frames = 0
+
+    def initial_throttle(self) -> float:
+        """Engine model: the scenario's ``speed.throttle_initial``, or (if -1) the throttle
+        whose thrust balances drag and gravity along the path at the current state:
+        T cos(alpha) cos(beta) = D + m g sin(gamma), clipped to [0, 1]. 0 for other models."""
+        if self.p[dy.P_SPEED_MODE] != dy.SPEED_ENGINE:
+            return 0.0
+        given = float(self.scenario.data["speed"]["throttle_initial"])
+        if given >= 0.0:
+            return given
+        x, p, w = self.x, self.p, self.w
+        dy.aero_eval(x, x[X_DL], x[X_DL + 1], x[X_DL + 2], p, w)
+        fp = np.zeros(4)
+        dy.flight_path(x, fp)
+        o = W_AUX
+        need = w[o + dy.AX_DRAG] + p[dy.P_MASS] * w[o + dy.AX_GRAV] * math.sin(fp[0])
+        full = p[dy.P_ENG_CT] * w[o + AX_QBAR] * dy.S_REF_M2
+        proj = math.cos(w[o + AX_ALPHA]) * math.cos(w[o + AX_BETA])
+        if not full > 0.0 or proj <= 0.05:
+            return 0.0
+        return min(max(need / (proj * full), 0.0), 1.0)
+
+    def throttle(self, thr: float) -> None:
+        """Latch a throttle command (0..1; the engine speed model only, ignored otherwise)."""
+        self.x[dy.X_CMD_THR] = thr
 
     @property
     def t_s(self) -> float:

@@ -128,7 +128,7 @@ def test_decode_fast_path_agrees_with_codec_and_rejects_damage(pair):
         s = [int(v) for v in rng.integers(0, 2500, size=3)]
         stamp = int(rng.integers(0, 2**32))
         frame = _servo(1, stamp, *s, seq=int(rng.integers(0, 256)))
-        assert link.decode_servo(frame) == (1, stamp, s[0], s[1], s[2])
+        assert link.decode_servo(frame) == (1, stamp, s[0], s[1], s[2], 0)
         bad = bytearray(frame)
         bad[int(rng.integers(1, len(bad)))] ^= 1 << int(rng.integers(0, 8))
         got = link.decode_servo(bytes(bad))

@@ -78,7 +78,7 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
         t = time.perf_counter()
         for k in range(frames):
             link.build_sensors(k * 2000, sim.last_meas, x[dy.X_THRUST] * 1e-4)
-            _, _, s1, s2, s3 = link.decode_servo(servo)
+            _, _, s1, s2, s3, _ = link.decode_servo(servo)
             cmd[0] = pwm.to_rad(s1)
             cmd[1] = pwm.to_rad(s2)
             cmd[2] = pwm.to_rad(s3)

@@ -60,6 +60,23 @@ DIVERGED_RAD = 45.0 * DEG
 
 
 @njit(cache=True)
+def sense_frame(use_sensors, px, pp, pw, meas, row, est, ring, ring_count, rng_state,
+                meas_work, good, good_t, lo, hi, stale_s, masks):
+    """The start of a frame of the in-process loops: [sensors.measure], the plant's truth row
+    at t_k into ``row``, and the estimated state ``est`` (float64[E_N]): the truth's alpha ..
+    gamma, or with ``use_sensors`` the fc's estimator (fc.estimator.estimate_kernel) on the
+    measurement."""
+    if use_sensors:
+        measure(px, pp, ring, ring_count, rng_state, meas_work, meas)
+    truth_kernel(px, pp, pw, meas, row)
+    if use_sensors:
+        estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks)
+    else:
+        for i in range(L.E_N):
+            est[i] = row[1 + i]
+
+
+@njit(cache=True)
 def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
          px, pp, pw, n_sub, meas, row, est, cmd,
          par, lx, nm, st, tab, atm, grid, delta,
@@ -79,14 +96,8 @@ def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
     frame_dt = pp[dy.P_FRAME_DT]
     t0 = px[dy.X_STEP] * pp[dy.P_DT]
     for k in range(n_frames):
-        if use_sensors:
-            measure(px, pp, ring, ring_count, rng_state, meas_work, meas)
-        truth_kernel(px, pp, pw, meas, row)
-        if use_sensors:
-            estimate_kernel(meas, good, good_t, lo, hi, stale_s, est, masks)
-        else:
-            for i in range(L.E_N):
-                est[i] = row[1 + i]
+        sense_frame(use_sensors, px, pp, pw, meas, row, est, ring, ring_count, rng_state,
+                    meas_work, good, good_t, lo, hi, stale_s, masks)
         t = t0 + k * frame_dt
         while k_cmd + 1 < n_cmd and cmd_t[k_cmd + 1] <= t + 1e-9:
             k_cmd += 1
