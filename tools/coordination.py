@@ -236,12 +236,16 @@ def _base_of(base: dict, r: dict):
                      r["case"]))
 
 
-def paper_table(rows: list[dict]) -> str:
-    """Markdown: the paper case, one row per configuration, coordinated minus uncoordinated."""
+def paper_table(rows: list[dict], factors=None, readings=None, limits=None) -> str:
+    """Markdown: the paper case, one row per configuration (optionally only those factor sets,
+    readings, limits), travel with the uncoordinated run's difference."""
     rows = [r for r in rows if r["case"] == -1]
     base = _paired(rows)
+    rows = [r for r in rows if (factors is None or r["factors"] in factors)
+            and (readings is None or r["reading"] in readings or r["factors"] == "none")
+            and (limits is None or r["omc_max_deg_s"] in limits)]
     out = ["| limit deg/s | sign | reading | factors | os a/b/m % | ts a/b/m s | dip a/b/m % | "
-           "peak L/R/rud deg | usage deg s | diverged |", "|---|---|---|---|---|---|---|---|---|---|"]
+           "peak L/R/rud deg | travel deg (co - unco) | diverged |", "|---|---|---|---|---|---|---|---|---|---|"]
     key = lambda r: (r["omc_max_deg_s"], r["sign"], r["reading"], list(FACTOR_SETS).index(r["factors"]))
     for r in sorted(rows, key=key):
         b = _base_of(base, r)
@@ -251,14 +255,14 @@ def paper_table(rows: list[dict]) -> str:
         def tri(k, fmt=".1f"):
             return "/".join("-" if math.isnan(r[f"{c}_{k}"]) else format(r[f"{c}_{k}"], fmt)
                             for c in CHANNELS)
-        du = "" if b is None or r is b else f" ({r['usage_deg_s'] - b['usage_deg_s']:+.0f})"
+        du = "" if b is None or r is b else f" ({r['travel_deg'] - b['travel_deg']:+.0f})"
         reading = r["reading"]
         if r["factors"] == "none":
             reading = "dob M_c" if READINGS[r["reading"]]["DOB_ACHIEVED"] < 0.5 else "dob achieved"
         out.append(f"| {r['omc_max_deg_s']:g} | {r['sign']} | {reading} | {r['factors']} | "
                    f"{tri('os_pct')} | {tri('ts_s', '.2f')} | {tri('dip_pct')} | "
                    f"{r['peak_left_elevon_deg']:.1f}/{r['peak_right_elevon_deg']:.1f}/"
-                   f"{r['peak_rudder_deg']:.1f} | {r['usage_deg_s']:.0f}{du} | "
+                   f"{r['peak_rudder_deg']:.1f} | {r['travel_deg']:.0f}{du} | "
                    f"{'yes' if r['diverged'] else ''} |")
     return "\n".join(out)
 
@@ -275,7 +279,7 @@ def dispersed_table(rows: list[dict]) -> str:
         groups.setdefault((r["omc_max_deg_s"], r["sign"], r["reading"], r["factors"]), []).append(r)
     out = ["| limit | sign | reading | factors | N | div co/unco | med os a/b/m % (unco) | "
            "os higher a/b/m % of cases | med ts a/b/m s (unco) | ts later a/b/m % of cases | "
-           "med dip b/m % (unco) | med usage deg s (unco) |",
+           "med dip b/m % (unco) | med travel deg (unco) |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for key in sorted(groups, key=lambda k: (k[0], k[1], k[2], list(FACTOR_SETS).index(k[3]))):
         rs = groups[key]
@@ -312,7 +316,7 @@ def dispersed_table(rows: list[dict]) -> str:
             + "/".join(f"{share(f'{c}_ts_s'):.0f}" for c in CHANNELS) + " | "
             f"{med('beta_dip_pct', 0):.1f}/{med('mu_dip_pct', 0):.1f} "
             f"({med('beta_dip_pct', 1):.1f}/{med('mu_dip_pct', 1):.1f}) | "
-            f"{med('usage_deg_s', 0):.0f} ({med('usage_deg_s', 1):.0f}) |")
+            f"{med('travel_deg', 0):.0f} ({med('travel_deg', 1):.0f}) |")
     return "\n".join(out)
 
 
