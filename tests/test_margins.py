@@ -130,3 +130,12 @@ def test_nonlinear_loop_is_stable_nominally_and_a_large_pitch_gain_breaks_it():
     assert np.array_equal(nominal.v_c_rad, nominal.v_out_rad)
     broken = M.fly(sc, M.make_inj("gain", "pitch", gain=8.0), duration_s=12.0)
     assert not M.stable(broken)
+
+
+def test_margin_scenario_options():
+    sc = M.margin_scenario(point=(8.0, 26e3), sensor_noise=False)
+    assert sc.data["timing"]["frame_hz"] == 1000.0
+    assert sc.data["disturbance"]["enabled"] is False
+    assert sc.data["initial"]["h_m"] == 26e3
+    assert all(v == 0.0 for v in sc.data["sensors"]["noise"].values())
+    assert M.margin_scenario(disturbance=True).data["disturbance"]["enabled"] is True

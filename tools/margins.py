@@ -215,11 +215,17 @@ class Flight:
 
 
 def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: str = "paper",
-                    sensor_noise: bool = True):
+                    sensor_noise: bool = True, point: tuple | None = None):
     """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
-    on or off (the noise only matters over the wire, where the fc estimates from sensors)."""
+    on or off (the noise only matters over the wire, where the fc estimates from sensors);
+    ``point`` = (Mach, altitude m): flown there instead, surfaces starting at the initial trim
+    (tools.envelope.point_scenario)."""
     from plant_sim.scenario import load, parse
-    sc = load(base)
+    if point is None:
+        sc = load(base)
+    else:
+        from tools.envelope import point_scenario
+        sc = point_scenario(float(point[0]), float(point[1]), base)
     d = copy.deepcopy(sc.data)
     d["timing"]["frame_hz"] = float(frame_hz)
     d["disturbance"]["enabled"] = bool(disturbance)
@@ -484,6 +490,8 @@ def main(argv=None) -> int:
     ap.add_argument("--disturbance", action="store_true", help="keep the paper's d(t) on")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
+    ap.add_argument("--point", default=None, metavar="MACH,H_KM",
+                    help="fly the paper's case at this flight condition (default: the paper's)")
     w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
                    help="extra delays to fly, frames (1 ms each)")
@@ -499,7 +507,11 @@ def main(argv=None) -> int:
         sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
         from tools.margins_wire import wire_delay_runs
         return wire_delay_runs(sc, [int(x) for x in a.frames.split(",")], a.out, a.variant, ov)
-    sc = margin_scenario(disturbance=a.disturbance)
+    point = None
+    if a.point:
+        m, h = (float(x) for x in a.point.split(","))
+        point = (m, h * 1e3)
+    sc = margin_scenario(disturbance=a.disturbance, point=point)
     t0 = time.perf_counter()
     results, delays = [], {}
     for var in a.variants.split(","):
