@@ -77,6 +77,19 @@ def sense_frame(use_sensors, px, pp, pw, meas, row, est, ring, ring_count, rng_s
 
 
 @njit(cache=True)
+def law_frame(k, n_slow, n_fast, dt_slow, dt_fast, est, cmd,
+              par, lx, nm, st, tab, atm, grid, delta):
+    """The law's share of frame ``k`` in the fc's lockstep order: reset at frame 0, the slow
+    loop when due, then the fast loop when due (writes ``delta``, the surface command)."""
+    if k == 0:
+        reset_kernel(est, par, lx, st, delta)
+    if k % n_slow == 0:
+        slow_kernel(est, cmd, dt_slow, par, lx, nm, st, tab, atm, grid)
+    if k % n_fast == 0:
+        fast_kernel(est, dt_fast, par, lx, nm, st, tab, atm, grid, delta)
+
+
+@njit(cache=True)
 def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
          px, pp, pw, n_sub, meas, row, est, cmd,
          par, lx, nm, st, tab, atm, grid, delta,
@@ -104,12 +117,8 @@ def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
         cmd[0] = cmd_v[k_cmd, 0]
         cmd[1] = cmd_v[k_cmd, 1]
         cmd[2] = cmd_v[k_cmd, 2]
-        if k == 0:
-            reset_kernel(est, par, lx, st, delta)
-        if k % n_slow == 0:
-            slow_kernel(est, cmd, dt_slow, par, lx, nm, st, tab, atm, grid)
-        if k % n_fast == 0:
-            fast_kernel(est, dt_fast, par, lx, nm, st, tab, atm, grid, delta)
+        law_frame(k, n_slow, n_fast, dt_slow, dt_fast, est, cmd,
+                  par, lx, nm, st, tab, atm, grid, delta)
         if k % rec_every == 0:
             for i in range(row.shape[0]):
                 out_truth[n_rec, i] = row[i]

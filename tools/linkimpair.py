@@ -23,6 +23,13 @@ same traffic give the same decisions. Per datagram, in this order:
 - **blackout** (``set_blackout``, tests only): the link is cut, every datagram dropped;
 - **reorder** ``reorder``: the datagram is held back and released right after the *next*
   datagram of the same direction (the two swap), or after ``reorder_hold_s`` if no other comes.
+- **frame delay** ``delay_frames`` (lockstep, fc -> plant): a wall-clock delay only slows a
+  lockstep run (the plant waits for the answer to each frame), so this delays in *frames*:
+  each SERVO_OUTPUT_RAW is held and its channels are sent N answers later, re-stamped with the
+  frame being answered (``time_usec``), so the plant applies at frame k the fc's answer to
+  frame k - N (the first N frames get the first answer). Applied before the other impairments;
+  a datagram that is not exactly one SERVO_OUTPUT_RAW passes unchanged. Counted as
+  ``frame_delayed``. Used by ``tools.margins wire`` (time-delay margin over the wire).
 
 Counters per direction (``received, dropped, duplicated, reordered, delivered, send_errors``)
 are exact counts of what the relay did (``reordered`` = held datagrams actually overtaken), so
@@ -33,6 +40,7 @@ line of counters at exit)::
 
     python -m tools.linkimpair --listen 127.0.0.1:14570 --target 127.0.0.1:14560 \\
         --loss 0.05 --jitter-ms 5 --dup 0.01 --reorder 0.01 [--down-loss ...] --seed 1
+    python -m tools.linkimpair --listen ... --target ... --down-delay-frames 20   # lockstep
 
 ``--loss/--delay-ms/--jitter-ms/--dup/--reorder`` set both directions; ``--up-*`` and
 ``--down-*`` override one direction. From Python::
@@ -64,7 +72,7 @@ __all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "mutate
 
 MAX_DATAGRAM_B = 65535
 COUNTER_NAMES = ("received", "dropped", "duplicated", "reordered", "delivered", "send_errors",
-                 "blackout", "corrupted")
+                 "blackout", "corrupted", "frame_delayed")
 
 
 def mutate(data: bytes, rng: random.Random) -> bytes:
@@ -123,6 +131,7 @@ class Impairment:
     reorder: float = 0.0
     reorder_hold_s: float = 0.02
     corrupt: float = 0.0      # probability a datagram is mutated (fuzzing: tools/fuzz.py)
+    delay_frames: int = 0     # SERVO_OUTPUT_RAW answers held this many frames (lockstep)
 
     def __post_init__(self) -> None:
         for name in ("loss", "dup", "reorder", "corrupt"):
@@ -133,11 +142,14 @@ class Impairment:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= 10.0):
                 raise ValueError(f"{name} must be a time in [0, 10] s, got {v!r}")
+        if not (isinstance(self.delay_frames, int) and 0 <= self.delay_frames <= 100000):
+            raise ValueError(f"delay_frames must be an integer in [0, 100000], got "
+                             f"{self.delay_frames!r}")
 
     @property
     def is_clean(self) -> bool:
         return not (self.loss or self.delay_s or self.jitter_s or self.dup or self.reorder
-                    or self.corrupt)
+                    or self.corrupt or self.delay_frames)
 
 
 class _Direction:
@@ -151,6 +163,7 @@ class _Direction:
         self.counters = {n: 0 for n in COUNTER_NAMES}
         self.blackout = False        # link cut: every datagram is dropped (counted apart)
         self.corrupt_now = False
+        self.frames = FrameDelay(imp.delay_frames) if imp.delay_frames else None
 
     def decide(self, now: float) -> tuple[list[float] | None, bool]:
         """(due times of the copies of one datagram or None when dropped, hold-for-reorder).
@@ -177,6 +190,44 @@ class _Direction:
             self.counters["duplicated"] += 1
             return [due, due], reorder
         return [due], reorder
+
+
+class FrameDelay:
+    """Delay SERVO_OUTPUT_RAW answers by ``n`` frames, re-stamped (see the module docstring).
+
+    ``process(datagram) -> (datagram out, delayed?)``. The output keeps the sender's system
+    and component ids, sequence number and MAVLink version; only the channels change.
+    """
+
+    def __init__(self, n: int) -> None:
+        from collections import deque
+        os.environ.setdefault("MAVLINK20", "1")
+        from pymavlink.dialects.v20 import ardupilotmega as mavlink
+        self.n = int(n)
+        self._mavlink = mavlink
+        self._parser = mavlink.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._held: deque = deque()
+        self._first: tuple | None = None
+
+    def process(self, data: bytes) -> tuple[bytes, bool]:
+        try:
+            msgs = self._parser.parse_buffer(bytes(data)) or []
+        except Exception:  # noqa: BLE001 - not ours to judge: pass it on unchanged
+            return data, False
+        if len(msgs) != 1 or msgs[0].get_type() != "SERVO_OUTPUT_RAW":
+            return data, False
+        m = msgs[0]
+        chans = tuple(int(getattr(m, f"servo{i}_raw", 0)) for i in range(1, 17))
+        self._held.append(chans)
+        if self._first is None:
+            self._first = chans
+        out = self._held.popleft() if len(self._held) > self.n else self._first
+        enc = self._mavlink.MAVLink(None, srcSystem=m.get_srcSystem(),
+                                    srcComponent=m.get_srcComponent())
+        enc.seq = m.get_seq()
+        msg = enc.servo_output_raw_encode(m.time_usec, m.port, *out)
+        return bytes(msg.pack(enc, force_mavlink1=data[:1] == b"\xfe")), True
 
 
 class LinkImpair:
@@ -306,6 +357,11 @@ class LinkImpair:
 
     def _accept(self, direction: str, data: bytes, now: float) -> None:
         d = self._dirs[direction]
+        if d.frames is not None:
+            data, delayed = d.frames.process(data)
+            if delayed:
+                with self._lock:
+                    d.counters["frame_delayed"] += 1
         with self._lock:
             dues, reorder = d.decide(now)
         if dues is None:
@@ -413,6 +469,8 @@ class RelayProcess:
                           f"--{prefix}-dup", repr(imp.dup),
                           f"--{prefix}-reorder", repr(imp.reorder),
                           f"--{prefix}-corrupt", repr(imp.corrupt)]
+            if imp.delay_frames:
+                self.argv += [f"--{prefix}-delay-frames", str(imp.delay_frames)]
         self.start_timeout_s = start_timeout_s
         self.proc: subprocess.Popen | None = None
         self.listen_address: tuple[str, int] | None = None
@@ -469,7 +527,8 @@ def _impairment(args, prefix: str) -> Impairment:
     return Impairment(loss=pick("loss"), delay_s=pick("delay_ms") * 1e-3,
                       jitter_s=pick("jitter_ms") * 1e-3, dup=pick("dup"),
                       reorder=pick("reorder"), corrupt=pick("corrupt"),
-                      reorder_hold_s=args.reorder_hold_ms * 1e-3)
+                      reorder_hold_s=args.reorder_hold_ms * 1e-3,
+                      delay_frames=getattr(args, f"{prefix}_delay_frames"))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -497,6 +556,10 @@ def build_parser() -> argparse.ArgumentParser:
         for prefix in ("up", "down"):
             ap.add_argument(f"--{prefix}-{name}", type=kind, default=None,
                             help=argparse.SUPPRESS)
+    ap.add_argument("--down-delay-frames", type=int, default=0, metavar="N",
+                    help="lockstep: hold the server's SERVO_OUTPUT_RAW answers N frames, "
+                         "re-stamped (a delay in sim time; 0)")
+    ap.add_argument("--up-delay-frames", type=int, default=0, help=argparse.SUPPRESS)
     ap.epilog = ("--up-X / --down-X (X = loss, delay-ms, jitter-ms, dup, reorder) override one "
                  "direction: up = client->target, down = target->client.")
     return ap

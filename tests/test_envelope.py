@@ -1,0 +1,50 @@
+"""tools/envelope.py: the grid, its trim and its verdicts (issue 15, point 5)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tools import envelope as E
+
+
+def test_paper_point_has_the_papers_speed_and_dynamic_pressure():
+    v, q = E.flight_condition(2200.0 / 295.7028, 21000.0)
+    assert v == pytest.approx(2200.0, rel=1e-4)
+    assert q == pytest.approx(0.5 * 0.0757148627 * 2200.0 ** 2, rel=1e-3)
+
+
+def test_every_quick_grid_point_is_set_up_and_trimmed():
+    machs, hs = E.grid(quick=True)
+    for m in machs:
+        for h in hs:
+            sc = E.point_scenario(float(m), float(h))
+            assert sc.data["initial"]["h_m"] == h
+            assert sc.data["actuators"]["initial"] == "trim"
+            tr = E.trim_point(sc)
+            assert tr["trim_ini_ok"] and tr["trim_cmd_ok"], (m, h, tr)
+            assert 0.0 < tr["trim_cmd_max_deg"] <= 20.0
+
+
+def test_trim_is_computed_at_each_point():
+    """The trim depends on the point's Mach (the aerodynamic fits vary with Mach): two points
+    at one altitude give different deflections, so each point is trimmed, not copied."""
+    a = E.trim_point(E.point_scenario(7.0, 22e3))
+    b = E.trim_point(E.point_scenario(12.0, 22e3))
+    assert a["trim_ini_max_deg"] != b["trim_ini_max_deg"]
+
+
+def test_spec_and_maps_from_rows():
+    ok = {"mach": 7.0, "h_km": 22.0, "variant": "unco", "diverged": False, "error": "",
+          "alpha_os_pct": 4.0, "beta_os_pct": 2.0, "mu_os_pct": 9.0,
+          "alpha_ts_s": 2.0, "beta_ts_s": 1.0, "mu_ts_s": 4.9, "sat_s": 0.0, "trim_cmd_ok": True}
+    late = dict(ok, mach=10.0, mu_ts_s=math.nan)
+    div = dict(ok, h_km=30.0, diverged=True)
+    assert E.meets_spec(ok) and not E.meets_spec(late) and not E.meets_spec(div)
+    machs, hs = E.grid(quick=True)
+    mp = E.maps([ok, late, div], machs, hs)
+    assert mp[("unco", "os")][0, 0] == 9.0
+    assert mp[("unco", "ts")][0, 1] == math.inf
+    assert mp[("unco", "div")][1, 0] == 1.0 and np.isnan(mp[("unco", "os")][1, 0])
+    assert np.isnan(mp[("unco", "os")][1, 1])                 # not flown

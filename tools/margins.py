@@ -1,0 +1,550 @@
+"""tools/margins.py - gain, phase and time-delay margins of the nonlinear law (issue 15, point 4).
+
+The loop is broken at the actuator input, one channel at a time, as an autopilot is certified:
+the law's surface command is split into three *virtual* channels
+
+    roll  v_l = (left - right) / 2     (differential elevons)
+    pitch v_m = (left + right) / 2     (symmetric elevons)
+    yaw   v_n = rudder
+
+and a perturbation is inserted in one of them (or in all three) between the law and the
+plant's actuators, in closed-loop simulation of the full nonlinear law against the full plant
+(the law fed the plant's truth, in one numba loop as tools.closed_loop):
+
+- **gain**: v_out = k v; the gain margin is the smallest k > 1 (and the largest k < 1) at which
+  the loop loses stability (divergence, or a persistent oscillation: :func:`stable`);
+- **delay**: v_out(t) = v(t - N frames) (a ring buffer; all three channels: the link delays
+  every surface); the time-delay margin is the largest N that stays stable;
+- **all-pass**: a first-order all-pass (a - s)/(a + s) (unit gain, phase lag 2 atan(w/a)) set
+  to lag phi at the channel's measured crossover; the phase margin is the largest phi that
+  stays stable (a time-domain check of the sweep);
+- **sine**: v_out = v + A sin(w t) from ``t_on``; the broken-loop transfer at w is
+  L(jw) = -V(jw) / V_out(jw) (Fourier projection over whole periods). A sweep gives the
+  crossover |L| = 1 with its phase margin, and the gain margin at the -180 deg crossing.
+
+Over the wire (``wire`` subcommand): the same delay, but between the two processes in
+lockstep: tools.linkimpair's ``delay_frames`` holds the fc's SERVO_OUTPUT_RAW answers N frames
+and re-stamps them, so the plant applies at frame k the fc's answer to frame k - N (exactly the
+in-process ring buffer).
+
+    python -m tools.margins --out runs/margins              # in process, both variants
+    python -m tools.margins wire --frames 20,40 --out runs/margins_wire
+
+The case: the paper's (scenario ``paper``, uncertainty on, steps) at 1 kHz frames (1 ms delay
+resolution, law at 500/100 Hz), with the paper's sinusoidal disturbance OFF (``--disturbance``
+turns it on): a persistent forced oscillation would otherwise be read as a limit cycle and would
+sit on the sweep's frequencies.
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from fc.control import layout as L
+from plant_sim import dynamics as dy
+from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
+from tools.closed_loop import law_frame
+
+CHANNELS = ("roll", "pitch", "yaw")
+ALL = 3                                   # channel index meaning all three
+MODES = {"none": 0, "gain": 1, "delay": 2, "allpass": 3, "sine": 4, "gain_ac": 5}
+
+# inj layout (float64[INJ_N])
+I_MODE, I_CH, I_GAIN, I_DELAY_N, I_AP_A, I_AMP, I_OMEGA, I_T_ON, I_LP_W = range(9)
+INJ_N = 9
+#: corner of the low-pass that gives "gain_ac" its reference (the trim and the slow part), rad/s
+AC_CORNER_RAD_S = 0.2
+
+_TRUTH_EST0 = TRUTH_NAMES.index("alpha_rad")
+RING_MAX = 4096                            # longest delay, frames
+
+
+# ------------------------------------------------------------------------ the injection block
+@njit(cache=True)
+def to_virtual(delta, v):
+    """Surfaces (left, right, rudder) rad -> virtual channels (roll, pitch, yaw) rad."""
+    v[0] = 0.5 * (delta[0] - delta[1])
+    v[1] = 0.5 * (delta[0] + delta[1])
+    v[2] = delta[2]
+
+
+@njit(cache=True)
+def from_virtual(v, delta):
+    """Virtual channels (roll, pitch, yaw) rad -> surfaces (left, right, rudder) rad."""
+    delta[0] = v[1] + v[0]
+    delta[1] = v[1] - v[0]
+    delta[2] = v[2]
+
+
+@njit(cache=True)
+def inject(inj, v_in, t_s, dt_s, k, ring, ap_state, v_out):
+    """The perturbation at sample ``k`` (time ``t_s``, step ``dt_s``): v_in -> v_out (rad).
+
+    ``ring`` (RING_MAX, 3): delay line, primed with the first input (``k`` == 0);
+    ``ap_state`` (3, 3): the all-pass's last input and output per channel (Tustin form of
+    (a - s)/(a + s): unit gain at every frequency, phase -2 atan(w/a) up to frequency warping),
+    and the low-pass reference of "gain_ac" (v_out = v_ref + k (v - v_ref), v_ref = v through
+    a first-order low-pass of corner inj[I_LP_W]: the gain acts on the perturbation about
+    trim, not on the trim deflection itself).
+    Channels not selected by inj[I_CH] pass unchanged.
+    """
+    mode = int(inj[I_MODE])
+    ch = int(inj[I_CH])
+    n = int(inj[I_DELAY_N])
+    if k == 0:
+        for j in range(RING_MAX):
+            for i in range(3):
+                ring[j, i] = v_in[i]
+        for i in range(3):
+            ap_state[0, i] = v_in[i]
+            ap_state[1, i] = v_in[i]
+            ap_state[2, i] = v_in[i]
+    slot = k % RING_MAX
+    for i in range(3):
+        ring[slot, i] = v_in[i]
+    for i in range(3):
+        x = v_in[i]
+        y = x
+        if ch == ALL or ch == i:
+            if mode == 1:
+                y = inj[I_GAIN] * x
+            elif mode == 2:
+                y = ring[(k - n) % RING_MAX, i] if n > 0 else x
+            elif mode == 3:
+                c = 2.0 / dt_s
+                a = inj[I_AP_A]
+                # (a - s)/(a + s), s = c (z - 1)/(z + 1):
+                # y_k = ((a - c) x_k + (a + c) x_{k-1} - (a - c) y_{k-1}) / (a + c)
+                y = ((a - c) * x + (a + c) * ap_state[0, i] - (a - c) * ap_state[1, i]) / (a + c)
+            elif mode == 4 and t_s >= inj[I_T_ON]:
+                y = x + inj[I_AMP] * math.sin(inj[I_OMEGA] * (t_s - inj[I_T_ON]))
+            elif mode == 5:
+                ref = ap_state[2, i] + (1.0 - math.exp(-inj[I_LP_W] * dt_s)) * (x - ap_state[2, i])
+                ap_state[2, i] = ref
+                y = ref + inj[I_GAIN] * (x - ref)
+        ap_state[0, i] = x
+        ap_state[1, i] = y
+        v_out[i] = y
+
+
+def make_inj(mode: str = "none", channel: int | str = ALL, gain: float = 1.0,
+             delay_frames: int = 0, allpass_a: float = 1.0, amp_rad: float = 0.0,
+             omega_rad_s: float = 0.0, t_on_s: float = 0.0,
+             lp_corner_rad_s: float = AC_CORNER_RAD_S) -> np.ndarray:
+    """The injection vector (float64[INJ_N]); ``channel`` an index, a name, or "all"."""
+    if isinstance(channel, str):
+        channel = ALL if channel == "all" else CHANNELS.index(channel)
+    if not 0 <= int(delay_frames) < RING_MAX:
+        raise ValueError(f"delay_frames must be in [0, {RING_MAX}), got {delay_frames}")
+    inj = np.zeros(INJ_N)
+    inj[I_MODE] = MODES[mode]
+    inj[I_CH] = channel
+    inj[I_GAIN] = gain
+    inj[I_DELAY_N] = int(delay_frames)
+    inj[I_AP_A] = allpass_a
+    inj[I_AMP] = amp_rad
+    inj[I_OMEGA] = omega_rad_s
+    inj[I_T_ON] = t_on_s
+    inj[I_LP_W] = lp_corner_rad_s
+    return inj
+
+
+def allpass_a_for(phase_rad: float, omega_rad_s: float) -> float:
+    """The all-pass corner a that lags ``phase_rad`` at ``omega_rad_s``: 2 atan(w/a) = phase."""
+    if not 0.0 < phase_rad < math.pi:
+        raise ValueError("the all-pass lags between 0 and 180 deg")
+    return omega_rad_s / math.tan(phase_rad / 2.0)
+
+
+# ------------------------------------------------------------------------ the closed loop
+@njit(cache=True)
+def _loop(n_frames, n_fast, n_slow, dt_fast, dt_slow, frame_dt, cmd, inj,
+          px, pp, pw, n_sub, meas, row, est, par, lx, nm, st, tab, atm, grid, delta,
+          ring, ap_state, v_c, v_o, d_out, rec_att, rec_rate, rec_vc, rec_vo):
+    """Closed loop with the injection between the law and the actuators (truth-fed law).
+
+    Records every frame: attitude (alpha, beta, mu) rad, rates (p, q, r) rad/s, the law's
+    virtual command v_c and the perturbed v_out. Returns the frames flown (fewer if the
+    attitude passed 45 deg or became NaN).
+    """
+    for k in range(n_frames):
+        truth_kernel(px, pp, pw, meas, row)
+        for i in range(L.E_N):
+            est[i] = row[_TRUTH_EST0 + i]
+        law_frame(k, n_slow, n_fast, dt_slow, dt_fast, est, cmd,
+                  par, lx, nm, st, tab, atm, grid, delta)
+        to_virtual(delta, v_c)
+        inject(inj, v_c, k * frame_dt, frame_dt, k, ring, ap_state, v_o)
+        from_virtual(v_o, d_out)
+        for i in range(3):
+            rec_att[k, i] = row[_TRUTH_EST0 + i]
+            rec_rate[k, i] = row[_TRUTH_EST0 + 3 + i]
+            rec_vc[k, i] = v_c[i]
+            rec_vo[k, i] = v_o[i]
+        bad = False
+        for i in range(3):
+            if not (abs(row[_TRUTH_EST0 + i]) < 0.7853981633974483):
+                bad = True
+        if bad:
+            return k + 1
+        dy.advance_frame(px, d_out, pp, pw, n_sub)
+    return n_frames
+
+
+@dataclass
+class Flight:
+    """One injected flight. Arrays per frame: t_s (n,), att_rad / rate_rad_s / v_c_rad /
+    v_out_rad (n, 3); cmd_rad (3,) the step command; diverged: stopped early."""
+
+    t_s: np.ndarray
+    att_rad: np.ndarray
+    rate_rad_s: np.ndarray
+    v_c_rad: np.ndarray
+    v_out_rad: np.ndarray
+    cmd_rad: np.ndarray
+    diverged: bool
+    frame_dt_s: float
+
+
+def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: str = "paper",
+                    sensor_noise: bool = True, point: tuple | None = None):
+    """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
+    on or off (the noise only matters over the wire, where the fc estimates from sensors);
+    ``point`` = (Mach, altitude m): flown there instead, surfaces starting at the initial trim
+    (tools.envelope.point_scenario)."""
+    from plant_sim.scenario import load, parse
+    if point is None:
+        sc = load(base)
+    else:
+        from tools.envelope import point_scenario
+        sc = point_scenario(float(point[0]), float(point[1]), base)
+    d = copy.deepcopy(sc.data)
+    d["timing"]["frame_hz"] = float(frame_hz)
+    d["disturbance"]["enabled"] = bool(disturbance)
+    if not sensor_noise:
+        for k in d["sensors"]["noise"]:
+            d["sensors"]["noise"][k] = 0.0
+    from plant_sim.scenario import Scenario
+    edited = Scenario(name=f"{sc.name}-margins", path=sc.path, data=d, commands=list(sc.commands))
+    return parse(edited.to_toml(), src=f"{sc.path} (margins)", name=edited.name)
+
+
+def fly(scenario, inj: np.ndarray, *, coordinated: bool = True, law_overrides: dict | None = None,
+        duration_s: float = 20.0, fast_hz: float = 500.0, slow_hz: float = 100.0) -> Flight:
+    """Fly ``scenario`` (steps to its first command) with the injection ``inj``."""
+    from fc.control.law import AttitudeLaw
+    from plant_sim.sim import PlantSim
+    ov = dict(law_overrides or {})
+    ov["CO_ENABLE"] = 1.0 if coordinated else 0.0
+    ov["REF_PF_EN"] = 0.0
+    law = AttitudeLaw(ov)
+    sim = PlantSim(scenario)
+    fdt = sim.frame_dt_s
+    n_fast = int(round(1.0 / (fast_hz * fdt)))
+    n_slow = int(round(1.0 / (slow_hz * fdt)))
+    if abs(n_fast * fast_hz * fdt - 1) > 1e-9 or abs(n_slow * slow_hz * fdt - 1) > 1e-9:
+        raise ValueError("fast_hz and slow_hz must divide the frame rate")
+    n = int(round(duration_s / fdt)) + 1
+    x, p, w, n_sub, *_ = sim.kernel_args()
+    k = law.kernel_args()
+    cmd = np.radians(np.array(scenario.commands[0][1:4], dtype=np.float64))
+    rec = [np.zeros((n, 3)) for _ in range(4)]
+    args = (n_fast, n_slow, n_fast * fdt, n_slow * fdt, fdt, cmd, np.asarray(inj, np.float64),
+            x, p, w, n_sub, np.zeros(64), np.zeros(TRUTH_N), np.zeros(L.E_N),
+            k["par"], k["x"], k["nm"], k["st"], k["tab"], k["atm"], k["grid"], k["delta"],
+            np.zeros((RING_MAX, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros(3),
+            *rec)
+    flown = _loop(n, *args)
+    m = flown
+    return Flight(np.arange(m) * fdt, rec[0][:m], rec[1][:m], rec[2][:m], rec[3][:m], cmd,
+                  bool(flown < n), fdt)
+
+
+# ------------------------------------------------------------------------ verdicts and finders
+def stable(fl: Flight, tail_s: float = 4.0, att_tol_deg: float = 0.25,
+           rate_tol_deg_s: float = 0.5) -> bool:
+    """True if the flight ends settled: not diverged, and over the last ``tail_s`` the
+    attitude error stays within ``att_tol_deg`` (about the 5 % settling band of the paper's
+    4-5 deg steps) and each rate within ``rate_tol_deg_s`` of its mean over that window (the
+    steady pull-up keeps q near 0.4 deg/s). A limit cycle or a divergence fails one of them."""
+    if fl.diverged:
+        return False
+    n = int(round(tail_s / fl.frame_dt_s))
+    e = np.degrees(np.abs(fl.att_rad[-n:] - fl.cmd_rad))
+    r = np.degrees(fl.rate_rad_s[-n:])
+    osc = np.abs(r - r.mean(axis=0))
+    return bool(np.all(np.isfinite(e)) and np.all(np.isfinite(osc)) and e.max() < att_tol_deg
+                and osc.max() < rate_tol_deg_s)
+
+
+def bisect_boundary(is_stable, good: float, bad: float, tol: float, max_iter: int = 40):
+    """The boundary between a stable value ``good`` and an unstable ``bad`` of a scalar
+    perturbation, to within ``tol``: (last stable, first unstable). ``is_stable(v) -> bool``."""
+    if not is_stable(good):
+        raise ValueError(f"the loop is not stable at the nominal value {good}")
+    if is_stable(bad):
+        return bad, math.inf if bad > good else -math.inf
+    return _bisect(is_stable, good, bad, tol, max_iter)
+
+
+def _bisect(is_stable, good, bad, tol, max_iter):
+    for _ in range(max_iter):
+        if abs(bad - good) <= tol:
+            break
+        mid = 0.5 * (good + bad)
+        if is_stable(mid):
+            good = mid
+        else:
+            bad = mid
+    return good, bad
+
+
+def scan_boundary(is_stable, values, tol: float, max_iter: int = 20):
+    """Walk ``values`` (from the nominal outwards) to the first unstable one, then bisect
+    between it and the last stable one: (last stable, first unstable); (last value, inf) if
+    none is unstable. A scan first, because the nonlinear loop need not be monotonic in the
+    perturbation (a bisection alone could land on a stable island past an unstable value)."""
+    values = list(values)
+    if not is_stable(values[0]):
+        raise ValueError(f"the loop is not stable at the nominal value {values[0]}")
+    for good, bad in zip(values[:-1], values[1:]):
+        if not is_stable(bad):
+            return _bisect(is_stable, good, bad, tol, max_iter)
+    return values[-1], (math.inf if values[-1] > values[0] else -math.inf)
+
+
+def loop_transfer(t_s: np.ndarray, v_c: np.ndarray, v_out: np.ndarray, omega_rad_s: float,
+                  t_from_s: float, n_periods: int | None = None) -> complex:
+    """Broken-loop transfer L(jw) = -V_c(jw) / V_out(jw) at the break point, from the
+    Fourier projection of the recorded signals over whole periods from ``t_from_s``."""
+    period = 2.0 * math.pi / omega_rad_s
+    if n_periods is None:
+        n_periods = int((t_s[-1] - t_from_s) // period)
+    if n_periods < 1:
+        raise ValueError("fewer than one whole period recorded after t_from_s")
+    m = (t_s >= t_from_s) & (t_s < t_from_s + n_periods * period)
+    ph = np.exp(-1j * omega_rad_s * t_s[m])
+    yc = np.sum((v_c[m] - v_c[m].mean()) * ph)
+    yo = np.sum((v_out[m] - v_out[m].mean()) * ph)
+    return complex(-yc / yo)
+
+
+def crossings(omegas: np.ndarray, lvals: np.ndarray) -> dict:
+    """Crossover and margins from a sweep L(jw_i), sorted by w (log-interpolated).
+
+    Returns {"omega_c": the highest gain crossover |L| = 1 (rad/s), "pm_deg": 180 + phase
+    there (phase taken in (-360, 0]), "omega_180" / "gm_db": the phase crossing of -180 deg
+    (mod 360) above the crossover with the smallest |L| and -20 log10 |L| there (the upper gain
+    margin), "omega_180_low" / "gm_low_db": the crossing below it with the smallest |L| > 1
+    (a gain *reduction* margin, negative dB: the loop is conditionally stable)}; None where the
+    sweep does not cross.
+    """
+    w = np.asarray(omegas, float)
+    lv = np.asarray(lvals, complex)
+    lm = np.log(np.abs(lv))
+    ph = np.angle(lv)                       # (-pi, pi]; -180 crossings are +-pi wraps
+    lw = np.log(w)
+    out = {"omega_c": None, "pm_deg": None, "omega_180": None, "gm_db": None,
+           "omega_180_low": None, "gm_low_db": None}
+    for i in range(len(w) - 1):
+        if lm[i] >= 0.0 > lm[i + 1]:
+            f = lm[i] / (lm[i] - lm[i + 1])
+            out["omega_c"] = math.exp(lw[i] + f * (lw[i + 1] - lw[i]))
+            d = (ph[i + 1] - ph[i] + math.pi) % (2 * math.pi) - math.pi
+            phc = ph[i] + f * d
+            out["pm_deg"] = 180.0 + math.degrees((phc + 2 * math.pi) % (2 * math.pi) - 2 * math.pi)
+    for i in range(len(w) - 1):
+        # phase measured from -180 deg, wrapped to (-pi, pi]: a sign change without a jump
+        a = (ph[i] + 2 * math.pi) % (2 * math.pi) - math.pi
+        b = (ph[i + 1] + 2 * math.pi) % (2 * math.pi) - math.pi
+        if a * b > 0 or abs(a - b) > math.pi or a == b:
+            continue
+        f = a / (a - b)
+        om = math.exp(lw[i] + f * (lw[i + 1] - lw[i]))
+        gm = -20.0 * (lm[i] + f * (lm[i + 1] - lm[i])) / math.log(10.0)
+        if gm > 0 and (out["gm_db"] is None or gm < out["gm_db"]):
+            out["omega_180"], out["gm_db"] = om, gm
+        if gm < 0 and (out["gm_low_db"] is None or gm > out["gm_low_db"]):
+            out["omega_180_low"], out["gm_low_db"] = om, gm
+    return out
+
+
+# ------------------------------------------------------------------------ the campaign
+def sweep(scenario, channel: str, omegas, *, coordinated=True, law_overrides=None,
+          amp_deg: float = 0.3, t_on_s: float = 8.0, settle_periods: int = 2,
+          min_record_s: float = 6.0) -> list[complex]:
+    """L(jw) of ``channel`` at each w: one flight per frequency, a sine of ``amp_deg`` added
+    from ``t_on_s`` (after the step transient), measured after ``settle_periods``."""
+    out = []
+    for w in omegas:
+        period = 2 * math.pi / w
+        n_per = max(3, int(math.ceil(min_record_s / period)))
+        t_from = t_on_s + settle_periods * period
+        dur = t_from + n_per * period + 0.01
+        fl = fly(scenario, make_inj("sine", channel, amp_rad=math.radians(amp_deg),
+                                    omega_rad_s=w, t_on_s=t_on_s),
+                 coordinated=coordinated, law_overrides=law_overrides, duration_s=dur)
+        if fl.diverged:
+            out.append(complex(math.nan, math.nan))
+            continue
+        i = CHANNELS.index(channel)
+        out.append(loop_transfer(fl.t_s, fl.v_c_rad[:, i], fl.v_out_rad[:, i], w, t_from, n_per))
+    return out
+
+
+def channel_margins(scenario, channel: str, *, coordinated=True, law_overrides=None,
+                    omegas=None, duration_s: float = 20.0) -> dict:
+    """Every margin of one channel: sweep (crossover, PM, GM), gain bisection up and down,
+    all-pass phase margin at the crossover."""
+    omegas = np.geomspace(0.5, 60.0, 18) if omegas is None else np.asarray(omegas)
+    kw = dict(coordinated=coordinated, law_overrides=law_overrides)
+    lv = sweep(scenario, channel, omegas, **kw)
+    ok = np.isfinite(np.abs(lv))
+    cr = crossings(omegas[ok], np.asarray(lv)[ok])
+
+    def st_gain(mode):
+        return lambda k: stable(fly(scenario, make_inj(mode, channel, gain=k),
+                                    duration_s=duration_s, **kw))
+    up = np.geomspace(1.0, 16.0, 13)
+    down = np.geomspace(1.0, 1.0 / 16.0, 13)
+    gains = {f"{mode}_{d}": scan_boundary(st_gain(mode), vals, tol)
+             for mode in ("gain", "gain_ac")
+             for d, vals, tol in (("up", up, 0.02), ("down", down, 0.01))}
+    pm_ap = None
+    if cr["omega_c"]:
+        wc = cr["omega_c"]
+
+        def st_phase(phi_deg):
+            if phi_deg <= 0.0:
+                return stable(fly(scenario, make_inj(), duration_s=duration_s, **kw))
+            a = allpass_a_for(math.radians(phi_deg), wc)
+            return stable(fly(scenario, make_inj("allpass", channel, allpass_a=a),
+                              duration_s=duration_s, **kw))
+        pm_ap = scan_boundary(st_phase, np.arange(0.0, 180.0, 10.0), 1.0)
+    return {"channel": channel, "coordinated": coordinated, "sweep_omega": list(map(float, omegas)),
+            "sweep_L": [[float(z.real), float(z.imag)] for z in lv], **cr,
+            **gains, "pm_allpass_deg": pm_ap}
+
+
+def delay_margin(scenario, *, coordinated=True, law_overrides=None, channel="all",
+                 duration_s: float = 20.0, max_frames: int = 400) -> tuple[int, int]:
+    """(largest stable delay, smallest unstable delay) in frames, delay in ``channel``."""
+    def st(nf):
+        return stable(fly(scenario, make_inj("delay", channel, delay_frames=int(round(nf))),
+                          coordinated=coordinated, law_overrides=law_overrides,
+                          duration_s=duration_s))
+    good, bad = scan_boundary(st, np.arange(0, max_frames + 1, 5), 1.0)
+    return int(round(good)), (None if math.isinf(bad) else int(round(bad)))
+
+
+def _db(k):
+    return None if k is None or not math.isfinite(k) or k <= 0 else 20.0 * math.log10(k)
+
+
+def _bound(b, fmt=".2f", db=False):
+    """'last stable / first unstable' of a boundary pair; dB of the last stable if ``db``."""
+    good, bad = b
+    txt = f"{good:{fmt}} / {'none' if not math.isfinite(bad) else format(bad, fmt)}"
+    if db:
+        d = _db(good)
+        txt += f" ({'-' if d is None else format(d, '+.1f')} dB)"
+    return txt
+
+
+def margins_table(results: list[dict], delays: dict, frame_dt_s: float) -> str:
+    """Markdown table of :func:`channel_margins` results and the per-channel delay margins."""
+    def f(v, fmt):
+        return "-" if v is None else format(v, fmt)
+    rows = ["| variant | channel | crossover rad/s | PM sweep deg | PM all-pass deg (stable / not) | "
+            "GM sweep dB (w180 rad/s) | low GM sweep dB | gain up, about trim (gain_ac) | "
+            "gain up, whole command | gain down, about trim | gain down, whole | "
+            "delay margin ms (this channel) |", "|" + "---|" * 12]
+    for r in results:
+        var = "co" if r["coordinated"] else "unco"
+        pa = r["pm_allpass_deg"]
+        dly = delays.get((var, r["channel"]))
+        rows.append(
+            f"| {var} | {r['channel']} | {f(r['omega_c'], '.2f')} | {f(r['pm_deg'], '.0f')} | "
+            f"{'-' if pa is None else _bound(pa, '.0f')} | "
+            f"{f(r['gm_db'], '.1f')} ({f(r['omega_180'], '.1f')}) | {f(r['gm_low_db'], '.1f')} | "
+            f"{_bound(r['gain_ac_up'], db=True)} | {_bound(r['gain_up'], db=True)} | "
+            f"{_bound(r['gain_ac_down'], db=True)} | {_bound(r['gain_down'], db=True)} | "
+            f"{'-' if dly is None else _bound((dly[0] * frame_dt_s * 1e3, math.inf if dly[1] is None else dly[1] * frame_dt_s * 1e3), '.0f')} |")
+    return "\n".join(rows)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.margins", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd")
+    ap.add_argument("--out", type=Path, default=Path("runs/margins"))
+    ap.add_argument("--variants", default="co,unco")
+    ap.add_argument("--channels", default="roll,pitch,yaw")
+    ap.add_argument("--disturbance", action="store_true", help="keep the paper's d(t) on")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
+    ap.add_argument("--point", default=None, metavar="MACH,H_KM",
+                    help="fly the paper's case at this flight condition (default: the paper's)")
+    w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
+    w.add_argument("--frames", default="0,5,10,15,20,25",
+                   help="extra delays to fly, frames (1 ms each)")
+    w.add_argument("--out", type=Path, default=Path("runs/margins_wire"))
+    w.add_argument("--variant", default="coordinated", choices=("coordinated", "uncoordinated"))
+    w.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    w.add_argument("--disturbance", action="store_true")
+    w.add_argument("--noise", action="store_true", help="keep the sensors' noise on")
+    a = ap.parse_args(argv)
+    ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
+    a.out.mkdir(parents=True, exist_ok=True)
+    if a.cmd == "wire":
+        sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
+        from tools.margins_wire import wire_delay_runs
+        return wire_delay_runs(sc, [int(x) for x in a.frames.split(",")], a.out, a.variant, ov)
+    point = None
+    if a.point:
+        m, h = (float(x) for x in a.point.split(","))
+        point = (m, h * 1e3)
+    sc = margin_scenario(disturbance=a.disturbance, point=point)
+    t0 = time.perf_counter()
+    results, delays = [], {}
+    for var in a.variants.split(","):
+        co = var == "co"
+        for ch in a.channels.split(","):
+            r = channel_margins(sc, ch, coordinated=co, law_overrides=ov)
+            results.append(r)
+            delays[(var, ch)] = delay_margin(sc, coordinated=co, law_overrides=ov, channel=ch)
+            brief = {k: r[k] for k in ("omega_c", "pm_deg", "gm_db", "gm_low_db", "gain_up",
+                                       "gain_ac_up", "gain_down", "gain_ac_down",
+                                       "pm_allpass_deg")}
+            print(f"{var} {ch}: {json.dumps(brief)} delay {delays[(var, ch)]} frames "
+                  f"({time.perf_counter() - t0:.0f} s)", flush=True)
+        delays[(var, "all")] = delay_margin(sc, coordinated=co, law_overrides=ov, channel="all")
+        print(f"{var} all-channel delay margin {delays[(var, 'all')]} frames", flush=True)
+    fdt = 1.0 / sc.data["timing"]["frame_hz"]
+    table = margins_table(results, delays, fdt)
+    all_rows = []
+    for v in a.variants.split(","):
+        good, bad = delays[(v, "all")]
+        all_rows.append(f"| {v} | all three | {good * fdt * 1e3:.0f} ms stable, "
+                        f"{'-' if bad is None else format(bad * fdt * 1e3, '.0f')} ms not |")
+    text = (table + "\n\n| variant | delayed channels | time-delay margin |\n|---|---|---|\n"
+            + "\n".join(all_rows) + "\n")
+    (a.out / "margins.md").write_text(text)
+    (a.out / "margins.json").write_text(json.dumps(
+        {"results": results, "delays": {f"{k[0]}/{k[1]}": v for k, v in delays.items()},
+         "frame_dt_s": fdt, "overrides": ov, "disturbance": a.disturbance,
+         "wall_s": time.perf_counter() - t0}, indent=1))
+    print(text)
+    print(f"wall {time.perf_counter() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
