@@ -83,10 +83,11 @@ class _Streams:
     PX4/ArduPilot link does, and loses it when it is forgotten after PEER_TIMEOUT_S of silence.
     """
 
-    __slots__ = ("mav", "intervals", "next_due", "nv_cursor", "dv_cursor")
+    __slots__ = ("mav", "addr", "intervals", "next_due", "nv_cursor", "dv_cursor")
 
-    def __init__(self, mav, intervals: dict[int, float]) -> None:
+    def __init__(self, mav, intervals: dict[int, float], addr: tuple | None = None) -> None:
         self.mav = mav
+        self.addr = addr                      # the peer; None for the default schedule
         self.intervals = dict(intervals)      # message id -> interval [s]; < 0 disabled
         self.next_due = {k: 0.0 for k in self.intervals}
         self.nv_cursor = 0
@@ -196,10 +197,8 @@ class GcsLink:
             self._tlog_write(buf)
             for addr in self._default_addrs():
                 self.endpoint.send(buf, addr)
-        else:
-            for addr, other in self.links.items():
-                if other is link:
-                    self.endpoint.send(buf, addr)
+        elif self.links.get(link.addr) is link:     # not forgotten meanwhile
+            self.endpoint.send(buf, link.addr)
 
     def _link_of(self, addr) -> _Streams:
         return self.links.get(addr, self.default)
@@ -208,7 +207,7 @@ class GcsLink:
         """The schedule of ``addr``, created (a copy of the defaults) on its first rate request."""
         link = self.links.get(addr)
         if link is None:
-            link = _Streams(new_codec(self.v.sysid, self.v.compid), self.default.intervals)
+            link = _Streams(new_codec(self.v.sysid, self.v.compid), self.default.intervals, addr)
             if self.signing:
                 self._sign(link.mav, (len(self.links) + 1) % 256)
             self.links[addr] = link
