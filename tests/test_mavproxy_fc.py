@@ -82,14 +82,17 @@ def test_mavproxy_shows_and_sets_every_mode_by_name_with_the_hyfc_module(tmp_pat
     exe = _mavproxy()
     gcs_port = free_udp_port()
     with FcProcess(str(tmp_path / "run"), gcs_ports=(gcs_port,)) as fc:
+        # loaded as the README says: before the default modules see the first HEARTBEAT
         con = _Console(exe + [f"--master=udpin:127.0.0.1:{gcs_port}", "--no-state",
                               "--default-modules=link,param,misc,mode",
-                              "--cmd=set param_ftp 0; module load tools.mavproxy_hyfc"],
+                              "--load-module", "tools.mavproxy_hyfc", "--cmd=set param_ftp 0"],
                        str(tmp_path))
         try:
             con.expect("Loaded module tools.mavproxy_hyfc")
             con.expect("Mode MANUAL")
             con.expect("Received 62 parameters")
+            con.send("param show CO_FAC_EQ")                # INT32 from the download, bytewise
+            con.expect("CO_FAC_EQ        14")
             con.send("mode")
             con.expect("Available modes:")
             for name in ("COORDINATED", "UNCOORDINATED", "FAILSAFE", "MANUAL"):

@@ -68,19 +68,37 @@ class HyfcModule(mp_module.MPModule):
             self.hyfc_sysids.add(src)
             master.sysid_state[src].flightmode = NAME_BY_CUSTOM[m.custom_mode]
 
-    def mavlink_packet(self, m) -> None:
-        if not is_hyfc_heartbeat(m):
-            return
-        # after the param module has noted the autopilot type: ask it for bytewise integers
+    def _bytewise_params(self) -> None:
+        """Make the param module decode and send a hyfc vehicle's integers bytewise: its
+        per-vehicle autopilot table answers PX4 (the one autopilot it does that for) for
+        hyfc system ids, whatever order the modules see the HEARTBEAT in."""
         param = self.module("param")
-        if param is not None:
-            sysid = (m.get_srcSystem(), m.get_srcComponent())
-            state = param.pstate.get(sysid)
-            if state is not None:
-                state.autopilot_type_by_sysid[m.get_srcSystem()] = ML.MAV_AUTOPILOT_PX4
+        for state in getattr(param, "pstate", {}).values():
+            if not isinstance(state.autopilot_type_by_sysid, _BytewiseFor):
+                state.autopilot_type_by_sysid = _BytewiseFor(state.autopilot_type_by_sysid,
+                                                             self.hyfc_sysids)
+
+    def mavlink_packet(self, m) -> None:
+        if self.hyfc_sysids:
+            self._bytewise_params()
 
     def idle_task(self) -> None:
         self._hook_masters()                # links added later (``link add``)
+        if self.hyfc_sysids:
+            self._bytewise_params()
+
+
+class _BytewiseFor(dict):
+    """MAVProxy's autopilot-type-by-sysid table, answering PX4 for hyfc system ids."""
+
+    def __init__(self, base: dict, hyfc_sysids: set[int]) -> None:
+        super().__init__(base)
+        self.hyfc_sysids = hyfc_sysids
+
+    def get(self, sysid, default=None):
+        if sysid in self.hyfc_sysids:
+            return ML.MAV_AUTOPILOT_PX4
+        return super().get(sysid, default)
 
 
 def init(mpstate):
