@@ -50,7 +50,8 @@ STREAM_DEFAULTS_S = {
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
     ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
-    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE),
+    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,
+                                         MD.MAVLINK_MSG_ID_CURRENT_MODE),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
     ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
@@ -470,7 +471,8 @@ class GcsLink:
         if c == ML.MAV_CMD_REQUEST_MESSAGE:
             msg_id = self._whole(m.param1)
             if msg_id == MD.MAVLINK_MSG_ID_AVAILABLE_MODES:
-                msgs = self._available_modes(self._whole(m.param2))
+                # param2: 0 (or unset, NaN) all modes, k the k-th
+                msgs = self._available_modes(0 if math.isnan(m.param2) else self._whole(m.param2))
                 if not msgs:
                     return ML.MAV_RESULT_DENIED       # no mode with that index
                 self.oneshot.extend(msgs)

@@ -4,9 +4,9 @@ The table is the control law's ``LAW_PARAMS`` (fc/control/params.py) followed by
 process parameters below (attitude commands, failsafe, estimator, trims). It is the single
 source for the MAVLink parameter protocol (names <= 16 characters, uppercase, stable indices;
 integer and enum options INT32, encoded bytewise in the float field as the MAVLink spec, PX4,
-MAVSDK and QGroundControl do; the rest REAL32: :func:`encode_value`), for validation (range, finiteness), for persistence (MAVProxy
-``param save`` format, written atomically) and for ``docs/params.md``
-(``python -m fc.params --write-docs``; a test checks the file is current).
+MAVSDK and QGroundControl do; the rest REAL32: :func:`encode_value`), for validation (range,
+finiteness), for persistence (MAVProxy ``param save`` format, written atomically) and for
+``docs/params.md`` (``python -m fc.params --write-docs``; a test checks the file is current).
 """
 from __future__ import annotations
 

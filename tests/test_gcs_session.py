@@ -272,7 +272,8 @@ def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
         assert gcs.wait("HEARTBEAT", 10) is not None
         ack = gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         av = gcs.wait("AUTOPILOT_VERSION", 3)
-        assert ack.result == 0 and av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+        assert ack.result == 0
+        assert av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
         assert not av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
         gcs.send(MD.MAVLink_param_request_read_message(1, 1, b"CO_FAC_EQ", -1))
         pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
