@@ -4,7 +4,16 @@ Speaks MAVLink 2 (codec from fc/link.py) on one non-blocking UDP socket bound to
 ``--gcs-bind`` (default 127.0.0.1:14555), sending to every ``--gcs`` output (default
 127.0.0.1:14550) and to every peer that has sent us a valid message (so a ground station
 may also connect *to* the bind port). The wire contract (which message, field, unit,
-direction) is in docs/fc.md.
+direction) is in docs/fc.md. As a PX4/ArduPilot SITL session:
+
+- modes travel with PX4's custom_mode layout and our numbers (fc/modes.py ``MODE_WIRE``),
+  named by AVAILABLE_MODES / CURRENT_MODE (the MAVLink standard modes);
+- stream rates are per link: a peer that asks gets its own schedule (``_Streams``) and loses
+  it when it is forgotten after PEER_TIMEOUT_S of silence; the outputs keep the defaults;
+- STATUSTEXT and this link's fc.log warnings are rate-limited and de-duplicated
+  (fc/ratelimit.py), long texts chunked;
+- integer parameters are INT32, bytewise (fc/params.py ``encode_value``); a refused set is
+  answered at once with PARAM_ERROR and the unchanged PARAM_VALUE.
 
 Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
