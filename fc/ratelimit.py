@@ -6,7 +6,8 @@ GCS_MAVLINK text queue and PX4's mavlink_log rate limits do:
 
 - **per text**: a text repeated within ``quiet_s`` of its previous occurrence is not repeated,
   only counted; once it has been quiet for ``quiet_s`` a summary ``"<text> (N suppressed)"``
-  is due (:meth:`RateLimiter.summaries`);
+  is due (:meth:`RateLimiter.summaries`), and every ``hold_s`` while the repeats go on, so a
+  condition that persists is not silenced for good;
 - **overall**: a token bucket (``rate_hz`` sustained, ``burst`` at once) bounds distinct
   texts; texts over it are counted and summarised as ``"N messages suppressed"`` once the flood
   has been quiet for ``quiet_s``. Texts at ``bypass_severity`` or more severe (lower number:
@@ -26,7 +27,8 @@ __all__ = ["RateLimiter"]
 @dataclass(slots=True)
 class _Seen:
     severity: int
-    last_s: float
+    last_s: float                  # last occurrence
+    sent_s: float                  # last time it (or its summary) went out
     suppressed: int = 0
 
 
@@ -37,6 +39,7 @@ class RateLimiter:
     rate_hz: float = 2.0           # sustained distinct texts per second
     burst: float = 10.0            # distinct texts at once
     quiet_s: float = 2.0           # a repeat this soon after the last one is suppressed
+    hold_s: float = 30.0           # repeats going on this long: an interim summary
     bypass_severity: int = 3       # MAV_SEVERITY_ERROR and more severe skip the bucket
     max_keys: int = 64
     tokens: float = -1.0           # < 0: full bucket on first use
@@ -74,16 +77,20 @@ class RateLimiter:
         if s is None and len(self.seen) >= self.max_keys:
             oldest = min(self.seen, key=lambda k: self.seen[k].last_s)
             del self.seen[oldest]      # its repeats (if any) are counted in no summary
-        self.seen[text] = _Seen(severity, now_s)
+        self.seen[text] = _Seen(severity, now_s, now_s)
         return True
 
     def summaries(self, now_s: float) -> list[tuple[int, str]]:
         """Summaries of bursts that have ended: ``[(severity, text), ...]``; forgets quiet texts."""
         out: list[tuple[int, str]] = []
-        for text in [t for t, s in self.seen.items() if now_s - s.last_s >= self.quiet_s]:
-            s = self.seen.pop(text)
-            if s.suppressed:
+        for text, s in list(self.seen.items()):
+            quiet = now_s - s.last_s >= self.quiet_s
+            if s.suppressed and (quiet or now_s - s.sent_s >= self.hold_s):
                 out.append((s.severity, f"{text} ({s.suppressed} suppressed)"))
+                s.suppressed = 0
+                s.sent_s = now_s
+            if quiet:
+                del self.seen[text]
         if self.dropped and now_s - self.last_drop_s >= self.quiet_s:
             out.append((self.dropped_severity, f"{self.dropped} messages suppressed"))
             self.dropped = 0

@@ -104,3 +104,13 @@ def test_limiter_bounds_distinct_texts_and_never_holds_back_a_failsafe():
     assert out["989 messages suppressed"] == 4
     assert out["FAILSAFE: plant data lost (1 suppressed)"] == 2
     assert lim.total_suppressed == 990
+
+
+def test_limiter_reports_a_repeat_that_goes_on_every_hold_s():
+    lim = RateLimiter(rate_hz=2.0, burst=10.0, quiet_s=2.0, hold_s=30.0)
+    assert lim.allow(0.0, 4, "refused: Y")
+    out = []
+    for k in range(1, 61):                          # once a second for a minute
+        assert not lim.allow(float(k), 4, "refused: Y")
+        out += lim.summaries(float(k) + 0.5)
+    assert out == [(4, "refused: Y (30 suppressed)"), (4, "refused: Y (30 suppressed)")]
