@@ -205,8 +205,7 @@ class FlightController:
         old = self.params.get(name) if name in self.params else None
         reason = self.params.set(name, value, notify=False)
         if reason is not None:
-            self.log.warning("parameter set refused: %s", reason)
-            return reason
+            return reason      # the caller says why (STATUSTEXT, mirrored to fc.log, rate-limited)
         new = self.params.get(name)
         if name in self.law_names:
             try:

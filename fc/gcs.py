@@ -4,7 +4,16 @@ Speaks MAVLink 2 (codec from fc/link.py) on one non-blocking UDP socket bound to
 ``--gcs-bind`` (default 127.0.0.1:14555), sending to every ``--gcs`` output (default
 127.0.0.1:14550) and to every peer that has sent us a valid message (so a ground station
 may also connect *to* the bind port). The wire contract (which message, field, unit,
-direction) is in docs/fc.md.
+direction) is in docs/fc.md. As a PX4/ArduPilot SITL session:
+
+- modes travel with PX4's custom_mode layout and our numbers (fc/modes.py ``MODE_WIRE``),
+  named by AVAILABLE_MODES / CURRENT_MODE (the MAVLink standard modes);
+- stream rates are per link: a peer that asks gets its own schedule (``_Streams``) and loses
+  it when it is forgotten after PEER_TIMEOUT_S of silence; the outputs keep the defaults;
+- STATUSTEXT and this link's fc.log warnings are rate-limited and de-duplicated
+  (fc/ratelimit.py), long texts chunked;
+- integer parameters are INT32, bytewise (fc/params.py ``encode_value``); a refused set is
+  answered at once with PARAM_ERROR and the unchanged PARAM_VALUE.
 
 Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
@@ -22,11 +31,15 @@ import struct
 import time
 from collections import deque
 
-from fc.link import UdpEndpoint, decode_datagram, mavlink, new_codec
+from fc.link import UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec
+from fc.modes import FlightMode, custom_mode_of, mode_from_custom
+from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
+from fc.ratelimit import RateLimiter
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
 
 ML = mavlink
+MD = mavlink_dev
 #: MAV_CMD_USER_1: set the attitude command (param1 alpha_c, param2 beta_c, param3 mu_c, deg;
 #: NaN keeps the current value). MAVProxy: ``long USER_1 5 0 4``.
 CMD_ATTITUDE = ML.MAV_CMD_USER_1
@@ -41,11 +54,13 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW: 0.1,
     ML.MAVLINK_MSG_ID_DEBUG_VECT: 0.1,          # each of CMD_DEG, EST_DEG, DELTA_DEG
     ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT: 1.0,   # each named value once per interval
+    MD.MAVLINK_MSG_ID_CURRENT_MODE: 2.0,        # standard modes: 0.5 Hz, and on every change
 }
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
     ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
-    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,),
+    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,
+                                         MD.MAVLINK_MSG_ID_CURRENT_MODE),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
     ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
@@ -61,6 +76,32 @@ UNSIGNED_ALLOWED = frozenset({
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 MAX_PEERS = 8
 PEER_TIMEOUT_S = 10.0
+STATUSTEXT_CHUNK = 50          # STATUSTEXT.text is char[50]
+STATUSTEXT_MAX_CHUNKS = 5      # longer texts are cut at 250 characters
+#: PARAM_ERROR codes (development.xml); TYPE_MISMATCH is newer than pymavlink 2.4.50's table
+PARAM_ERR_UNKNOWN = MD.MAV_PARAM_ERROR_DOES_NOT_EXIST
+PARAM_ERR_RANGE = MD.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+PARAM_ERR_READ_ONLY = MD.MAV_PARAM_ERROR_READ_ONLY
+PARAM_ERR_TYPE = getattr(MD, "MAV_PARAM_ERROR_TYPE_MISMATCH", 7)
+
+
+class _Streams:
+    """One stream schedule and the codec (sequence numbers, signing link id) it is sent with.
+
+    The default schedule serves the ``--gcs`` outputs and every peer that never asked for
+    rates; a peer that sends REQUEST_DATA_STREAM or SET_MESSAGE_INTERVAL gets its own, as a
+    PX4/ArduPilot link does, and loses it when it is forgotten after PEER_TIMEOUT_S of silence.
+    """
+
+    __slots__ = ("mav", "addr", "intervals", "next_due", "nv_cursor", "dv_cursor")
+
+    def __init__(self, mav, intervals: dict[int, float], addr: tuple | None = None) -> None:
+        self.mav = mav
+        self.addr = addr                      # the peer; None for the default schedule
+        self.intervals = dict(intervals)      # message id -> interval [s]; < 0 disabled
+        self.next_due = {k: 0.0 for k in self.intervals}
+        self.nv_cursor = 0
+        self.dv_cursor = 0
 
 
 class GcsLink:
@@ -78,18 +119,25 @@ class GcsLink:
         self.max_rx = max_rx
         self.max_tx = max_tx
         self.boot_s = time.monotonic()
-        self.intervals = dict(STREAM_DEFAULTS_S)
-        self.next_due = {k: 0.0 for k in self.intervals}
+        self.default = _Streams(self.mav, STREAM_DEFAULTS_S)
+        self.intervals = self.default.intervals        # the default schedule (outputs)
+        self.next_due = self.default.next_due
+        self.links: dict[tuple, _Streams] = {}         # peers that asked for their own rates
+        self._rx_addr: tuple | None = None             # source of the message being handled
         self.next_heartbeat = 0.0
         # parameter answers: single reads/announcements queue (bounded) ahead of the list
         # download, which is a cursor: a repeated PARAM_REQUEST_LIST restarts it and can never
         # push out a pending read (a flood of list requests cannot starve a real GCS)
         self.param_queue: deque[int] = deque()
         self.list_next = -1        # next index of the list download, -1 = none running
-        self.text_queue: deque[tuple[int, str]] = deque(maxlen=32)
+        # STATUSTEXT: rate-limited and de-duplicated (fc/ratelimit.py), queued as chunks
+        # (severity, text bytes, id, chunk_seq); the GCS link's own fc.log warnings likewise
+        self.texts = RateLimiter()
+        self.log_limit = RateLimiter()
+        self.text_queue: deque[tuple[int, bytes, int, int]] = deque(maxlen=64)
+        self.text_id = 0
+        self.last_mode_sent: int | None = None
         self.oneshot: deque = deque(maxlen=16)
-        self.nv_cursor = 0
-        self.dv_cursor = 0
         # counters (telemetry: REJ_GCS, REJ_SIGN)
         self.rx_msgs = 0
         self.rejected_bad = 0
@@ -102,13 +150,17 @@ class GcsLink:
         self._tlog_buf = bytearray()
         self.io = io
         self.signing = signing_key is not None
+        self.signing_key = signing_key
         if signing_key is not None:
-            s = self.mav.signing
-            s.secret_key = signing_key
-            s.sign_outgoing = True
-            s.link_id = 0
-            s.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
-            s.allow_unsigned_callback = self._allow_unsigned
+            self._sign(self.mav, 0)
+            self.mav.signing.allow_unsigned_callback = self._allow_unsigned
+
+    def _sign(self, mav, link_id: int) -> None:
+        s = mav.signing
+        s.secret_key = self.signing_key
+        s.sign_outgoing = True
+        s.link_id = link_id
+        s.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
 
     # ------------------------------------------------------------------ plumbing
     @staticmethod
@@ -120,28 +172,93 @@ class GcsLink:
             self._tlog_buf += struct.pack(">Q", int(time.time() * 1e6))
             self._tlog_buf += buf
 
-    def send(self, msg) -> None:
+    def _pack(self, mav, msg) -> bytes | None:
         try:
-            buf = msg.pack(self.mav)
+            buf = msg.pack(mav)
         except (struct.error, ValueError, TypeError, OverflowError) as exc:
             # a message built from hostile input must never stop the control loop
             self.tx_errors += 1
             if self.log is not None and self.tx_errors == 1:
                 self.log.warning("cannot pack %s: %r (counted, not sent)", msg.get_type(), exc)
-            return
-        self.mav.seq = (self.mav.seq + 1) % 256
-        self._tlog_write(buf)
+            return None
+        mav.seq = (mav.seq + 1) % 256
+        return buf
+
+    def _default_addrs(self):
         for addr in self.outputs:
-            self.endpoint.send(buf, addr)
+            if addr not in self.links:
+                yield addr
         for addr in self.peers:
-            if addr not in self.outputs:
+            if addr not in self.outputs and addr not in self.links:
+                yield addr
+
+    def send(self, msg) -> None:
+        """Send ``msg`` to every output and peer (each own-rate peer with its own codec)."""
+        self._send_on(self.default, msg)
+        for link in self.links.values():
+            self._send_on(link, msg)
+
+    def _send_on(self, link: _Streams, msg) -> None:
+        """Send ``msg`` on one schedule's link: the default destinations, or that one peer."""
+        buf = self._pack(link.mav, msg)
+        if buf is None:
+            return
+        if link is self.default:
+            self._tlog_write(buf)
+            for addr in self._default_addrs():
                 self.endpoint.send(buf, addr)
+        elif self.links.get(link.addr) is link:     # not forgotten meanwhile
+            self.endpoint.send(buf, link.addr)
+
+    def _link_of(self, addr) -> _Streams:
+        return self.links.get(addr, self.default)
+
+    def _own_link(self, addr) -> _Streams:
+        """The schedule of ``addr``, created (a copy of the defaults) on its first rate request."""
+        link = self.links.get(addr)
+        if link is None:
+            link = _Streams(new_codec(self.v.sysid, self.v.compid), self.default.intervals, addr)
+            if self.signing:
+                self._sign(link.mav, (len(self.links) + 1) % 256)
+            self.links[addr] = link
+        return link
 
     def statustext(self, severity: int, text: str) -> None:
-        """Queue a STATUSTEXT (MAV_SEVERITY_*); sent from ``service``; mirrored to fc.log."""
+        """Queue a STATUSTEXT (MAV_SEVERITY_*), sent from ``service`` and mirrored to fc.log.
+
+        Repeats and floods are held back and summarised (fc/ratelimit.py); a text longer than
+        50 characters goes out in chunks (MAVLink 2 ``id``/``chunk_seq``).
+        """
+        if self.texts.allow(time.monotonic(), severity, text):
+            self._queue_text(severity, text)
+
+    def _queue_text(self, severity: int, text: str) -> None:
         if self.log is not None:
             self.log.info("STATUSTEXT[%d] %s", severity, text)
-        self.text_queue.append((severity, text))
+        raw = text.encode("ascii", "replace")[:STATUSTEXT_CHUNK * STATUSTEXT_MAX_CHUNKS]
+        if len(raw) <= STATUSTEXT_CHUNK:
+            self.text_queue.append((severity, raw, 0, 0))
+            return
+        self.text_id = self.text_id % 0xFFFF + 1
+        # a receiver ends a message at its first chunk shorter than 50 characters
+        n = len(raw) // STATUSTEXT_CHUNK + 1
+        for k in range(n):
+            self.text_queue.append((severity, raw[k * STATUSTEXT_CHUNK:(k + 1) * STATUSTEXT_CHUNK],
+                                    self.text_id, k))
+
+    def _warn(self, text: str) -> None:
+        """A warning of the GCS link in fc.log, rate-limited like STATUSTEXT."""
+        if self.log is not None and self.log_limit.allow(time.monotonic(), 4, text):
+            self.log.warning(text)
+
+    def _summaries(self) -> None:
+        """Once a second: the "N suppressed" lines of bursts that have ended."""
+        now = time.monotonic()
+        for sev, text in self.texts.summaries(now):
+            self._queue_text(sev, text)
+        if self.log is not None:
+            for _sev, text in self.log_limit.summaries(now):
+                self.log.warning(text)
 
     def time_boot_ms(self) -> int:
         return int((time.monotonic() - self.boot_s) * 1000) & 0xFFFFFFFF
@@ -188,21 +305,23 @@ class GcsLink:
                 if addr not in self.peers and len(self.peers) >= MAX_PEERS:
                     self._expire_peers(now_s, force=True)
                 self.peers[addr] = now_s
+                self._rx_addr = addr
                 try:
                     self._handle(m, now_s)
                 except Exception as exc:  # noqa: BLE001 - never die on a message
                     self.rejected_bad += 1
-                    if self.log is not None:
-                        self.log.warning("GCS message %s not handled: %r", m.get_type(), exc)
+                    self._warn(f"GCS message {m.get_type()} not handled: {exc!r}")
         return n
 
     def _expire_peers(self, now_s: float, force: bool = False) -> None:
         for addr, t in list(self.peers.items()):
             if now_s - t > PEER_TIMEOUT_S:
                 del self.peers[addr]
+                self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
         if force and len(self.peers) >= MAX_PEERS:
             oldest = min(self.peers, key=self.peers.get)
             del self.peers[oldest]
+            self.links.pop(oldest, None)
 
     def _for_us(self, m) -> bool:
         ts = getattr(m, "target_system", 0)
@@ -235,7 +354,7 @@ class GcsLink:
                 self._ack(m, m.command, ML.MAV_RESULT_UNSUPPORTED)
         elif t == ML.MAVLINK_MSG_ID_SET_MODE:
             if m.target_system in (0, self.v.sysid):
-                ok, text = self.v.request_mode(int(m.custom_mode))
+                ok, text = self._request_mode(float(m.custom_mode))
                 self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
         elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
             if self._for_us(m):
@@ -264,20 +383,35 @@ class GcsLink:
 
     def _param_value(self, idx: int):
         params = self.v.params
+        value, ptype = encode_value(params.defs[idx], float(params.values[idx]))
         return self.mav.param_value_encode(
-            params.names[idx].encode("ascii"), float(params.values[idx]),
-            ML.MAV_PARAM_TYPE_REAL32, len(params), idx)
+            params.names[idx].encode("ascii"), value, ptype, len(params), idx)
 
     def _param_set(self, m) -> None:
+        """Validate and apply; a refusal is answered at once: PARAM_ERROR, then PARAM_VALUE
+        with the unchanged value (a GCS without PARAM_ERROR sees the value did not change)."""
         idx = self._param_index(m.param_id, -1)
         if idx is None:
+            self._param_error(m, -1, PARAM_ERR_UNKNOWN)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"unknown parameter {m.param_id}")
             return
         name = self.v.params.names[idx]
-        reason = self.v.set_param(name, float(m.param_value))
+        value = decode_set_value(self.v.params.defs[idx], float(m.param_value), m.param_type)
+        if value is None:
+            reason, code = f"{name}: wrong type {m.param_type}", PARAM_ERR_TYPE
+        else:
+            reason = self.v.set_param(name, value)
+            code = PARAM_ERR_READ_ONLY if name in PROCESS_DRIVEN else PARAM_ERR_RANGE
         if reason is not None:
+            self._param_error(m, idx, code)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
         self.send(self._param_value(idx))   # current value, also when refused
+
+    def _param_error(self, m, idx: int, code: int) -> None:
+        self.send(MD.MAVLink_param_error_message(m.get_srcSystem(), m.get_srcComponent(),
+                                                 m.param_id.encode("ascii", "replace")[:16]
+                                                 if isinstance(m.param_id, str) else m.param_id,
+                                                 idx, code))
 
     def announce_param(self, name: str) -> None:
         """Broadcast a value the vehicle changed itself (timeline, mode -> CO_ENABLE)."""
@@ -296,8 +430,7 @@ class GcsLink:
             r = self._command_result(m)
         except Exception as exc:  # noqa: BLE001 - a bad command must still be answered
             r = ML.MAV_RESULT_FAILED
-            if self.log is not None:
-                self.log.warning("command %d failed: %r", m.command, exc)
+            self._warn(f"command {m.command} failed: {exc!r}")
         self._ack(m, m.command, r)
 
     @staticmethod
@@ -318,11 +451,11 @@ class GcsLink:
             self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
             return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
         if c == ML.MAV_CMD_DO_SET_MODE:
-            mode = self._whole(m.param2)
-            ok, text = (self.v.request_mode(mode) if mode is not None
-                        else (False, f"mode {m.param2} refused: not a mode number"))
+            ok, text = self._request_mode(m.param2)
             self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
             return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+        if c == ML.MAV_CMD_DO_SET_STANDARD_MODE:
+            return ML.MAV_RESULT_FAILED      # no standard mode (yet): the spec's answer
         if c == CMD_ATTITUDE:
             reason = self.v.set_attitude_command(m.param1, m.param2, m.param3)
             if reason is not None:
@@ -333,17 +466,26 @@ class GcsLink:
             msg_id = self._whole(m.param1)
             if msg_id not in self.intervals:
                 return ML.MAV_RESULT_DENIED
-            self._set_interval(msg_id, m.param2)
-            self.oneshot.append(self._message_interval(msg_id))
+            link = self._own_link(self._rx_addr)
+            self._set_interval(link, msg_id, m.param2)
+            self.oneshot.append((link, self._message_interval(link, msg_id)))
             return ML.MAV_RESULT_ACCEPTED
         if c == ML.MAV_CMD_GET_MESSAGE_INTERVAL:
             msg_id = self._whole(m.param1)
             if msg_id is None or not 0 <= msg_id <= 0xFFFF:   # MESSAGE_INTERVAL.message_id u16
                 return ML.MAV_RESULT_DENIED
-            self.oneshot.append(self._message_interval(msg_id))
+            link = self._link_of(self._rx_addr)
+            self.oneshot.append((link, self._message_interval(link, msg_id)))
             return ML.MAV_RESULT_ACCEPTED
         if c == ML.MAV_CMD_REQUEST_MESSAGE:
             msg_id = self._whole(m.param1)
+            if msg_id == MD.MAVLINK_MSG_ID_AVAILABLE_MODES:
+                # param2: 0 (or unset, NaN) all modes, k the k-th
+                msgs = self._available_modes(0 if math.isnan(m.param2) else self._whole(m.param2))
+                if not msgs:
+                    return ML.MAV_RESULT_DENIED       # no mode with that index
+                self.oneshot.extend(msgs)
+                return ML.MAV_RESULT_ACCEPTED
             if msg_id == ML.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
                 msg = self._autopilot_version()
             elif msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
@@ -362,17 +504,25 @@ class GcsLink:
             return ML.MAV_RESULT_ACCEPTED if m.param1 == 1 else ML.MAV_RESULT_UNSUPPORTED
         return ML.MAV_RESULT_UNSUPPORTED
 
-    def _set_interval(self, msg_id: int, interval_us: float) -> None:
-        if not math.isfinite(interval_us) or interval_us < 0:
-            self.intervals[msg_id] = -1.0           # disabled
-        elif interval_us == 0:
-            self.intervals[msg_id] = STREAM_DEFAULTS_S[msg_id]
-        else:
-            self.intervals[msg_id] = max(interval_us * 1e-6, 0.01)   # at most 100 Hz
-        self.next_due[msg_id] = 0.0
+    def _request_mode(self, value: float) -> tuple[bool, str]:
+        """DO_SET_MODE param2 / SET_MODE custom_mode: a hyfc mode number or a wire value."""
+        mode = mode_from_custom(value)
+        if mode is None:
+            return False, f"mode {value:g} refused: not a mode"
+        return self.v.request_mode(mode)
 
-    def _message_interval(self, msg_id: int):
-        iv = self.intervals.get(msg_id)
+    @staticmethod
+    def _set_interval(link: _Streams, msg_id: int, interval_us: float) -> None:
+        if not math.isfinite(interval_us) or interval_us < 0:
+            link.intervals[msg_id] = -1.0           # disabled
+        elif interval_us == 0:
+            link.intervals[msg_id] = STREAM_DEFAULTS_S[msg_id]
+        else:
+            link.intervals[msg_id] = max(interval_us * 1e-6, 0.01)   # at most 100 Hz
+        link.next_due[msg_id] = 0.0
+
+    def _message_interval(self, link: _Streams, msg_id: int):
+        iv = link.intervals.get(msg_id)
         if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
             us = 1_000_000
         elif iv is None:
@@ -386,12 +536,15 @@ class GcsLink:
     def _data_stream(self, m) -> None:
         ids = (tuple(self.intervals) if m.req_stream_id == ML.MAV_DATA_STREAM_ALL
                else DATA_STREAMS.get(m.req_stream_id, ()))
+        if not ids:
+            return
+        link = self._own_link(self._rx_addr)
         for msg_id in ids:
             if m.start_stop == 0 or m.req_message_rate == 0:
-                self.intervals[msg_id] = -1.0
+                link.intervals[msg_id] = -1.0
             else:
-                self.intervals[msg_id] = max(1.0 / m.req_message_rate, 0.01)
-            self.next_due[msg_id] = 0.0
+                link.intervals[msg_id] = max(1.0 / m.req_message_rate, 0.01)
+            link.next_due[msg_id] = 0.0
 
     # ------------------------------------------------------------------ transmit
     def _heartbeat(self):
@@ -408,16 +561,34 @@ class GcsLink:
         else:
             status = ML.MAV_STATE_STANDBY
         return self.mav.heartbeat_encode(ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC,
-                                         base, int(modes.mode), status)
+                                         base, custom_mode_of(modes.mode), status)
+
+    def _current_mode(self):
+        """CURRENT_MODE (standard modes): no standard mode; custom = intended = the mode."""
+        cm = custom_mode_of(self.v.modes.mode)
+        return MD.MAVLink_current_mode_message(0, cm, cm)
+
+    def _available_modes(self, index: int | None) -> list:
+        """AVAILABLE_MODES for every mode (``index`` 0) or the one at ``index`` (1-based)."""
+        modes = list(FlightMode)
+        picked = (range(1, len(modes) + 1) if index == 0
+                  else [index] if index is not None and 1 <= index <= len(modes) else [])
+        return [MD.MAVLink_available_modes_message(
+                    len(modes), i, 0, custom_mode_of(modes[i - 1]), 0,
+                    modes[i - 1].name.encode("ascii")) for i in picked]
 
     def _autopilot_version(self):
-        caps = ML.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | ML.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+        # integer parameters: bytewise in the float (the spec's default, PX4, MAVSDK, QGC)
+        caps = (ML.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | ML.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | ML.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
         version = (0 << 24) | (1 << 16) | (0 << 8) | 0xFF   # 0.1.0 release
         return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
                                                  [0] * 8, [0] * 8, 0, 0, 0)
 
     def _build(self, msg_id: int, cursor: int):
         v = self.v
+        if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
+            return self._current_mode()
         ms = self.time_boot_ms()
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -465,15 +636,21 @@ class GcsLink:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
             self.send(self._heartbeat())
             self._expire_peers(now_s)
+            self._summaries()
             sent += 1
+        if self.v.modes.mode != self.last_mode_sent:       # CURRENT_MODE on every change
+            self.last_mode_sent = self.v.modes.mode
+            self.oneshot.append(self._current_mode())
         while self.oneshot and sent < self.max_tx:
-            msg = self.oneshot.popleft()
-            if msg is not None:
-                self.send(msg)
-                sent += 1
+            item = self.oneshot.popleft()
+            if isinstance(item, tuple):                    # (link, msg): for one link only
+                self._send_on(*item)
+            elif item is not None:
+                self.send(item)
+            sent += 1
         if self.text_queue and sent < self.max_tx:
-            sev, text = self.text_queue.popleft()
-            self.send(self.mav.statustext_encode(sev, text.encode("ascii", "replace")[:50]))
+            sev, text, text_id, chunk = self.text_queue.popleft()
+            self.send(self.mav.statustext_encode(sev, text, text_id, chunk))
             sent += 1
         n_param = 0
         while n_param < 2 and sent < self.max_tx:
@@ -487,28 +664,35 @@ class GcsLink:
             self.send(self._param_value(idx))
             n_param += 1
             sent += 1
-        for msg_id, iv in self.intervals.items():
+        sent = self._streams(self.default, now_s, sent)
+        for link in list(self.links.values()):
+            sent = self._streams(link, now_s, sent)
+        return sent
+
+    def _streams(self, link: _Streams, now_s: float, sent: int) -> int:
+        """Send the streamed messages of one schedule that are due; returns ``sent`` updated."""
+        for msg_id, iv in link.intervals.items():
             if sent >= self.max_tx:
                 break
-            if iv < 0 or now_s < self.next_due[msg_id]:
+            if iv < 0 or now_s < link.next_due[msg_id]:
                 continue
             if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
                 n_items = len(self.v.named_values())
                 step = iv / n_items
-                cursor = self.nv_cursor
-                self.nv_cursor += 1
+                cursor = link.nv_cursor
+                link.nv_cursor += 1
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
                 step = iv / 3
-                cursor = self.dv_cursor
-                self.dv_cursor += 1
+                cursor = link.dv_cursor
+                link.dv_cursor += 1
             else:
                 step = iv
                 cursor = 0
-            nd = self.next_due[msg_id] + step
-            self.next_due[msg_id] = nd if nd > now_s else now_s + step
+            nd = link.next_due[msg_id] + step
+            link.next_due[msg_id] = nd if nd > now_s else now_s + step
             msg = self._build(msg_id, cursor)
             if msg is not None:
-                self.send(msg)
+                self._send_on(link, msg)
                 sent += 1
         return sent
 

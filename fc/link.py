@@ -20,9 +20,13 @@ import numpy as np
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+# The standard-modes messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345)
+# are in development.xml only (pymavlink 2.4.50): their classes are packed by the
+# ardupilotmega codec (a message packs with its own CRC extra), nothing else is used from it.
+from pymavlink.dialects.v20 import development as mavlink_dev  # noqa: E402
 
 __all__ = [
-    "mavlink", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink", "LinkCounters",
+    "mavlink", "mavlink_dev", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink", "LinkCounters",
     "deflection_to_pwm", "pwm_to_deflection", "load_signing_key", "parse_hostport",
     "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
     "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",

@@ -1,7 +1,11 @@
 """fc/modes.py - flight modes, arming and the plant-data failsafe state machine.
 
 Modes travel as HEARTBEAT ``custom_mode`` (base_mode has MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
-and are set with MAV_CMD_DO_SET_MODE (param2) or SET_MODE (docs/fc.md):
+and are set with MAV_CMD_DO_SET_MODE (param2) or SET_MODE (docs/fc.md section 5). On the wire
+``custom_mode`` is PX4's layout (main mode << 16 | sub mode << 24) with the hyfc mode number
+in the low 16 bits that PX4 leaves unused (:data:`MODE_WIRE`), so MAVSDK and pymavlink read a
+PX4 mode close in meaning, and the ground stations that know our names (QGroundControl through
+AVAILABLE_MODES, MAVProxy through tools/mavproxy_hyfc.py) read ours:
 
 - MANUAL (0): surfaces at the TRIM_* parameters (no RC on this vehicle: passthrough of trim).
 - COORDINATED (1): the law with CO_ENABLE = 1.
@@ -13,10 +17,12 @@ This module holds no clock: the caller passes wall times in seconds.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
-__all__ = ["FlightMode", "ModeManager", "FS_NONE", "FS_DATA", "FS_REQUESTED"]
+__all__ = ["FlightMode", "ModeManager", "FS_NONE", "FS_DATA", "FS_REQUESTED", "MODE_WIRE",
+           "RESERVED_MODES", "custom_mode_of", "mode_from_custom"]
 
 
 class FlightMode(IntEnum):
@@ -24,6 +30,60 @@ class FlightMode(IntEnum):
     COORDINATED = 1
     UNCOORDINATED = 2
     FAILSAFE = 3
+
+
+# PX4 custom main modes and AUTO sub modes (PX4 px4_custom_mode.h; pymavlink and MAVSDK decode them)
+PX4_MANUAL, PX4_ALTCTL, PX4_POSCTL, PX4_AUTO, PX4_ACRO, PX4_OFFBOARD, PX4_STABILIZED = range(1, 8)
+PX4_AUTO_MISSION = 4
+
+
+def _px4(main: int, sub: int, number: int) -> int:
+    """HEARTBEAT custom_mode: PX4's main/sub mode bytes, the hyfc mode number in bits 0-15."""
+    return (sub << 24) | (main << 16) | number
+
+
+#: hyfc mode -> HEARTBEAT ``custom_mode``. MAVSDK reads MANUAL, STABILIZED, STABILIZED, MANUAL
+#: (the law modes hold attitude; FAILSAFE holds the surfaces at trim, as MANUAL does here);
+#: the low 16 bits tell COORDINATED from UNCOORDINATED and MANUAL from FAILSAFE.
+MODE_WIRE: dict[FlightMode, int] = {
+    FlightMode.MANUAL: _px4(PX4_MANUAL, 0, FlightMode.MANUAL),
+    FlightMode.COORDINATED: _px4(PX4_STABILIZED, 0, FlightMode.COORDINATED),
+    FlightMode.UNCOORDINATED: _px4(PX4_STABILIZED, 0, FlightMode.UNCOORDINATED),
+    FlightMode.FAILSAFE: _px4(PX4_MANUAL, 0, FlightMode.FAILSAFE),
+}
+
+#: Numbers and wire values reserved for the guidance modes of issue 14 (not implemented: a
+#: request for one is refused as an unknown mode). name -> (number, custom_mode, standard mode)
+#: with the MAVLink standard mode (MAV_STANDARD_MODE) each will advertise in AVAILABLE_MODES.
+RESERVED_MODES: dict[str, tuple[int, int, int]] = {
+    "CRUISE": (4, _px4(PX4_POSCTL, 0, 4), 3),                    # hold altitude, heading, speed
+    "GUIDED": (5, _px4(PX4_OFFBOARD, 0, 5), 0),                  # targets from the GCS
+    "MISSION": (6, _px4(PX4_AUTO, PX4_AUTO_MISSION, 6), 6),      # a stored mission
+}
+
+_WIRE_TO_MODE = {v: k for k, v in MODE_WIRE.items()}
+
+
+def custom_mode_of(mode: FlightMode) -> int:
+    """HEARTBEAT/CURRENT_MODE ``custom_mode`` of ``mode``."""
+    return MODE_WIRE[mode]
+
+
+def mode_from_custom(value: float) -> int | None:
+    """The hyfc mode number a requested custom mode means, or None if it means none.
+
+    Accepted: the hyfc number itself (0..3, as ``long DO_SET_MODE 1 1``) or the exact
+    ``custom_mode`` of a mode as sent in HEARTBEAT/AVAILABLE_MODES (QGroundControl's SET_MODE,
+    tools/mavproxy_hyfc.py). NaN, fractions and anything else: None.
+    """
+    if not math.isfinite(value) or value != int(value):
+        return None
+    v = int(value)
+    if v in _WIRE_TO_MODE:
+        return int(_WIRE_TO_MODE[v])
+    if 0 <= v <= 0xFFFF:
+        return v          # a plain number; ModeManager.request_mode refuses the unknown ones
+    return None
 
 
 LAW_MODES = (FlightMode.COORDINATED, FlightMode.UNCOORDINATED)

@@ -29,6 +29,15 @@ M_T_S, M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R, M_AOA, M_SSA = range(9)
 M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING = range(9, 14)
 
 
+def param_number(m) -> float:
+    """The number a PARAM_VALUE carries: INT32 values travel bytewise in the float field
+    (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE), REAL32 as the float itself."""
+    if m.param_type == mavlink.MAV_PARAM_TYPE_INT32:
+        import struct
+        return float(struct.unpack("<i", struct.pack("<f", m.param_value))[0])
+    return m.param_value
+
+
 def free_udp_port() -> int:
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))

@@ -92,7 +92,7 @@ def test_injected_law_plumbing_and_law_fault_failsafe(tmp_path):
             assert (ans.servo1_raw, ans.servo2_raw, ans.servo3_raw) == (1500, 1500, 1500)
             text = gcs.wait("STATUSTEXT", 5, lambda m: "law fault" in m.text)
             assert text is not None and text.severity == ML.MAV_SEVERITY_CRITICAL
-            assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode == 3) is not None
+            assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 3) is not None
         finally:
             plant.close()
             gcs.close()

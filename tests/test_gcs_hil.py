@@ -66,7 +66,8 @@ def test_full_parameter_list_has_consistent_count_and_indices(vehicle):
         m = gcs.wait("PARAM_VALUE", 5)
         assert m is not None, f"list stalled after {len(seen)} of {len(expected)}"
         assert m.param_count == len(expected)
-        assert m.param_type == ML.MAV_PARAM_TYPE_REAL32
+        integer = build_table().defs[m.param_index].integer
+        assert m.param_type == (ML.MAV_PARAM_TYPE_INT32 if integer else ML.MAV_PARAM_TYPE_REAL32)
         seen[m.param_index] = m.param_id
     assert [seen[i] for i in range(len(expected))] == expected
 
@@ -136,7 +137,7 @@ def test_mode_arm_and_attitude_command_are_followed(vehicle):
     _, gcs, loop = vehicle
     assert gcs.command(ML.MAV_CMD_DO_SET_MODE, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 1).result == 0
     assert gcs.command(ML.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == ML.MAV_RESULT_ACCEPTED
-    hb = gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode == 1
+    hb = gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode & 0xFFFF == 1
                   and m.base_mode & ML.MAV_MODE_FLAG_SAFETY_ARMED)
     assert hb is not None
     ack = gcs.command(ML.MAV_CMD_USER_1, 5.0, 0.0, 4.0)
@@ -170,7 +171,7 @@ def test_law_parameter_takes_effect_and_mode_switch_in_flight(vehicle):
     assert _set(gcs, "ACT_MAX", 20.0).param_value == pytest.approx(20.0)
     # SET_MODE message (not a command): UNCOORDINATED while flying; CO_ENABLE follows
     gcs.conn.mav.set_mode_send(1, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 2)
-    assert gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode == 2) is not None
+    assert gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode & 0xFFFF == 2) is not None
     assert _param(gcs, "CO_ENABLE").param_value == 0.0
     assert _set(gcs, "CO_ENABLE", 1.0).param_value == 0.0           # mode-driven: refused
     gcs.command(ML.MAV_CMD_USER_1, 5.0, 0.0, 0.0)

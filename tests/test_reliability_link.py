@@ -45,6 +45,11 @@ class _Null:
         return None
 
 
+def _mode(custom_mode):
+    """The hyfc mode number in a HEARTBEAT custom_mode (its low 16 bits, docs/fc.md 5)."""
+    return None if custom_mode is None else custom_mode & 0xFFFF
+
+
 def _codec(sysid: int):
     mav = ml.MAVLink(_Null(), srcSystem=sysid, srcComponent=1)
     return mav
@@ -123,7 +128,7 @@ def test_promise2_plant_data_loss_failsafe_trim_and_automatic_recovery(tmp_path)
     with Rig(cfg) as rig:
         rig.start()
         assert rig.wait_plant_time(t_cut_s, 60) is not None
-        assert rig.gcs.heartbeat_mode(3.0) == 1                   # COORDINATED, armed
+        assert _mode(rig.gcs.heartbeat_mode(3.0)) == 1            # COORDINATED, armed
         t_cut = time.monotonic()
         rig.relay.set_blackout(True, "up")                        # plant -> fc data lost
         text = rig.gcs.wait_text("FAILSAFE", 3.0, since=t_cut)
@@ -138,7 +143,7 @@ def test_promise2_plant_data_loss_failsafe_trim_and_automatic_recovery(tmp_path)
         # what the ground station saw during the failsafe (recorded, not waited for)
         hb = rig.gcs.find(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1,
                           t_fs, t_back)
-        mode = None if hb is None else hb.custom_mode
+        mode = None if hb is None else _mode(hb.custom_mode)
         sys_status = rig.gcs.find(lambda m: m.get_type() == "SYS_STATUS", t_fs, t_back + 0.2)
         back = rig.gcs.wait_text("plant data back", 5.0, since=t_back)
         mode_after = rig.gcs.heartbeat_mode(3.0, since=time.monotonic())
@@ -154,7 +159,7 @@ def test_promise2_plant_data_loss_failsafe_trim_and_automatic_recovery(tmp_path)
     assert sys_status is not None and not (sys_status.onboard_control_sensors_health
                                            & ml.MAV_SYS_STATUS_AHRS)
     assert back is not None and "COORDINATED" in back, back
-    assert mode_after == 1
+    assert _mode(mode_after) == 1
     assert rcs == {"plant": 0, "fc": 0}
     # no wind-up on frozen data: from 0.1 s after the last frame until FAILSAFE the law must not
     # drive the surfaces away (it has no new information), R5 in the reliability requests
@@ -260,7 +265,7 @@ def test_promise2_with_fs_recover_0_the_ground_station_resumes(tmp_path):
         flying = rig.gcs.heartbeat_mode(2.0, since=time.monotonic())
         rcs = rig.finish(stop_plant=True)
     assert lost is not None and staying is not None, (lost, staying)
-    assert still == 3                                      # data is back, still FAILSAFE
+    assert _mode(still) == 3                               # data is back, still FAILSAFE
     assert ack is not None and ack.result == ml.MAV_RESULT_ACCEPTED
-    assert flying == 1
+    assert _mode(flying) == 1
     assert rcs == {"plant": 0, "fc": 0}

@@ -1,0 +1,116 @@
+"""Unit tier: the GCS link's per-peer stream schedules and the STATUSTEXT/log rate limiter.
+
+``GcsLink`` runs in-process against a stand-in vehicle; time is passed in (``now_s``), so the
+peer time-out is checked without waiting for it.
+"""
+from __future__ import annotations
+
+import os
+import socket
+
+import numpy as np
+
+os.environ["MAVLINK20"] = "1"
+from fc.gcs import PEER_TIMEOUT_S, STREAM_DEFAULTS_S, GcsLink  # noqa: E402
+from fc.link import mavlink as ML  # noqa: E402
+from fc.modes import ModeManager  # noqa: E402
+from fc.params import build_table  # noqa: E402
+from fc.ratelimit import RateLimiter  # noqa: E402
+from tests.fc_harness import free_udp_port  # noqa: E402
+
+
+class _Vehicle:
+    """What GcsLink reads of the vehicle (fc/gcs.py module docstring), at rest."""
+
+    sysid, compid = 1, 1
+
+    def __init__(self) -> None:
+        self.params = build_table()
+        self.modes = ModeManager()
+        self.meas = np.zeros(14)
+        self.meas_stamp_us = 0
+        self.pwm_us = [1500, 1500, 1500]
+
+    def set_param(self, name, value):
+        return self.params.set(name, value)
+
+    def request_mode(self, mode):
+        return self.modes.request_mode(mode)
+
+    def debug_vectors(self):
+        return [(b"CMD_DEG", (0.0, 0.0, 0.0))] * 3
+
+    def named_values(self):
+        return [(b"GAMMA_DEG", 0.0)]
+
+    def health_failed_bits(self):
+        return 0
+
+    def error_counts(self):
+        return (0, 0, 0, 0, 0)
+
+    def load_permille(self):
+        return 0
+
+
+class _Null:
+    def write(self, _b):
+        return None
+
+
+def test_a_peer_rate_request_is_its_own_and_is_forgotten_with_the_peer():
+    out_port = free_udp_port()
+    link = GcsLink(_Vehicle(), ("127.0.0.1", free_udp_port()), [("127.0.0.1", out_port)])
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    try:
+        tx = ML.MAVLink(_Null(), srcSystem=255, srcComponent=190)
+        att = ML.MAVLINK_MSG_ID_ATTITUDE
+        peer.sendto(tx.command_long_encode(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0, att, -1,
+                                           0, 0, 0, 0, 0).pack(tx), link.endpoint.address)
+        for _ in range(100):                       # the datagram is on loopback: read it
+            if link.poll(100.0):
+                break
+        addr = ("127.0.0.1", peer.getsockname()[1])
+        assert addr in link.peers and addr in link.links
+        assert link.links[addr].intervals[att] == -1.0
+        assert link.intervals[att] == STREAM_DEFAULTS_S[att]      # the outputs' schedule
+        link.service(100.0 + PEER_TIMEOUT_S / 2)                  # still heard recently
+        assert addr in link.links
+        link.service(100.0 + PEER_TIMEOUT_S + 1.0)                # silent too long
+        assert addr not in link.peers and addr not in link.links
+    finally:
+        peer.close()
+        link.close()
+
+
+def test_limiter_lets_a_text_once_per_burst_and_summarises_the_repeats():
+    lim = RateLimiter(rate_hz=2.0, burst=10.0, quiet_s=2.0)
+    sent = [t for t in range(100) if lim.allow(t * 0.01, 4, "refused: X")]
+    assert sent == [0]
+    assert lim.summaries(0.99 + 1.0) == []                        # burst not over yet
+    assert lim.summaries(0.99 + 2.0) == [(4, "refused: X (99 suppressed)")]
+    assert lim.allow(10.0, 4, "refused: X")                       # a new burst
+    assert lim.summaries(20.0) == []                              # nothing held back
+
+
+def test_limiter_bounds_distinct_texts_and_never_holds_back_a_failsafe():
+    lim = RateLimiter(rate_hz=2.0, burst=10.0, quiet_s=2.0)
+    n = sum(lim.allow(i * 0.001, 4, f"refused: X={i}") for i in range(1000))   # 1 s of flood
+    assert n == 11                                                # burst + 1 s of refill
+    assert lim.allow(1.0, 2, "FAILSAFE: plant data lost")         # CRITICAL: not bucketed
+    assert not lim.allow(1.1, 2, "FAILSAFE: plant data lost")     # but de-duplicated
+    out = dict((text, sev) for sev, text in lim.summaries(10.0))
+    assert out["989 messages suppressed"] == 4
+    assert out["FAILSAFE: plant data lost (1 suppressed)"] == 2
+    assert lim.total_suppressed == 990
+
+
+def test_limiter_reports_a_repeat_that_goes_on_every_hold_s():
+    lim = RateLimiter(rate_hz=2.0, burst=10.0, quiet_s=2.0, hold_s=30.0)
+    assert lim.allow(0.0, 4, "refused: Y")
+    out = []
+    for k in range(1, 61):                          # once a second for a minute
+        assert not lim.allow(float(k), 4, "refused: Y")
+        out += lim.summaries(float(k) + 0.5)
+    assert out == [(4, "refused: Y (30 suppressed)"), (4, "refused: Y (30 suppressed)")]
