@@ -116,10 +116,18 @@ def decode_set_value(d: ParamDef, param_value: float, param_type: int) -> float 
     if param_type in (0, PARAM_TYPE_REAL32):
         return float(param_value)
     if d.integer and param_type in _INT_LAYOUT:
-        fmt = _INT_LAYOUT[param_type]
-        raw = struct.pack("<f", param_value)
-        return float(struct.unpack(fmt, raw[:struct.calcsize(fmt)])[0])
+        return wire_number(param_value, param_type)
     return None
+
+
+def wire_number(param_value: float, param_type: int) -> float:
+    """The number a PARAM_VALUE/PARAM_SET carries: integer types bytewise in the float field,
+    REAL32 (or an unset type) as the float itself. For readers of the wire (tools, tests)."""
+    fmt = _INT_LAYOUT.get(param_type)
+    if fmt is None:
+        return float(param_value)
+    raw = struct.pack("<f", param_value)
+    return float(struct.unpack(fmt, raw[:struct.calcsize(fmt)])[0])
 
 
 class ParamFileError(ValueError):

@@ -17,6 +17,8 @@ import time
 
 import numpy as np
 
+from fc.params import wire_number
+
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
@@ -32,10 +34,7 @@ M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING = range(9, 14)
 def param_number(m) -> float:
     """The number a PARAM_VALUE carries: INT32 values travel bytewise in the float field
     (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE), REAL32 as the float itself."""
-    if m.param_type == mavlink.MAV_PARAM_TYPE_INT32:
-        import struct
-        return float(struct.unpack("<i", struct.pack("<f", m.param_value))[0])
-    return m.param_value
+    return wire_number(m.param_value, m.param_type)
 
 
 def free_udp_port() -> int:

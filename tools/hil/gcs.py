@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fc.params import wire_number
+
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
@@ -154,7 +156,7 @@ class ScriptedGcs:
             tel.last_heartbeat = m
         elif t == "PARAM_VALUE":
             name = m.param_id.rstrip("\x00") if isinstance(m.param_id, str) else m.param_id
-            tel.param_values[name] = m.param_value
+            tel.param_values[name] = wire_number(m.param_value, m.param_type)
         elif t == "COMMAND_ACK":
             tel.acks.append((m.command, m.result))
         elif t == "STATUSTEXT":
