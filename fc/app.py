@@ -161,7 +161,8 @@ class FlightController:
                                sysid=cfg.sysid, compid=cfg.compid)
         self.io = IoThread(self.log)
         self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
-                           signing_key=key, log=self.log, io=self.io)
+                           signing_key=key, log=self.log, io=self.io,
+                           sim_time=cfg.mode == "lockstep")
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)

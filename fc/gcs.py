@@ -22,7 +22,9 @@ import struct
 import time
 from collections import deque
 
-from fc.link import UdpEndpoint, decode_datagram, mavlink, new_codec
+from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, UdpEndpoint, decode_datagram,
+                     mavlink, new_codec)
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
 
@@ -41,11 +43,17 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW: 0.1,
     ML.MAVLINK_MSG_ID_DEBUG_VECT: 0.1,          # each of CMD_DEG, EST_DEG, DELTA_DEG
     ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT: 1.0,   # each named value once per interval
+    ML.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
+    ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
+    ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
 }
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
     ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
-    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,),
+    ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS, ML.MAVLINK_MSG_ID_GPS_RAW_INT,
+                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME),
+    ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
     ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
@@ -58,6 +66,10 @@ UNSIGNED_ALLOWED = frozenset({
     ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ, ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST,
     ML.MAVLINK_MSG_ID_TIMESYNC, ML.MAVLINK_MSG_ID_SYSTEM_TIME,
 })
+#: The .tlog's own streams (docs/fc.md "Flight log"): the default rates plus the heartbeat.
+LOG_STREAMS_S = {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DEFAULTS_S}
+#: A GNSS sample older than this (plant time) is stale: GPS health off, fix reported as NO_FIX.
+GNSS_STALE_S = 1.0
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 MAX_PEERS = 8
 PEER_TIMEOUT_S = 10.0
@@ -68,7 +80,8 @@ class GcsLink:
 
     def __init__(self, vehicle, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
-                 log=None, max_rx: int = 8, max_tx: int = 6, io=None) -> None:
+                 log=None, max_rx: int = 8, max_tx: int = 6, io=None,
+                 sim_time: bool = False) -> None:
         self.v = vehicle
         self.log = log
         self.endpoint = UdpEndpoint(*bind)
@@ -78,6 +91,11 @@ class GcsLink:
         self.max_rx = max_rx
         self.max_tx = max_tx
         self.boot_s = time.monotonic()
+        # the one time base of every message and of the .tlog (``time_us``): sim time (the
+        # newest plant frame's stamp) when ``sim_time`` (lockstep), else time since boot
+        self.sim_time = sim_time
+        self.epoch_us = int(time.time() * 1e6)    # .tlog stamp = epoch + time base
+        self.home: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m MSL
         self.intervals = dict(STREAM_DEFAULTS_S)
         self.next_due = {k: 0.0 for k in self.intervals}
         self.next_heartbeat = 0.0
@@ -100,6 +118,12 @@ class GcsLink:
         # fc/iothread.py) so a slow disk never stalls the loop
         self.tlog = open(tlog_path, "wb") if tlog_path else None
         self._tlog_buf = bytearray()
+        # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
+        # paced by the time base (sim time in lockstep), not by the wall clock
+        self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
+        self.log_due = {k: 0.0 for k in LOG_STREAMS_S}
+        self._log_next = 0.0
+        self._log_last_s = 0.0
         self.io = io
         self.signing = signing_key is not None
         if signing_key is not None:
@@ -115,12 +139,27 @@ class GcsLink:
     def _allow_unsigned(_mav, msg_id: int) -> bool:
         return msg_id in UNSIGNED_ALLOWED
 
-    def _tlog_write(self, buf: bytes) -> None:
+    def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
+        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64)."""
         if self.tlog is not None:
-            self._tlog_buf += struct.pack(">Q", int(time.time() * 1e6))
+            if t_us is None:
+                t_us = self.time_us()
+            self._tlog_buf += struct.pack(">Q", self.epoch_us + t_us)
             self._tlog_buf += buf
 
-    def send(self, msg) -> None:
+    def _log_msg(self, msg, t_us: int | None = None) -> None:
+        """Write ``msg`` to the .tlog, packed with the log's own codec (its sequence)."""
+        mav = self.log_mav
+        try:
+            buf = msg.pack(mav)
+        except (struct.error, ValueError, TypeError, OverflowError):
+            return          # counted by send(), which packed it first
+        mav.seq = (mav.seq + 1) % 256
+        self._tlog_write(buf, t_us)
+
+    def send(self, msg, log: bool = True) -> None:
+        """Send ``msg`` to every ground station; ``log``: also write it to the .tlog (events;
+        the periodic streams reach the .tlog through the log's own schedule instead)."""
         try:
             buf = msg.pack(self.mav)
         except (struct.error, ValueError, TypeError, OverflowError) as exc:
@@ -130,7 +169,8 @@ class GcsLink:
                 self.log.warning("cannot pack %s: %r (counted, not sent)", msg.get_type(), exc)
             return
         self.mav.seq = (self.mav.seq + 1) % 256
-        self._tlog_write(buf)
+        if log and self.tlog is not None:
+            self._log_msg(msg)
         for addr in self.outputs:
             self.endpoint.send(buf, addr)
         for addr in self.peers:
@@ -143,8 +183,15 @@ class GcsLink:
             self.log.info("STATUSTEXT[%d] %s", severity, text)
         self.text_queue.append((severity, text))
 
+    def time_us(self) -> int:
+        """The telemetry time base (us): lockstep: sim time of the newest plant frame (0
+        before the first); real time: monotonic time since the fc started."""
+        if self.sim_time:
+            return int(self.v.meas_stamp_us)
+        return int((time.monotonic() - self.boot_s) * 1e6)
+
     def time_boot_ms(self) -> int:
-        return int((time.monotonic() - self.boot_s) * 1000) & 0xFFFFFFFF
+        return (self.time_us() // 1000) & 0xFFFFFFFF
 
     def close(self) -> None:
         """Write what is pending (synchronously: the loop has stopped) and close."""
@@ -351,7 +398,15 @@ class GcsLink:
             else:
                 msg = self._build(msg_id, 0) if msg_id is not None else None
             if msg is None:
-                return ML.MAV_RESULT_UNSUPPORTED
+                # a stream without data yet (HOME_POSITION before the first GNSS fix)
+                return (ML.MAV_RESULT_TEMPORARILY_REJECTED if msg_id in STREAM_DEFAULTS_S
+                        else ML.MAV_RESULT_UNSUPPORTED)
+            self.oneshot.append(msg)
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_GET_HOME_POSITION:          # legacy form of REQUEST_MESSAGE 242
+            msg = self._build(ML.MAVLINK_MSG_ID_HOME_POSITION, 0)
+            if msg is None:
+                return ML.MAV_RESULT_TEMPORARILY_REJECTED
             self.oneshot.append(msg)
             return ML.MAV_RESULT_ACCEPTED
         if c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
@@ -416,12 +471,32 @@ class GcsLink:
         return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
                                                  [0] * 8, [0] * 8, 0, 0, 0)
 
+    def _gnss(self):
+        """(newest GNSS sample (fc/link.py G_*), fix type to report): the sample's own fix
+        while it is younger than GNSS_STALE_S of plant time, NO_FIX (1) once stale, NO_GPS (0)
+        before any. Sets ``home`` at the first 3D fix."""
+        g = self.v.plant.gps
+        fix = int(g[G_FIX])
+        if fix and self.v.meas_stamp_us * 1e-6 - g[G_T_S] > GNSS_STALE_S:
+            fix = ML.GPS_FIX_TYPE_NO_FIX
+        if self.home is None and fix >= ML.GPS_FIX_TYPE_3D_FIX:
+            self.home = (float(g[G_LAT_DEG]), float(g[G_LON_DEG]), float(g[G_ALT_M]))
+            self.statustext(ML.MAV_SEVERITY_INFO, "home set at the first GNSS fix: %.7f %.7f %.1f m"
+                            % self.home)
+        return g, fix
+
+    def _debug_vectors(self) -> list:
+        """The vehicle's DEBUG_VECTs plus SIM_T: x = sim time of the newest plant frame (s),
+        so a ground station can map the time base (time_usec) to sim time in real time."""
+        return self.v.debug_vectors() + [(b"SIM_T", (self.v.meas_stamp_us * 1e-6, 0.0, 0.0))]
+
     def _build(self, msg_id: int, cursor: int):
         v = self.v
-        ms = self.time_boot_ms()
+        us = self.time_us()
+        ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-                       | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+                       | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_SENSOR_GPS
                        | ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
                        | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
                        | ML.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | ML.MAV_SYS_STATUS_AHRS
@@ -431,6 +506,8 @@ class GcsLink:
                 enabled &= ~(ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
                              | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
             health = 0xFFFFFFFF & ~v.health_failed_bits()
+            if self._gnss()[1] < ML.GPS_FIX_TYPE_3D_FIX:
+                health &= ~ML.MAV_SYS_STATUS_SENSOR_GPS
             c = v.error_counts()
             return self.mav.sys_status_encode(present, enabled, health, v.load_permille(),
                                               65535, -1, -1, 0, min(c[0], 65535),
@@ -440,30 +517,101 @@ class GcsLink:
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
             return self.mav.attitude_encode(ms, m[1], m[2], m[3], m[4], m[5], m[6])
         if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
-            return self.mav.aoa_ssa_encode(int(v.meas_stamp_us), math.degrees(m[7]),
-                                           math.degrees(m[8]))
+            return self.mav.aoa_ssa_encode(us, math.degrees(m[7]), math.degrees(m[8]))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
             hdg = int(round(math.degrees(m[13]))) % 360 if math.isfinite(m[13]) else 0
             return self.mav.vfr_hud_encode(m[9], m[12], hdg, 0, m[10], m[11])
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
             p = v.pwm_us
-            return self.mav.servo_output_raw_encode(int(v.meas_stamp_us) & 0xFFFFFFFF, 0,
+            return self.mav.servo_output_raw_encode(us & 0xFFFFFFFF, 0,
                                                     p[0], p[1], p[2], 0, 0, 0, 0, 0)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-            name, xyz = v.debug_vectors()[cursor % 3]
-            return self.mav.debug_vect_encode(name, int(v.meas_stamp_us), *xyz)
+            vectors = self._debug_vectors()
+            name, xyz = vectors[cursor % len(vectors)]
+            return self.mav.debug_vect_encode(name, us, *xyz)
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             items = v.named_values()
             name, value = items[cursor % len(items)]
             return self.mav.named_value_float_encode(ms, name, value)
+        if msg_id == ML.MAVLINK_MSG_ID_SYSTEM_TIME:
+            return self.mav.system_time_encode(self.epoch_us + us, ms)
+        if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
+            g, fix = self._gnss()
+            spd = math.hypot(g[G_VN], g[G_VE])
+            vel = int(round(spd * 100.0)) if spd * 100.0 < 65534.5 else 65535   # u16: unknown
+            cog = (int(round(math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0)) % 36000
+                   if fix and spd > 0.0 else 65535)
+            return self.mav.gps_raw_int_encode(
+                us, fix, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
+                int(round(g[G_ALT_M] * 1000.0)), 65535, 65535, vel, cog, int(g[G_SATS]), 0,
+                _u32(g[G_HACC_M] * 1000.0), _u32(g[G_VACC_M] * 1000.0),
+                _u32(g[G_SACC_M_S] * 1000.0), 0, 0)
+        if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+            g, fix = self._gnss()
+            if self.home is None:
+                return None
+            hdg = (int(round(math.degrees(m[M_HEADING]) * 100.0)) % 36000
+                   if math.isfinite(m[M_HEADING]) else 65535)
+            return self.mav.global_position_int_encode(
+                ms, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
+                int(round(g[G_ALT_M] * 1000.0)), int(round((g[G_ALT_M] - self.home[2]) * 1000.0)),
+                _i16(g[G_VN] * 100.0), _i16(g[G_VE] * 100.0), _i16(g[G_VD] * 100.0), hdg)
+        if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION:
+            self._gnss()
+            if self.home is None:
+                return None
+            lat, lon, alt = self.home
+            return self.mav.home_position_encode(
+                int(round(lat * 1e7)), int(round(lon * 1e7)), int(round(alt * 1000.0)),
+                0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, us)
         return None
 
+    def _stream_messages(self, msg_id: int) -> list:
+        """Every message of one stream period for the .tlog (all named values and vectors)."""
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            return [self._heartbeat()]
+        if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
+            n = len(self.v.named_values())
+        elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
+            n = len(self._debug_vectors())
+        else:
+            n = 1
+        return [m for m in (self._build(msg_id, i) for i in range(n)) if m is not None]
+
+    def _service_log(self) -> None:
+        """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
+        lockstep): due messages are written with the log's codec, stamped with the time base."""
+        if self.tlog is None:
+            return
+        t_us = self.time_us()
+        t = t_us * 1e-6
+        if t < self._log_last_s:            # the plant restarted: the schedule starts over
+            for k in self.log_due:
+                self.log_due[k] = t
+            self._log_next = t
+        self._log_last_s = t
+        if t < self._log_next:
+            return
+        nxt = math.inf
+        for msg_id, iv in LOG_STREAMS_S.items():
+            due = self.log_due[msg_id]
+            if t >= due:
+                for msg in self._stream_messages(msg_id):
+                    self._log_msg(msg, t_us)
+                due = due + iv if due + iv > t else t + iv
+                self.log_due[msg_id] = due
+            if due < nxt:
+                nxt = due
+        self._log_next = nxt
+
     def service(self, now_s: float) -> int:
-        """Send what is due (at most ``max_tx`` messages). Returns how many were sent."""
+        """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
+        the .tlog's streams due on the time base. Returns how many were sent."""
+        self._service_log()
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
-            self.send(self._heartbeat())
+            self.send(self._heartbeat(), log=False)
             self._expire_peers(now_s)
             sent += 1
         while self.oneshot and sent < self.max_tx:
@@ -498,7 +646,7 @@ class GcsLink:
                 cursor = self.nv_cursor
                 self.nv_cursor += 1
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-                step = iv / 3
+                step = iv / len(self._debug_vectors())
                 cursor = self.dv_cursor
                 self.dv_cursor += 1
             else:
@@ -508,9 +656,21 @@ class GcsLink:
             self.next_due[msg_id] = nd if nd > now_s else now_s + step
             msg = self._build(msg_id, cursor)
             if msg is not None:
-                self.send(msg)
+                self.send(msg, log=False)
                 sent += 1
         return sent
+
+
+def _u32(x: float) -> int:
+    """A non-negative finite value as u32 (rounded, saturated); 0 otherwise."""
+    return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
+
+
+def _i16(x: float) -> int:
+    """A value as i16 (rounded, saturated at +-32767: MAVLink's cm/s fields end at 327 m/s)."""
+    if not math.isfinite(x):
+        return 0
+    return max(-32767, min(32767, int(round(x))))
 
 
 def _write_flush(f, chunk: bytes) -> None:
