@@ -121,9 +121,10 @@ class GcsLink:
         # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
         # paced by the time base (sim time in lockstep), not by the wall clock
         self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
-        self.log_due = {k: 0.0 for k in LOG_STREAMS_S}
-        self._log_next = 0.0
-        self._log_last_s = 0.0
+        self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
+        self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
+        self._log_next = 0
+        self._log_last_us = 0
         self.io = io
         self.signing = signing_key is not None
         if signing_key is not None:
@@ -580,33 +581,35 @@ class GcsLink:
 
     def _service_log(self) -> None:
         """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
-        lockstep): due messages are written with the log's codec, stamped with the time base."""
+        lockstep): due messages are written with the log's codec, stamped with the time base.
+        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames."""
         if self.tlog is None:
             return
         t_us = self.time_us()
-        t = t_us * 1e-6
-        if t < self._log_last_s:            # the plant restarted: the schedule starts over
+        if t_us < self._log_last_us:        # the plant restarted: the schedule starts over
             for k in self.log_due:
-                self.log_due[k] = t
-            self._log_next = t
-        self._log_last_s = t
-        if t < self._log_next:
+                self.log_due[k] = t_us
+            self._log_next = t_us
+        self._log_last_us = t_us
+        if t_us < self._log_next:
             return
-        nxt = math.inf
-        for msg_id, iv in LOG_STREAMS_S.items():
+        nxt = None
+        for msg_id, iv_us in self._log_iv_us.items():
             due = self.log_due[msg_id]
-            if t >= due:
+            if t_us >= due:
                 for msg in self._stream_messages(msg_id):
                     self._log_msg(msg, t_us)
-                due = due + iv if due + iv > t else t + iv
+                due = due + iv_us if due + iv_us > t_us else t_us + iv_us
                 self.log_due[msg_id] = due
-            if due < nxt:
+            if nxt is None or due < nxt:
                 nxt = due
         self._log_next = nxt
 
     def service(self, now_s: float) -> int:
         """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
         the .tlog's streams due on the time base. Returns how many were sent."""
+        if self.home is None:
+            self._gnss()                   # home = the first fix, taken when it arrives
         self._service_log()
         sent = 0
         if now_s >= self.next_heartbeat:
