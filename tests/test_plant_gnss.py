@@ -58,6 +58,11 @@ def test_known_offset_near_the_default_origin():
     assert alt == 21000.0
 
 
+def _noise(h_m: float, v_m: float, vel_m_s: float) -> str:
+    return (f"[gnss.noise]\nhorizontal_m = {h_m}\nvertical_m = {v_m}\n"
+            f"velocity_m_s = {vel_m_s}\n")
+
+
 def _samples(sim: PlantSim, n_frames: int, move: bool):
     """Run the receiver over ``n_frames`` (advancing the plant if ``move``); (frame, sample,
     clean NED position at that frame) per sample."""
@@ -87,14 +92,7 @@ def test_rate_and_exact_sample_without_sensor_errors():
 
 
 def test_latency_is_whole_frames_of_the_true_trajectory():
-    sc = _scenario("""
-[sensors.latency_s]
-gps = 0.05
-[gnss.noise]
-horizontal_m = 0.0
-vertical_m = 0.0
-velocity_m_s = 0.0
-""")
+    sc = _scenario("[sensors.latency_s]\ngps = 0.05\n" + _noise(0.0, 0.0, 0.0))
     sim = PlantSim(sc, seed=3)
     assert sim.gnss.delay == 25
     got, clean = _samples(sim, 400, move=True)
@@ -108,14 +106,7 @@ velocity_m_s = 0.0
 
 
 def test_noise_statistics_and_seeding():
-    sc = _scenario("""
-[gnss]
-rate_hz = 100.0
-[gnss.noise]
-horizontal_m = 2.0
-vertical_m = 4.0
-velocity_m_s = 0.3
-""")
+    sc = _scenario("[gnss]\nrate_hz = 100.0\n" + _noise(2.0, 4.0, 0.3))
     sim = PlantSim(sc, seed=11)
     got, _ = _samples(sim, 5 * 4000, move=False)       # 4000 samples of a fixed state
     o = sim.gnss.origin
