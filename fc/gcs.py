@@ -23,8 +23,8 @@ import time
 from collections import deque
 
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, UdpEndpoint, decode_datagram,
-                     mavlink, new_codec)
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
+                     decode_datagram, mavlink, new_codec)
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
 
@@ -121,6 +121,7 @@ class GcsLink:
         # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
         # paced by the time base (sim time in lockstep), not by the wall clock
         self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
+        self.log_framer = LeanFramer(vehicle.sysid, vehicle.compid)   # unsigned, codec's bytes
         self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
         self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
         self._log_next = 0
@@ -152,9 +153,9 @@ class GcsLink:
         """Write ``msg`` to the .tlog, packed with the log's own codec (its sequence)."""
         mav = self.log_mav
         try:
-            buf = msg.pack(mav)
+            buf = self.log_framer.frame(msg, mav.seq) if self.log_framer.ok else msg.pack(mav)
         except (struct.error, ValueError, TypeError, OverflowError):
-            return          # counted by send(), which packed it first
+            return          # a message that cannot be packed is not logged
         mav.seq = (mav.seq + 1) % 256
         self._tlog_write(buf, t_us)
 

@@ -23,6 +23,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
 __all__ = [
     "mavlink", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink", "LinkCounters",
+    "LeanFramer",
     "deflection_to_pwm", "pwm_to_deflection", "load_signing_key", "parse_hostport",
     "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
     "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",
@@ -369,6 +370,63 @@ class _LeanServoPacker:
         frame = bytes(h) + payload
         crc = _crc16(self.extra, _crc16(frame[1:]))
         return frame + bytes((crc & 0xFF, crc >> 8))
+
+
+def _payload_only(_mav, _crc_extra, payload, force_mavlink1=False):
+    return payload
+
+
+class LeanFramer:
+    """MAVLink 2 framing (unsigned) of the codec's message objects without the codec's
+    per-message overhead: the payload from the message's own generated ``pack`` (its wire-order
+    struct, arrays and strings as the codec handles them), then trailing-zero truncation,
+    header and CRC with CRC_EXTRA as ``msg.pack(mav)`` does: the same bytes (``ok`` is the
+    start-up check against the codec; False: callers use ``msg.pack``). About 3 us instead
+    of 9-12 us per message; the fc's flight log frames every message with it."""
+
+    def __init__(self, sysid: int, compid: int) -> None:
+        self.hdr = bytearray((_MAGIC2, 0, 0, 0, 0, sysid & 0xFF, compid & 0xFF, 0, 0, 0))
+        self.ok = False
+        try:
+            self.ok = self._self_check(sysid, compid)
+        except Exception:  # noqa: BLE001 - any surprise: the codec's own pack
+            self.ok = False
+
+    def frame(self, msg, seq: int) -> bytes:
+        msg._pack = _payload_only          # the generated pack hands us its payload
+        try:
+            payload = msg.pack(None)
+        finally:
+            del msg._pack
+        payload = payload.rstrip(b"\0") or b"\0"
+        h = self.hdr
+        mid = msg.get_msgId()           # (STATUSTEXT has a field named id)
+        h[1] = len(payload)
+        h[4] = seq
+        h[7] = mid & 0xFF
+        h[8] = (mid >> 8) & 0xFF
+        h[9] = mid >> 16
+        frame = bytes(h) + payload
+        crc = _crc16(bytes((msg.crc_extra,)), _crc16(frame[1:]))
+        return frame + bytes((crc & 0xFF, crc >> 8))
+
+    def _self_check(self, sysid: int, compid: int) -> bool:
+        c = new_codec(sysid, compid)
+        samples = (c.attitude_encode(123, 0.1, -0.2, 0.3, 0.0, 1e-3, -2.5),
+                   c.heartbeat_encode(1, 0, 129, 2, 4),
+                   c.debug_vect_encode(b"SIM_T", 2_000_000, 2.0, 0.0, 0.0),
+                   c.named_value_float_encode(7, b"GAMMA_DEG", -0.5),
+                   c.home_position_encode(349054000, -1178839000, 21_000_000, 0.0, 0.0, 0.0,
+                                          [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 5),
+                   c.gps_raw_int_encode(10, 3, 1, -1, 0, 65535, 65535, 65535, 0, 12, 0, 1500,
+                                        3000, 100, 0, 0),
+                   c.statustext_encode(6, b"home set"),
+                   c.system_time_encode(0, 0))
+        for seq, msg in zip((0, 1, 255, 7, 128, 3, 9, 200), samples):
+            c.seq = seq
+            if self.frame(msg, seq) != msg.pack(c):
+                return False
+        return True
 
 
 def _lean_self_check(link: "PlantLink") -> bool:

@@ -222,3 +222,22 @@ def test_fc_without_gnss_keeps_flying_then_publishes_the_first_fix(tmp_path):
             plant.close()
             gcs.close()
         assert fc.stop() == 0
+
+
+def test_log_framer_gives_the_codecs_bytes():
+    """The .tlog's lean framing (fc/link.py LeanFramer) is byte-identical to ``msg.pack``."""
+    from fc.link import LeanFramer, new_codec
+    framer = LeanFramer(1, 1)
+    assert framer.ok
+    c = new_codec(1, 1)
+    rng = np.random.default_rng(3)
+    for seq in range(300):
+        x = rng.normal(size=6)
+        msgs = (c.attitude_encode(seq * 100, *x),
+                c.statustext_encode(4, b"chunk", seq % 7, seq % 3),      # a field named id
+                c.global_position_int_encode(seq, 349054321, -1178839876, 21_000_000, -5,
+                                             32767, -32767, 0, 35999),
+                c.servo_output_raw_encode(seq, 0, 1500, 1000 + seq, 2000, 0, 0, 0, 0, 0))
+        for m in msgs:
+            c.seq = seq % 256
+            assert framer.frame(m, seq % 256) == m.pack(c), m.get_type()
