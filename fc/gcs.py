@@ -609,7 +609,7 @@ class GcsLink:
     def service(self, now_s: float) -> int:
         """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
         the .tlog's streams due on the time base. Returns how many were sent."""
-        if self.home is None:
+        if self.home is None and self.v.plant.gps_samples:
             self._gnss()                   # home = the first fix, taken when it arrives
         self._service_log()
         sent = 0
