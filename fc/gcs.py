@@ -488,9 +488,11 @@ class GcsLink:
         return g, fix
 
     def _debug_vectors(self) -> list:
-        """The vehicle's DEBUG_VECTs plus SIM_T: x = sim time of the newest plant frame (s),
-        so a ground station can map the time base (time_usec) to sim time in real time."""
-        return self.v.debug_vectors() + [(b"SIM_T", (self.v.meas_stamp_us * 1e-6, 0.0, 0.0))]
+        """The vehicle's DEBUG_VECTs plus SIM_T: x = sim time of the newest plant frame (s;
+        NaN before the first), so a ground station can map the time base (time_usec) to sim
+        time in real time."""
+        t = self.v.meas_stamp_us * 1e-6 if self.v.plant.counters.frames else math.nan
+        return self.v.debug_vectors() + [(b"SIM_T", (t, 0.0, 0.0))]
 
     def _build(self, msg_id: int, cursor: int):
         v = self.v

@@ -196,8 +196,9 @@ class _GcsClient:
             t = m.get_type()
             if t == "HEARTBEAT":
                 self.heartbeats += 1
-            elif t == "DEBUG_VECT" and m.name == "SIM_T":
+            elif t == "DEBUG_VECT" and m.name == "SIM_T" and math.isfinite(m.x):
                 # real time: the time base is the controller's boot time; SIM_T maps it
+                # (NaN until the controller has a plant frame)
                 self.base_minus_sim_s = m.time_usec / 1e6 - m.x
             elif t == "AOA_SSA" and self.base_minus_sim_s is not None:
                 self.aoa.append((m.time_usec / 1e6 - self.base_minus_sim_s, m.AOA, m.SSA))

@@ -122,7 +122,8 @@ class ScriptedGcs:
                 tel.att_t_s.append(tel.sim_t_s)
                 tel.att.append((m.roll, m.pitch, m.yaw, m.rollspeed, m.pitchspeed, m.yawspeed))
         elif t == "DEBUG_VECT" and m.name.rstrip("\x00") == "SIM_T":
-            tel.base_minus_sim_s = m.time_usec / 1e6 - m.x
+            if math.isfinite(m.x):        # NaN: the vehicle has no plant frame yet
+                tel.base_minus_sim_s = m.time_usec / 1e6 - m.x
         elif t == "AOA_SSA":
             if tel.base_minus_sim_s is None:
                 return                    # the time base is not mapped to sim time yet
