@@ -483,8 +483,10 @@ class GcsLink:
             fix = ML.GPS_FIX_TYPE_NO_FIX
         if self.home is None and fix >= ML.GPS_FIX_TYPE_3D_FIX:
             self.home = (float(g[G_LAT_DEG]), float(g[G_LON_DEG]), float(g[G_ALT_M]))
-            self.statustext(ML.MAV_SEVERITY_INFO, "home set at the first GNSS fix: %.7f %.7f %.1f m"
+            self.statustext(ML.MAV_SEVERITY_INFO, "home set: %.7f %.7f %.0f m"
                             % self.home)
+            # announced at once (to ground stations and the .tlog), then at the stream rate
+            self.oneshot.append(self._build(ML.MAVLINK_MSG_ID_HOME_POSITION, 0))
         return g, fix
 
     def _debug_vectors(self) -> list:

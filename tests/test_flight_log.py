@@ -153,6 +153,10 @@ def test_position_follows_the_plant_truth(lockstep_run):
     h = geodetic_to_ned(home[0]["latitude"] * 1e-7, home[0]["longitude"] * 1e-7,
                         home[0]["altitude"] * 1e-3, *origin)
     assert math.hypot(h[0], h[1]) < 10.0            # the first fix: at the origin, t = 0
+    # announced when set (the first fix arrives with the first frame), not 5 s later
+    first_home = next(m for m in msgs if m["meta"]["type"] == "HOME_POSITION")
+    assert first_home["data"]["time_usec"] < 0.1e6
+    assert any("home set" in m["data"]["text"] for m in msgs if m["meta"]["type"] == "STATUSTEXT")
     status = [m["data"] for m in msgs if m["meta"]["type"] == "SYS_STATUS"]
     gps_bit = mavlink.MAV_SYS_STATUS_SENSOR_GPS
     assert all(s["onboard_control_sensors_present"] & gps_bit for s in status)
