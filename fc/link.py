@@ -483,6 +483,7 @@ class LinkCounters:
     rejected_bad: int = 0         # malformed MAVLink (CRC, length, prefix)
     rejected_incomplete: int = 0  # datagram without the ATTITUDE+AOA_SSA+VFR_HUD triple
     gnss: int = 0                 # GNSS samples (GPS_INPUT) accepted with a frame
+    gnss_rejected: int = 0        # GNSS samples dropped: non-finite or out of range
     outputs: int = 0
     relocks: int = 0              # new source address accepted after a data loss
 
@@ -620,7 +621,14 @@ class PlantLink:
     def _store_gps(self, stamp_us: int, lat_e7: int, lon_e7: int, alt_m: float, vn: float,
                    ve: float, vd: float, fix: int, sats: int, hacc_m: float, vacc_m: float,
                    sacc_m_s: float) -> None:
-        """Keep a GNSS sample (GPS_INPUT fields, degE7 and m) in ``gps`` (layout G_*)."""
+        """Keep a GNSS sample (GPS_INPUT fields, degE7 and m) in ``gps`` (layout G_*). A sample
+        with a non-finite value or out of range (lat/lon beyond +-90/180 deg, |alt| beyond the
+        i32 mm of the ground-station messages) is dropped and counted (``gnss_rejected``)."""
+        if not (abs(lat_e7) <= 900_000_000 and abs(lon_e7) <= 1_800_000_000
+                and abs(alt_m) < 2.0e6 and math.isfinite(vn + ve + vd + hacc_m + vacc_m
+                                                         + sacc_m_s)):
+            self.counters.gnss_rejected += 1
+            return
         g = self.gps
         g[G_T_S] = stamp_us * 1e-6
         g[G_LAT_DEG] = lat_e7 * 1e-7

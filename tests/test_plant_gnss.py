@@ -230,3 +230,30 @@ def test_fc_decodes_gps_input_on_both_paths():
     finally:
         side.close()
         fc.endpoint.close()
+
+
+def test_fc_drops_a_non_finite_or_out_of_range_gnss_sample():
+    from fc.link import M_N, PlantLink, UdpEndpoint, new_codec
+    fc = PlantLink(UdpEndpoint("127.0.0.1", 0), plant_sysid=2)
+    tx = new_codec(2)
+    try:
+        base = (tx.attitude_encode(1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0).pack(tx)
+                + tx.aoa_ssa_encode(1000, 1.0, 0.0).pack(tx)
+                + tx.vfr_hud_encode(2200.0, 2200.0, 0, 0, 21000.0, 0.0).pack(tx))
+        bad = ((0, 0, math.nan, 1.0), (0, 0, 21000.0, math.inf), (910_000_000, 0, 0.0, 0.0),
+               (0, 0, 3.0e6, 0.0))
+        for lat, lon, alt, vn in bad:
+            frame = base + tx.gps_input_encode(1000, 0, 0, 0, 0, 3, lat, lon, alt, 1.0, 1.0, vn,
+                                               0.0, 0.0, 0.1, 1.5, 3.0, 12, 0).pack(tx)
+            for lean in (True, False):
+                lean_dec = fc._lean
+                if not lean:
+                    fc._lean = None
+                try:
+                    assert fc._decode(frame, np.zeros(M_N)) == 1000     # the frame still counts
+                finally:
+                    fc._lean = lean_dec
+        assert fc.gps_samples == 0 and fc.counters.gnss_rejected == 2 * len(bad)
+        assert not fc.gps.any()
+    finally:
+        fc.endpoint.close()
