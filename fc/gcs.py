@@ -576,12 +576,11 @@ class GcsLink:
         """Every message of one stream period for the .tlog (all named values and vectors)."""
         if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
             return [self._heartbeat()]
-        if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
-            n = len(self.v.named_values())
-        elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-            n = len(self._debug_vectors())
-        else:
-            n = 1
+        if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:       # the vectors built once
+            us = self.time_us()
+            return [self.mav.debug_vect_encode(name, us, *xyz)
+                    for name, xyz in self._debug_vectors()]
+        n = len(self.v.named_values()) if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1
         return [m for m in (self._build(msg_id, i) for i in range(n)) if m is not None]
 
     def _service_log(self) -> None:
