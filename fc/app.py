@@ -155,14 +155,14 @@ class FlightController:
         self._load_permille = 0
         self._named_cache: list = []
         self._relocks_seen = 0
-        self._dbg_cache: list = []
 
         # --- links and logs (bind last: READY means everything is in place)
         self.plant = PlantLink(UdpEndpoint(*cfg.plant_bind), plant_sysid=cfg.plant_sysid,
                                sysid=cfg.sysid, compid=cfg.compid)
         self.io = IoThread(self.log)
         self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
-                           signing_key=key, log=self.log, io=self.io)
+                           signing_key=key, log=self.log, io=self.io,
+                           sim_time=cfg.mode == "lockstep")
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
@@ -473,7 +473,14 @@ class FlightController:
         return self._named_cache
 
     def debug_vectors(self) -> list:
-        return self._dbg_cache
+        """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
+        cache: in lockstep the flight log takes them at 10 Hz of sim time)."""
+        e = self.est.est
+        return [
+            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_rad)),
+            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
+            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
+        ]
 
     def _refresh_telemetry_cache(self) -> None:
         e = self.est.est
@@ -497,11 +504,6 @@ class FlightController:
         for i, n in enumerate(self.status_names[:16]):
             nv.append((n.upper()[:10].encode("ascii", "replace"), float(st[i])))
         self._named_cache = nv
-        self._dbg_cache = [
-            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_rad)),
-            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
-            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
-        ]
 
     # ------------------------------------------------------------------ loops
     def run(self, stop) -> None:

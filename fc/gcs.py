@@ -31,7 +31,9 @@ import struct
 import time
 from collections import deque
 
-from fc.link import UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec
+from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
+                     decode_datagram, mavlink, mavlink_dev, new_codec)
 from fc.modes import FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
@@ -55,12 +57,19 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_DEBUG_VECT: 0.1,          # each of CMD_DEG, EST_DEG, DELTA_DEG
     ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT: 1.0,   # each named value once per interval
     MD.MAVLINK_MSG_ID_CURRENT_MODE: 2.0,        # standard modes: 0.5 Hz, and on every change
+    ML.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
+    ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
+    ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
 }
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
     ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
     ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,
-                                         MD.MAVLINK_MSG_ID_CURRENT_MODE),
+                                         MD.MAVLINK_MSG_ID_CURRENT_MODE,
+                                         ML.MAVLINK_MSG_ID_GPS_RAW_INT,
+                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME),
+    ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
     ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
@@ -73,6 +82,10 @@ UNSIGNED_ALLOWED = frozenset({
     ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ, ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST,
     ML.MAVLINK_MSG_ID_TIMESYNC, ML.MAVLINK_MSG_ID_SYSTEM_TIME,
 })
+#: The .tlog's own streams (docs/fc.md "Flight log"): the default rates plus the heartbeat.
+LOG_STREAMS_S = {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DEFAULTS_S}
+#: A GNSS sample older than this (plant time) is stale: GPS health off, fix reported as NO_FIX.
+GNSS_STALE_S = 1.0
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 MAX_PEERS = 8
 PEER_TIMEOUT_S = 10.0
@@ -109,7 +122,8 @@ class GcsLink:
 
     def __init__(self, vehicle, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
-                 log=None, max_rx: int = 8, max_tx: int = 6, io=None) -> None:
+                 log=None, max_rx: int = 8, max_tx: int = 6, io=None,
+                 sim_time: bool = False) -> None:
         self.v = vehicle
         self.log = log
         self.endpoint = UdpEndpoint(*bind)
@@ -119,6 +133,11 @@ class GcsLink:
         self.max_rx = max_rx
         self.max_tx = max_tx
         self.boot_s = time.monotonic()
+        # the one time base of every message and of the .tlog (``time_us``): sim time (the
+        # newest plant frame's stamp) when ``sim_time`` (lockstep), else time since boot
+        self.sim_time = sim_time
+        self.epoch_us = int(time.time() * 1e6)    # .tlog stamp = epoch + time base
+        self.home: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m MSL
         self.default = _Streams(self.mav, STREAM_DEFAULTS_S)
         self.intervals = self.default.intervals        # the default schedule (outputs)
         self.next_due = self.default.next_due
@@ -148,6 +167,14 @@ class GcsLink:
         # fc/iothread.py) so a slow disk never stalls the loop
         self.tlog = open(tlog_path, "wb") if tlog_path else None
         self._tlog_buf = bytearray()
+        # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
+        # paced by the time base (sim time in lockstep), not by the wall clock
+        self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
+        self.log_framer = LeanFramer(vehicle.sysid, vehicle.compid)   # unsigned, codec's bytes
+        self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
+        self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
+        self._log_next = 0
+        self._log_last_us = 0
         self.io = io
         self.signing = signing_key is not None
         self.signing_key = signing_key
@@ -167,10 +194,23 @@ class GcsLink:
     def _allow_unsigned(_mav, msg_id: int) -> bool:
         return msg_id in UNSIGNED_ALLOWED
 
-    def _tlog_write(self, buf: bytes) -> None:
+    def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
+        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64)."""
         if self.tlog is not None:
-            self._tlog_buf += struct.pack(">Q", int(time.time() * 1e6))
+            if t_us is None:
+                t_us = self.time_us()
+            self._tlog_buf += struct.pack(">Q", self.epoch_us + t_us)
             self._tlog_buf += buf
+
+    def _log_msg(self, msg, t_us: int | None = None) -> None:
+        """Write ``msg`` to the .tlog, packed with the log's own codec (its sequence)."""
+        mav = self.log_mav
+        try:
+            buf = self.log_framer.frame(msg, mav.seq) if self.log_framer.ok else msg.pack(mav)
+        except (struct.error, ValueError, TypeError, OverflowError):
+            return          # a message that cannot be packed is not logged
+        mav.seq = (mav.seq + 1) % 256
+        self._tlog_write(buf, t_us)
 
     def _pack(self, mav, msg) -> bytes | None:
         try:
@@ -192,11 +232,15 @@ class GcsLink:
             if addr not in self.outputs and addr not in self.links:
                 yield addr
 
-    def send(self, msg) -> None:
-        """Send ``msg`` to every output and peer (each own-rate peer with its own codec)."""
+    def send(self, msg, log: bool = True) -> None:
+        """Send ``msg`` to every output and peer (each own-rate peer with its own codec);
+        ``log``: also write it to the .tlog (events; the periodic streams reach the .tlog
+        through the log's own schedule instead)."""
         self._send_on(self.default, msg)
         for link in self.links.values():
             self._send_on(link, msg)
+        if log and self.tlog is not None:
+            self._log_msg(msg)
 
     def _send_on(self, link: _Streams, msg) -> None:
         """Send ``msg`` on one schedule's link: the default destinations, or that one peer."""
@@ -204,7 +248,6 @@ class GcsLink:
         if buf is None:
             return
         if link is self.default:
-            self._tlog_write(buf)
             for addr in self._default_addrs():
                 self.endpoint.send(buf, addr)
         elif self.links.get(link.addr) is link:     # not forgotten meanwhile
@@ -260,8 +303,15 @@ class GcsLink:
             for _sev, text in self.log_limit.summaries(now):
                 self.log.warning(text)
 
+    def time_us(self) -> int:
+        """The telemetry time base (us): lockstep: sim time of the newest plant frame (0
+        before the first); real time: monotonic time since the fc started."""
+        if self.sim_time:
+            return int(self.v.meas_stamp_us)
+        return int((time.monotonic() - self.boot_s) * 1e6)
+
     def time_boot_ms(self) -> int:
-        return int((time.monotonic() - self.boot_s) * 1000) & 0xFFFFFFFF
+        return (self.time_us() // 1000) & 0xFFFFFFFF
 
     def close(self) -> None:
         """Write what is pending (synchronously: the loop has stopped) and close."""
@@ -493,7 +543,15 @@ class GcsLink:
             else:
                 msg = self._build(msg_id, 0) if msg_id is not None else None
             if msg is None:
-                return ML.MAV_RESULT_UNSUPPORTED
+                # a stream without data yet (HOME_POSITION before the first GNSS fix)
+                return (ML.MAV_RESULT_TEMPORARILY_REJECTED if msg_id in STREAM_DEFAULTS_S
+                        else ML.MAV_RESULT_UNSUPPORTED)
+            self.oneshot.append(msg)
+            return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_GET_HOME_POSITION:          # legacy form of REQUEST_MESSAGE 242
+            msg = self._build(ML.MAVLINK_MSG_ID_HOME_POSITION, 0)
+            if msg is None:
+                return ML.MAV_RESULT_TEMPORARILY_REJECTED
             self.oneshot.append(msg)
             return ML.MAV_RESULT_ACCEPTED
         if c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
@@ -585,14 +643,38 @@ class GcsLink:
         return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
                                                  [0] * 8, [0] * 8, 0, 0, 0)
 
+    def _gnss(self):
+        """(newest GNSS sample (fc/link.py G_*), fix type to report): the sample's own fix
+        while it is younger than GNSS_STALE_S of plant time, NO_FIX (1) once stale, NO_GPS (0)
+        before any. Sets ``home`` at the first 3D fix."""
+        g = self.v.plant.gps
+        fix = int(g[G_FIX])
+        if fix and self.v.meas_stamp_us * 1e-6 - g[G_T_S] > GNSS_STALE_S:
+            fix = ML.GPS_FIX_TYPE_NO_FIX
+        if self.home is None and fix >= ML.GPS_FIX_TYPE_3D_FIX:
+            self.home = (float(g[G_LAT_DEG]), float(g[G_LON_DEG]), float(g[G_ALT_M]))
+            self.statustext(ML.MAV_SEVERITY_INFO, "home set: %.7f %.7f %.0f m"
+                            % self.home)
+            # announced at once (to ground stations and the .tlog), then at the stream rate
+            self.oneshot.append(self._build(ML.MAVLINK_MSG_ID_HOME_POSITION, 0))
+        return g, fix
+
+    def _debug_vectors(self) -> list:
+        """The vehicle's DEBUG_VECTs plus SIM_T: x = sim time of the newest plant frame (s;
+        NaN before the first), so a ground station can map the time base (time_usec) to sim
+        time in real time."""
+        t = self.v.meas_stamp_us * 1e-6 if self.v.plant.counters.frames else math.nan
+        return self.v.debug_vectors() + [(b"SIM_T", (t, 0.0, 0.0))]
+
     def _build(self, msg_id: int, cursor: int):
         v = self.v
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
-        ms = self.time_boot_ms()
+        us = self.time_us()
+        ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-                       | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+                       | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_SENSOR_GPS
                        | ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
                        | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
                        | ML.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | ML.MAV_SYS_STATUS_AHRS
@@ -602,6 +684,8 @@ class GcsLink:
                 enabled &= ~(ML.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
                              | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
             health = 0xFFFFFFFF & ~v.health_failed_bits()
+            if self._gnss()[1] < ML.GPS_FIX_TYPE_3D_FIX:
+                health &= ~ML.MAV_SYS_STATUS_SENSOR_GPS
             c = v.error_counts()
             return self.mav.sys_status_encode(present, enabled, health, v.load_permille(),
                                               65535, -1, -1, 0, min(c[0], 65535),
@@ -611,30 +695,102 @@ class GcsLink:
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
             return self.mav.attitude_encode(ms, m[1], m[2], m[3], m[4], m[5], m[6])
         if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
-            return self.mav.aoa_ssa_encode(int(v.meas_stamp_us), math.degrees(m[7]),
-                                           math.degrees(m[8]))
+            return self.mav.aoa_ssa_encode(us, math.degrees(m[7]), math.degrees(m[8]))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
             hdg = int(round(math.degrees(m[13]))) % 360 if math.isfinite(m[13]) else 0
             return self.mav.vfr_hud_encode(m[9], m[12], hdg, 0, m[10], m[11])
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
             p = v.pwm_us
-            return self.mav.servo_output_raw_encode(int(v.meas_stamp_us) & 0xFFFFFFFF, 0,
+            return self.mav.servo_output_raw_encode(us & 0xFFFFFFFF, 0,
                                                     p[0], p[1], p[2], 0, 0, 0, 0, 0)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-            name, xyz = v.debug_vectors()[cursor % 3]
-            return self.mav.debug_vect_encode(name, int(v.meas_stamp_us), *xyz)
+            vectors = self._debug_vectors()
+            name, xyz = vectors[cursor % len(vectors)]
+            return self.mav.debug_vect_encode(name, us, *xyz)
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             items = v.named_values()
             name, value = items[cursor % len(items)]
             return self.mav.named_value_float_encode(ms, name, value)
+        if msg_id == ML.MAVLINK_MSG_ID_SYSTEM_TIME:
+            return self.mav.system_time_encode(self.epoch_us + us, ms)
+        if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
+            g, fix = self._gnss()
+            spd = math.hypot(g[G_VN], g[G_VE])
+            vel = int(round(spd * 100.0)) if spd * 100.0 < 65534.5 else 65535   # u16: unknown
+            cog = (int(round(math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0)) % 36000
+                   if fix and spd > 0.0 else 65535)
+            return self.mav.gps_raw_int_encode(
+                us, fix, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
+                int(round(g[G_ALT_M] * 1000.0)), 65535, 65535, vel, cog, int(g[G_SATS]), 0,
+                _u32(g[G_HACC_M] * 1000.0), _u32(g[G_VACC_M] * 1000.0),
+                _u32(g[G_SACC_M_S] * 1000.0), 0, 0)
+        if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+            g, fix = self._gnss()
+            if self.home is None:
+                return None
+            hdg = (int(round(math.degrees(m[M_HEADING]) * 100.0)) % 36000
+                   if math.isfinite(m[M_HEADING]) else 65535)
+            return self.mav.global_position_int_encode(
+                ms, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
+                int(round(g[G_ALT_M] * 1000.0)), int(round((g[G_ALT_M] - self.home[2]) * 1000.0)),
+                _i16(g[G_VN] * 100.0), _i16(g[G_VE] * 100.0), _i16(g[G_VD] * 100.0), hdg)
+        if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION:
+            self._gnss()
+            if self.home is None:
+                return None
+            lat, lon, alt = self.home
+            return self.mav.home_position_encode(
+                int(round(lat * 1e7)), int(round(lon * 1e7)), int(round(alt * 1000.0)),
+                0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, us)
         return None
 
+    def _stream_messages(self, msg_id: int) -> list:
+        """Every message of one stream period for the .tlog (all named values and vectors)."""
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            return [self._heartbeat()]
+        if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:       # the vectors built once
+            us = self.time_us()
+            return [self.mav.debug_vect_encode(name, us, *xyz)
+                    for name, xyz in self._debug_vectors()]
+        n = len(self.v.named_values()) if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1
+        return [m for m in (self._build(msg_id, i) for i in range(n)) if m is not None]
+
+    def _service_log(self) -> None:
+        """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
+        lockstep): due messages are written with the log's codec, stamped with the time base.
+        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames."""
+        if self.tlog is None:
+            return
+        t_us = self.time_us()
+        if t_us < self._log_last_us:        # the plant restarted: the schedule starts over
+            for k in self.log_due:
+                self.log_due[k] = t_us
+            self._log_next = t_us
+        self._log_last_us = t_us
+        if t_us < self._log_next:
+            return
+        nxt = None
+        for msg_id, iv_us in self._log_iv_us.items():
+            due = self.log_due[msg_id]
+            if t_us >= due:
+                for msg in self._stream_messages(msg_id):
+                    self._log_msg(msg, t_us)
+                due = due + iv_us if due + iv_us > t_us else t_us + iv_us
+                self.log_due[msg_id] = due
+            if nxt is None or due < nxt:
+                nxt = due
+        self._log_next = nxt
+
     def service(self, now_s: float) -> int:
-        """Send what is due (at most ``max_tx`` messages). Returns how many were sent."""
+        """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
+        the .tlog's streams due on the time base. Returns how many were sent."""
+        if self.home is None and self.v.plant.gps_samples:
+            self._gnss()                   # home = the first fix, taken when it arrives
+        self._service_log()
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
-            self.send(self._heartbeat())
+            self.send(self._heartbeat(), log=False)
             self._expire_peers(now_s)
             self._summaries()
             sent += 1
@@ -645,6 +801,8 @@ class GcsLink:
             item = self.oneshot.popleft()
             if isinstance(item, tuple):                    # (link, msg): for one link only
                 self._send_on(*item)
+                if self.tlog is not None:
+                    self._log_msg(item[1])
             elif item is not None:
                 self.send(item)
             sent += 1
@@ -682,7 +840,7 @@ class GcsLink:
                 cursor = link.nv_cursor
                 link.nv_cursor += 1
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-                step = iv / 3
+                step = iv / len(self._debug_vectors())
                 cursor = link.dv_cursor
                 link.dv_cursor += 1
             else:
@@ -695,6 +853,18 @@ class GcsLink:
                 self._send_on(link, msg)
                 sent += 1
         return sent
+
+
+def _u32(x: float) -> int:
+    """A non-negative finite value as u32 (rounded, saturated); 0 otherwise."""
+    return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
+
+
+def _i16(x: float) -> int:
+    """A value as i16 (rounded, saturated at +-32767: MAVLink's cm/s fields end at 327 m/s)."""
+    if not math.isfinite(x):
+        return 0
+    return max(-32767, min(32767, int(round(x))))
 
 
 def _write_flush(f, chunk: bytes) -> None:

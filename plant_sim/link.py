@@ -2,8 +2,8 @@
 
 MAVLink 2, ardupilotmega dialect (AOA_SSA), pymavlink's generated codec on our own
 non-blocking UDP socket (docs/wire.md sections 2-4):
-- ``send_sensors``: ATTITUDE + AOA_SSA + VFR_HUD packed into ONE datagram per frame, into a
-  preallocated bytearray; AOA_SSA.time_usec is the frame stamp.
+- ``send_sensors``: ATTITUDE + AOA_SSA + VFR_HUD (+ GPS_INPUT on GNSS frames) packed into ONE
+  datagram per frame, into a preallocated bytearray; AOA_SSA.time_usec is the frame stamp.
 - ``poll_for`` / ``poll_latest``: drain the socket, decodes SERVO_OUTPUT_RAW from the fc's address and system id
   only, converts PWM to deflection through MIN/TRIM/MAX (ArduPilot SERVOn_*), and counts
   everything it rejects (malformed bytes, wrong source address, wrong system id, other
@@ -83,6 +83,8 @@ class _Packer:
 _P_ATT = _Packer(mavlink.MAVLink_attitude_message, mavlink.MAVLINK_MSG_ID_ATTITUDE)
 _P_AOA = _Packer(mavlink.MAVLink_aoa_ssa_message, mavlink.MAVLINK_MSG_ID_AOA_SSA)
 _P_HUD = _Packer(mavlink.MAVLink_vfr_hud_message, mavlink.MAVLINK_MSG_ID_VFR_HUD)
+_P_GPS = _Packer(mavlink.MAVLink_gps_input_message, mavlink.MAVLINK_MSG_ID_GPS_INPUT)
+GPS_HDOP = 1.0       # GPS_INPUT hdop/vdop: a nominal constellation (accuracies carry the noise)
 _SERVO = mavlink.MAVLink_servo_output_raw_message
 # wire order: time_usec, servo1..8, port, servo9..16
 _P_SERVO = _Packer(_SERVO, MSG_ID_SERVO_OUTPUT_RAW)
@@ -205,13 +207,15 @@ class PlantLink:
         self._out_mv[pos:pos + n] = b
         return pos + n
 
-    def build_sensors(self, stamp_us: int, meas, throttle_pct: float) -> None:
-        """Pack ATTITUDE, AOA_SSA, VFR_HUD for one frame into the send buffer.
+    def build_sensors(self, stamp_us: int, meas, throttle_pct: float, gnss=None) -> None:
+        """Pack ATTITUDE, AOA_SSA, VFR_HUD (and GPS_INPUT when ``gnss`` holds a GNSS sample)
+        for one frame into the send buffer.
 
-        meas: float64[14] measurement vector (architecture.md section 4, SI).
+        meas: float64[14] measurement vector (architecture.md section 4, SI); gnss: None or
+        float64[G_N] GNSS sample (plant_sim/gnss.py layout, docs/wire.md section 2).
         """
         if not self.lean:
-            self._build_with_codec(stamp_us, meas, throttle_pct)
+            self._build_with_codec(stamp_us, meas, throttle_pct, gnss)
             return
         buf = self._out
         mv = self._out_mv
@@ -228,11 +232,22 @@ class PlantLink:
         # VFR_HUD wire order: airspeed, groundspeed, alt, climb, heading, throttle
         pos = _P_HUD.pack_into(buf, mv, pos, (seq + 2) & 0xFF, sy, co, meas[9], meas[12],
                                meas[10], meas[11], hdg, thr)
-        mav.seq = (seq + 3) & 0xFF
+        if gnss is None:
+            mav.seq = (seq + 3) & 0xFF
+        else:
+            # GPS_INPUT wire order: time_usec, time_week_ms, lat, lon, alt, hdop, vdop, vn, ve,
+            # vd, speed_accuracy, horiz_accuracy, vert_accuracy, ignore_flags, time_week,
+            # gps_id, fix_type, satellites_visible, yaw
+            pos = _P_GPS.pack_into(buf, mv, pos, (seq + 3) & 0xFF, sy, co, stamp_us, 0,
+                                   int(round(gnss[1] * 1e7)), int(round(gnss[2] * 1e7)),
+                                   gnss[3], GPS_HDOP, GPS_HDOP, gnss[4], gnss[5], gnss[6],
+                                   gnss[11], gnss[9], gnss[10], 0, 0, 0, int(gnss[7]),
+                                   int(gnss[8]), 0)
+            mav.seq = (seq + 4) & 0xFF
         self._out_len = pos
 
-    def _build_with_codec(self, stamp_us: int, meas, throttle_pct: float) -> None:
-        """The same three frames through pymavlink's message objects (reference path)."""
+    def _build_with_codec(self, stamp_us: int, meas, throttle_pct: float, gnss=None) -> None:
+        """The same frames through pymavlink's message objects (reference path)."""
         mav = self.mav
         pos = self._append(mav.attitude_encode((stamp_us // 1000) % U32, meas[1], meas[2], meas[3],
                                                meas[4], meas[5], meas[6]), 0)
@@ -240,6 +255,11 @@ class PlantLink:
         hdg = int(meas[13] * RAD + 0.5) % 360
         thr = int(min(100.0, max(0.0, throttle_pct)) + 0.5)
         pos = self._append(mav.vfr_hud_encode(meas[9], meas[12], hdg, thr, meas[10], meas[11]), pos)
+        if gnss is not None:
+            pos = self._append(mav.gps_input_encode(
+                stamp_us, 0, 0, 0, 0, int(gnss[7]), int(round(gnss[1] * 1e7)),
+                int(round(gnss[2] * 1e7)), gnss[3], GPS_HDOP, GPS_HDOP, gnss[4], gnss[5],
+                gnss[6], gnss[11], gnss[9], gnss[10], int(gnss[8]), 0), pos)
         self._out_len = pos
 
     def _self_check(self) -> bool:
@@ -247,16 +267,19 @@ class PlantLink:
         import numpy as np
         meas = np.array([0.0, 0.1, -0.2, 3.0, 0.01, -0.02, 0.0, 0.05, -0.01, 2200.0, 21000.0,
                          -1.5, 2199.0, 6.1])
+        gnss = np.array([0.0, 34.9054321, -117.8839876, 21000.5, 2199.5, -3.25, 1.5, 3.0, 12.0,
+                         1.5, 3.0, 0.1])
         seq0 = self.mav.seq
-        self.lean = True
-        self.build_sensors(123456789, meas, 42.0)
-        lean = bytes(self._out_mv[:self._out_len])
-        self.mav.seq = seq0
-        self._build_with_codec(123456789, meas, 42.0)
-        ref = bytes(self._out_mv[:self._out_len])
-        self.mav.seq = seq0
-        if lean != ref:
-            return False
+        for g in (None, gnss):
+            self.lean = True
+            self.build_sensors(123456789, meas, 42.0, g)
+            lean = bytes(self._out_mv[:self._out_len])
+            self.mav.seq = seq0
+            self._build_with_codec(123456789, meas, 42.0, g)
+            ref = bytes(self._out_mv[:self._out_len])
+            self.mav.seq = seq0
+            if lean != ref:
+                return False
         m = mavlink.MAVLink(None, srcSystem=self.fc_sysid, srcComponent=1)
         frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 1500, 0, 0, 0, 0).pack(m)
         got = self._decode_servo_fast(frame, len(frame))

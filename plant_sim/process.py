@@ -167,6 +167,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
             "resyncs": stats.resyncs,
             "aero_clip_frames": stats.aero_clip_frames,
             "truth_rows": writer.rows,
+            "gnss_samples": sim.gnss.samples,
             "exit_reason": stats.exit_reason,
             **stats.extra,
             **link.counters(),
@@ -219,6 +220,7 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
     timeout = cfg.rerequest_timeout_s
     perf = time.perf_counter
     x = sim.x
+    gnss = sim.gnss
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t_wall0 = perf()
@@ -231,7 +233,7 @@ def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
             return
         stamp = int(round(k * frame_dt * 1e6))
         want = stamp % U32
-        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
+        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale, gnss.update(k, x))
         link.send_sensors()
         t_sent = perf()
         t_first = t_sent
@@ -287,6 +289,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
         ini = sc.data["initial"]
         trim[:] = trim_at(sc, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG).deflection_rad
     x = sim.x
+    gnss = sim.gnss
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t0 = perf()
@@ -351,7 +354,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             if link.cmd_throttle >= 0.0:      # servo4 (engine model only; else ignored)
                 x[dy.X_CMD_THR] = link.cmd_throttle
         stamp = int(round(k * frame_dt * 1e6))
-        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale)
+        link.build_sensors(stamp, meas, x[dy.X_THRUST] * thr_scale, gnss.update(k, x))
         link.send_sensors()
         if sim.frame(cmd, writer.row()) and "aero_clip_first_t_s" not in stats.extra:
             _warn_clip(sim, stats, log)

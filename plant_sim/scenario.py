@@ -148,7 +148,22 @@ SCHEMA: dict[str, Any] = {
         "latency_s": {
             "ahrs": Key("float", 0.0, 0.0, 0.5, doc="attitude, rates and heading"),
             "air_data": Key("float", 0.0, 0.0, 0.5, doc="alpha, beta, airspeed, altitude, climb"),
-            "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed"),
+            "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed and the GNSS receiver"),
+        },
+    },
+    "gnss": {
+        "enabled": Key("bool", True, doc="false: no GNSS sample on the wire (fc: no position)"),
+        "rate_hz": Key("float", 10.0, 0.1, 100.0, doc="receiver rate (rounded to whole frames)"),
+        "origin_lat_deg": Key("float", 34.9054, -89.0, 89.0,
+                              doc="latitude of the NED origin (default: Edwards AFB range)"),
+        "origin_lon_deg": Key("float", -117.8839, -180.0, 180.0, doc="longitude of the NED origin"),
+        "origin_alt_m": Key("float", 0.0, -500.0, 10000.0,
+                            doc="MSL altitude of the NED origin (down = 0); 0: GNSS alt = h"),
+        "satellites": Key("int", 12, 0, 255, doc="satellites visible (reported)"),
+        "noise": {
+            "horizontal_m": Key("float", 1.5, 0.0, 1000.0, doc="north and east, 1 sigma"),
+            "vertical_m": Key("float", 3.0, 0.0, 1000.0, doc="down, 1 sigma"),
+            "velocity_m_s": Key("float", 0.1, 0.0, 100.0, doc="each NED axis, 1 sigma"),
         },
     },
 }

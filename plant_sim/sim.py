@@ -30,6 +30,7 @@ from plant_sim.sensors import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED,
                                M_N, M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, MEAS_NAMES,
                                RING_N)
 from plant_sim import sensors as se
+from plant_sim.gnss import GnssSensor
 
 _refresh_jit_cache(__file__)
 
@@ -229,6 +230,8 @@ class PlantSim:
         self._trim_cache = None
         self.clip_frames = 0               # frames in which the aero inputs were clipped
         self.frames = 0
+        #: GNSS receiver (its own noise stream): ``gnss.update(k, x)`` per frame, docs/plant.md
+        self.gnss = GnssSensor(scenario, self.seed, self.frame_dt_s)
         self.reset()
 
     # ---- life cycle ----
@@ -260,6 +263,8 @@ class PlantSim:
         self.last_meas[:] = 0.0
         self.clip_frames = 0
         self.frames = 0
+        if hasattr(self, "gnss"):
+            self.gnss.reset()
 
     def initial_throttle(self) -> float:
         """Engine model: the scenario's ``speed.throttle_initial``, or (if -1) the throttle

@@ -177,6 +177,7 @@ class _GcsClient:
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}",
                                                dialect="ardupilotmega", source_system=254)
         self.aoa = []          # (sim time s, AOA deg, SSA deg)
+        self.base_minus_sim_s = None
         self.heartbeats = 0
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self._loop, daemon=True)
@@ -195,8 +196,12 @@ class _GcsClient:
             t = m.get_type()
             if t == "HEARTBEAT":
                 self.heartbeats += 1
-            elif t == "AOA_SSA":
-                self.aoa.append((m.time_usec / 1e6, m.AOA, m.SSA))
+            elif t == "DEBUG_VECT" and m.name == "SIM_T" and math.isfinite(m.x):
+                # real time: the time base is the controller's boot time; SIM_T maps it
+                # (NaN until the controller has a plant frame)
+                self.base_minus_sim_s = m.time_usec / 1e6 - m.x
+            elif t == "AOA_SSA" and self.base_minus_sim_s is not None:
+                self.aoa.append((m.time_usec / 1e6 - self.base_minus_sim_s, m.AOA, m.SSA))
 
     def close(self):
         self.stop.set()

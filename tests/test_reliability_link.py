@@ -61,6 +61,7 @@ def _sensor_frame(mav, stamp_us: int, alpha_deg: float = 40.0) -> bytes:
                 mav.aoa_ssa_encode(stamp_us, alpha_deg, 10.0),
                 mav.vfr_hud_encode(2200.0, 2200.0, 0, 0, 21000.0, 0.0)):
         out += msg.pack(mav)
+        mav.seq = (mav.seq + 1) % 256      # every message its own sequence number
     return out
 
 

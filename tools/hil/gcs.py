@@ -5,10 +5,13 @@ socket, using pymavlink's generated ``ardupilotmega`` codec (docs/architecture.m
 In realtime runs it does what an operator does in MAVProxy: wait for the vehicle's heartbeat,
 set the attitude command (``COMMAND_LONG MAV_CMD_USER_1``: param1..3 = alpha_c, beta_c, mu_c in
 deg, NaN keeps a value; MAVProxy ``long USER_1 5 0 4``), select the flight mode, arm, and then
-send each new command of the scenario's timeline when the vehicle's sim time reaches it. The
-vehicle's sim time is the sensor frame stamp it reports in ``AOA_SSA.time_usec`` (its
-``ATTITUDE.time_boot_ms`` is its own wall-clock boot time, not sim time). In lockstep runs it only listens (the
-controller is armed and fed its timeline on its command line, docs/hil.md).
+send each new command of the scenario's timeline when the vehicle's sim time reaches it. Every
+message of the vehicle carries one time base (``time_boot_ms`` / ``time_usec``): sim time in
+lockstep, the controller's time since boot in real time; the ``DEBUG_VECT`` named ``SIM_T``
+(x = sim time of the vehicle's newest plant frame, s) maps that base to sim time (docs/fc.md).
+In lockstep runs it only listens (the controller is armed and fed its timeline on its command
+line, docs/hil.md). Every message it sends carries the next sequence number of its one codec
+(heartbeat thread and commands share it under a lock).
 
 It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
 stamps, so a run can be checked against the plant's truth.
@@ -80,6 +83,7 @@ class Telemetry:
     #: AOA_SSA: time_usec / 1e6 (sim time, s), AOA, SSA (deg, as on the wire)
     aoa: RingRecord = field(default_factory=lambda: RingRecord(3))
     sim_t_s: float | None = None                      # newest sim time stamp seen
+    base_minus_sim_s: float | None = None             # vehicle time base - sim time (SIM_T)
     heartbeats: int = 0
     last_heartbeat: object = None
     base_mode: int = 0
@@ -107,6 +111,7 @@ class ScriptedGcs:
         self.tel = Telemetry()
         self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
         self._cond = threading.Condition()
+        self._tx_lock = threading.Lock()
         self._stop = threading.Event()
         #: set to make every pending and later wait_for() raise GcsError at once
         self.abort = threading.Event()
@@ -146,8 +151,13 @@ class ScriptedGcs:
             if tel.sim_t_s is not None:
                 tel.att.append((tel.sim_t_s, m.roll, m.pitch, m.yaw, m.rollspeed,
                                 m.pitchspeed, m.yawspeed))
+        elif t == "DEBUG_VECT" and m.name.rstrip("\x00") == "SIM_T":
+            if math.isfinite(m.x):        # NaN: the vehicle has no plant frame yet
+                tel.base_minus_sim_s = m.time_usec / 1e6 - m.x
         elif t == "AOA_SSA":
-            tel.sim_t_s = m.time_usec / 1e6
+            if tel.base_minus_sim_s is None:
+                return                    # the time base is not mapped to sim time yet
+            tel.sim_t_s = m.time_usec / 1e6 - tel.base_minus_sim_s
             tel.aoa.append((tel.sim_t_s, m.AOA, m.SSA))
         elif t == "HEARTBEAT":
             tel.heartbeats += 1
@@ -178,10 +188,13 @@ class ScriptedGcs:
     def _send(self, msg) -> None:
         if self.vehicle_addr is None:
             return
-        try:
-            self.sock.sendto(msg.pack(self.mav), self.vehicle_addr)
-        except OSError:
-            pass
+        with self._tx_lock:            # one codec, one sequence: heartbeat thread and commands
+            buf = msg.pack(self.mav)
+            self.mav.seq = (self.mav.seq + 1) & 0xFF
+            try:
+                self.sock.sendto(buf, self.vehicle_addr)
+            except OSError:
+                pass
 
     def _hb_loop(self) -> None:
         while not self._stop.wait(1.0):
