@@ -83,7 +83,11 @@ UNSIGNED_ALLOWED = frozenset({
     ML.MAVLINK_MSG_ID_TIMESYNC, ML.MAVLINK_MSG_ID_SYSTEM_TIME,
 })
 #: The .tlog's own streams (docs/fc.md "Flight log"): the default rates plus the heartbeat.
-LOG_STREAMS_S = {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DEFAULTS_S}
+#: The .tlog's streams: the defaults and HEARTBEAT, less the development-dialect messages
+#: (CURRENT_MODE): the log is read with the ardupilotmega dialect, which does not know them
+#: (``_log_msg`` leaves them out, so the log's sequence numbers have no gaps for its readers).
+LOG_STREAMS_S = {k: v for k, v in {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DEFAULTS_S}.items()
+                 if k in ML.mavlink_map}
 #: A GNSS sample older than this (plant time) is stale: GPS health off, fix reported as NO_FIX.
 GNSS_STALE_S = 1.0
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
@@ -203,7 +207,11 @@ class GcsLink:
             self._tlog_buf += buf
 
     def _log_msg(self, msg, t_us: int | None = None) -> None:
-        """Write ``msg`` to the .tlog, packed with the log's own codec (its sequence)."""
+        """Write ``msg`` to the .tlog, packed with the log's own codec (its sequence).
+        Development-dialect messages (AVAILABLE_MODES, CURRENT_MODE, PARAM_ERROR) are left
+        out: the log's readers use the ardupilotmega dialect (LOG_STREAMS_S)."""
+        if msg.get_msgId() not in ML.mavlink_map:
+            return
         mav = self.log_mav
         try:
             buf = self.log_framer.frame(msg, mav.seq) if self.log_framer.ok else msg.pack(mav)

@@ -8,10 +8,13 @@ from __future__ import annotations
 import os
 import socket
 
+from types import SimpleNamespace
+
 import numpy as np
 
 os.environ["MAVLINK20"] = "1"
 from fc.gcs import PEER_TIMEOUT_S, STREAM_DEFAULTS_S, GcsLink  # noqa: E402
+from fc.link import G_N, LinkCounters  # noqa: E402
 from fc.link import mavlink as ML  # noqa: E402
 from fc.modes import ModeManager  # noqa: E402
 from fc.params import build_table  # noqa: E402
@@ -30,6 +33,7 @@ class _Vehicle:
         self.meas = np.zeros(14)
         self.meas_stamp_us = 0
         self.pwm_us = [1500, 1500, 1500]
+        self.plant = SimpleNamespace(gps_samples=0, gps=np.zeros(G_N), counters=LinkCounters())
 
     def set_param(self, name, value):
         return self.params.set(name, value)
