@@ -134,7 +134,8 @@ def _candidates(tree, lines, functions):
                 out.append((node, "sign", "unary '-' removed", ln, fn.name, eq))
             elif (isinstance(node, ast.Constant) and type(node.value) is float):
                 new = 1.0 if node.value == 0.0 else 2.0 * node.value
-                out.append((node, "const", f"{node.value!r} -> {new!r}", ln, fn.name, eq))
+                out.append((node, "const", f"{node.value!r} -> {new!r} (col {node.col_offset})",
+                            ln, fn.name, eq))
     return out
 
 
@@ -389,7 +390,9 @@ def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
            "", ("Stage 2 tests (compiled, survivors of stage 1 only): "
                 + ", ".join(f"`{t}`" for t in jit_tests) + ".") if jit_tests else
            "Stage 2: not run.", "",
-           f"**{n} mutants: {len(killed)} killed, {len(surv)} survived.**", "",
+           f"**{n} mutants: {len(killed)} killed, {len(surv)} survived "
+           f"({sum((m.source, m.change) in equivalent for m in surv)} judged equivalent).**",
+           "",
            "| kind | mutants | killed |", "|---|---|---|"]
     for k, (a, b) in sorted(by_kind.items()):
         out.append(f"| {k} | {a} | {b} |")
@@ -400,7 +403,7 @@ def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
         out += ["| line | function | equation | change | source | judged |",
                 "|---|---|---|---|---|---|"]
         for m in surv:
-            why = equivalent.get((m.line, m.change), "")
+            why = equivalent.get((m.source, m.change), "not judged: a test is missing")
             out.append(f"| {rel}:{m.line} | `{m.function}` | {m.equation} | {m.change} | "
                        f"`{m.source[:70]}` | {why} |")
     out += ["", "## Every mutant", "", "| line | function | equation | change | verdict | stage |",
@@ -451,9 +454,29 @@ def main(argv=None) -> int:
     return 0
 
 
-#: Survivors judged equivalent (or outside the law's equations), keyed (line, change), with
-#: the reason; filled in from a run's report after reading each survivor (docs/control_law.md).
-EQUIVALENT: dict = {}
+_INT_OPTION = ("equivalent: an integer option (validated to a whole number, 0/1 for a "
+               "switch) compared with a threshold; any threshold strictly between the values "
+               "(or int() without the +0.5 rounding of an exact whole number) gives the same "
+               "branch")
+_NO_RUDDER_PITCH = ("equivalent for this vehicle: g_f_delta[pitch, rudder] = 0 "
+                    "(dCm/d delta_r is 0 over the whole nominal table of the winged-cone data), "
+                    "so the term is identically 0")
+
+#: Survivors read and judged equivalent, keyed (source line, change), with the reason
+#: (docs/control_law.md section 12). Keyed on the text, not the line number, so it survives
+#: edits elsewhere in the module.
+EQUIVALENT: dict = {
+    ("if par[P_CO_ENABLE] < 0.5:", "0.5 -> 1.0 (col 26)"): _INT_OPTION,
+    ("if lmax > 0.0 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 45)"): _INT_OPTION,
+    ("norm = int(par[P_CO_NORM] + 0.5)", "drop right term of '+'"): _INT_OPTION,
+    ("mode = int(par[P_CO_SURF] + 0.5)", "drop right term of '+'"): _INT_OPTION,
+    ("if par[P_ALLOC_MODE] > 0.5 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 62)"):
+        _INT_OPTION,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "drop right term of '+'"):
+        _NO_RUDDER_PITCH,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'+' -> '-'"): _NO_RUDDER_PITCH,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'*' -> '/'"): _NO_RUDDER_PITCH,
+}
 
 if __name__ == "__main__":
     raise SystemExit(main())
