@@ -454,10 +454,9 @@ def main(argv=None) -> int:
     return 0
 
 
-_INT_OPTION = ("equivalent: an integer option (validated to a whole number, 0/1 for a "
-               "switch) compared with a threshold; any threshold strictly between the values "
-               "(or int() without the +0.5 rounding of an exact whole number) gives the same "
-               "branch")
+_INT_OPTION = ("equivalent: an integer option, validated to a whole number (0 or 1 for a "
+               "switch): `v < 1.0` and `v < 0.5` give the same branch for v = 0 and 1, and "
+               "int(v) = int(v + 0.5) for a whole number v")
 _NO_RUDDER_PITCH = ("equivalent for this vehicle: g_f_delta[pitch, rudder] = 0 "
                     "(dCm/d delta_r is 0 over the whole nominal table of the winged-cone data), "
                     "so the term is identically 0")
