@@ -183,7 +183,8 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("DOB_ACHIEVED", 1, 0, 2, "-", "DOB",
        "Moment fed to the observer (Eq. 37): 1 = g_f_delta delta_model, the physical moment of "
        "the modelled actuators (limits, rate, lag); 2 = g_Gamma delta_model, the coordinated "
-       "moment of Eq. 44 (= M_c while no surface is limited); 0 = M_c as printed.", integer=True),
+       "moment of Eq. 44 (M_c as the modelled actuators deliver it); 0 = M_c as printed.",
+       integer=True),
     _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
        "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
     _p("ACT_RATE", 90, 1, 1000, "deg/s", "ACT",
