@@ -2,8 +2,10 @@
 
 tools.closed_loop.simulate runs the law's kernels and the plant's RK4 frames in one numba
 loop (truth-fed estimated state). Runs are 8 s of sim time: the paper's steps settle in
-about 3-4 s (measured), so the last 1 s window of final_error_deg is well after settling.
-Bounds are justified next to each assertion; the measured figures are in docs/control_law.md.
+about 2-3 s (measured), so the last 1 s window of final_error_deg is well after settling,
+and overshoot and settling time equal those of the 20 s runs of docs/control_law.md.
+Bounds are justified next to each assertion; ``test_documented_figures`` pins the figures
+that docs/control_law.md section 9 reports, with stated tolerances.
 """
 from __future__ import annotations
 
@@ -36,7 +38,8 @@ def test_paper_scenario_tracks(coordinated, shaping):
         # final error over the last 1 s: the disturbance leaves a sinusoidal residual
         # (measured ~0.02 deg); 0.1 deg is 2.5 % of the 4 deg steps and 5x the measured value
         assert c.final_error_deg < 0.1, (name, c)
-        # settled (2 % band) well within the run (measured 2.8-3.7 s)
+        # settled (tools.metrics band: 5 % of the step, at least 0.1 deg) well within the
+        # run (measured 1.9-3.1 s); the figures themselves are pinned below
         assert c.settling_time_s is not None and c.settling_time_s < 6.0, (name, c)
     if shaping == "steps":
         # the paper's gains give ~13 % on an ideal inversion; the omega_c limit (3 deg/s)
@@ -96,9 +99,10 @@ def test_paper_literal_law_saturates():
     assert res.diverged or m["surfaces"]["saturated_s"] > 0.5
 
 
-def test_eq19_factors_fly():
+def test_eq14_factors_fly():
+    # the non-default reading of D3 (the default is Eq. 19)
     res = simulate("paper", coordinated=True, duration_s=DURATION_S,
-                   law_overrides={"CO_FAC_EQ": 19})
+                   law_overrides={"CO_FAC_EQ": 14})
     _, ch = _figures(res)
     assert not res.diverged
     assert all(c.final_error_deg < 0.1 for c in ch.values())
@@ -163,3 +167,86 @@ def test_slower_loops_still_fly(fast_hz, slow_hz):
     _, ch = _figures(res)
     assert not res.diverged
     assert all(c.final_error_deg < 0.1 for c in ch.values())
+
+
+# ---------------------------------------------------------------------------------------------
+# The documented figures (docs/control_law.md section 9 and D3/V3), pinned
+# ---------------------------------------------------------------------------------------------
+#: (scenario, variant, shaping, estimate, overrides) -> ((overshoot %, settling s) for alpha,
+#: beta, mu), measured with `python -m tools.closed_loop SCENARIO --table [--estimate sensors]
+#: [--set NAME=VALUE]` (20 s; these 8 s runs give the same overshoot and settling).
+DOCUMENTED = {
+    ("paper", "co", "steps", "truth", ()): ((3.40, 2.29), (2.26, 2.08), (4.94, 2.26)),
+    ("paper", "unco", "steps", "truth", ()): ((5.46, 2.24), (2.53, 1.88), (6.96, 2.92)),
+    ("paper", "co", "prefilter", "truth", ()): ((0.68, 2.55), (0.48, 2.52), (2.19, 3.05)),
+    ("paper", "unco", "prefilter", "truth", ()): ((0.59, 2.45), (0.47, 2.41), (0.94, 2.62)),
+    ("paper", "co", "steps", "sensors", ()): ((3.45, 2.29), (2.22, 2.07), (5.08, 2.51)),
+    ("paper", "unco", "steps", "sensors", ()): ((5.19, 2.22), (2.62, 1.87), (5.61, 2.91)),
+    ("paper_mirror", "co", "steps", "truth", ()): ((3.17, 2.00), (2.95, 1.74), (6.20, 2.08)),
+    ("paper_mirror", "unco", "steps", "truth", ()): ((7.78, 2.81), (2.77, 1.89), (8.94, 2.93)),
+    # D3: the Eq. 14 factors
+    ("paper", "co", "steps", "truth", (("CO_FAC_EQ", 14),)):
+        ((3.81, 2.56), (2.59, 2.33), (5.80, 2.82)),
+    ("paper_mirror", "co", "steps", "truth", (("CO_FAC_EQ", 14),)):
+        ((4.39, 1.76), (3.27, 1.61), (6.34, 1.91)),
+    # V3: the observer fed g_Gamma delta_model (Eq. 44's coordinated moment)
+    ("paper", "co", "steps", "truth", (("DOB_ACHIEVED", 2),)):
+        ((5.45, 2.29), (2.57, 1.91), (6.10, 2.97)),
+    ("paper_mirror", "co", "steps", "truth", (("DOB_ACHIEVED", 2),)):
+        ((7.40, 2.79), (2.88, 1.85), (7.43, 2.85)),
+}
+#: Tolerances: the runs are deterministic (truth, or seeded noise); these absorb a change of
+#: floating-point summation order (another CPU, another numba), not a change of the law.
+#: Overshoot +-0.15 point (the smallest documented difference between two readings is
+#: 0.3 point); settling +-0.05 s (the smallest documented difference is 0.13 s).
+OVERSHOOT_TOL_PT = 0.15
+SETTLING_TOL_S = 0.05
+#: final error bound over the last 1 s (measured 0.021-0.025 deg truth, 0.038-0.042 sensors)
+FINAL_ERROR_MAX_DEG = {"truth": 0.03, "sensors": 0.05}
+
+
+@pytest.mark.parametrize("case", list(DOCUMENTED), ids=lambda c: "-".join(
+    [c[0], c[1], c[2], c[3]] + [f"{k}{v}" for k, v in c[4]]))
+def test_documented_figures(case):
+    scenario, variant, shaping, estimate, overrides = case
+    res = simulate(scenario, coordinated=(variant == "co"), command_shaping=shaping,
+                   estimate=estimate, law_overrides=dict(overrides), duration_s=DURATION_S)
+    m, ch = _figures(res)
+    assert not res.diverged
+    for (os_pct, ts_s), name in zip(DOCUMENTED[case], ("alpha", "beta", "mu")):
+        c = ch[name]
+        assert c.overshoot_pct == pytest.approx(os_pct, abs=OVERSHOOT_TOL_PT), (name, c)
+        assert c.settling_time_s == pytest.approx(ts_s, abs=SETTLING_TOL_S), (name, c)
+        assert c.final_error_deg < FINAL_ERROR_MAX_DEG[estimate], (name, c)
+    assert m["surfaces"]["saturated_s"] == 0.0
+
+
+def _os_ts(scenario, coordinated, overrides=()):
+    _, ch = _figures(simulate(scenario, coordinated=coordinated, duration_s=DURATION_S,
+                              law_overrides=dict(overrides)))
+    return ({k: c.overshoot_pct for k, c in ch.items()},
+            {k: c.settling_time_s for k, c in ch.items()})
+
+
+@pytest.mark.parametrize("scenario", ["paper", "paper_mirror"])
+def test_coordination_lowers_alpha_and_mu_overshoot_and_settles_mu_sooner(scenario):
+    """The direction of coordination's effect where it is robust (docs/control_law.md D3):
+    with both sideslip signs, the coordinated law overshoots less in alpha and mu (by 2.0-4.6
+    points measured) and settles mu sooner (by 0.66-0.85 s). Beta is not asserted: its
+    ordering flips with the sideslip sign (2.26 vs 2.53 %, 2.95 vs 2.77 %)."""
+    os_co, ts_co = _os_ts(scenario, True)
+    os_un, ts_un = _os_ts(scenario, False)
+    assert os_co["alpha"] < os_un["alpha"] - 1.0
+    assert os_co["mu"] < os_un["mu"] - 1.0
+    assert ts_co["mu"] < ts_un["mu"] - 0.3
+
+
+def test_eq19_beats_eq14_on_the_paper_case():
+    """D3: on the paper's case the Eq. 19 factors (the default) overshoot less than Eq. 14
+    in every channel and settle every channel sooner (measured 0.4/0.3/0.9 points, 0.27/0.25/
+    0.56 s)."""
+    os19, ts19 = _os_ts("paper", True)
+    os14, ts14 = _os_ts("paper", True, (("CO_FAC_EQ", 14),))
+    for ch in ("alpha", "beta", "mu"):
+        assert os19[ch] < os14[ch] - 0.2, ch
+        assert ts19[ch] < ts14[ch] - 0.1, ch

@@ -282,13 +282,13 @@ def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
         pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "FS_TIMEOUT_S")
         assert pv.param_type == MD.MAV_PARAM_TYPE_REAL32 and pv.param_value == pytest.approx(0.5)
         # set an integer bytewise (MAVSDK, QGroundControl) and as a plain REAL32 (MAVProxy)
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", _bytewise(19),
+        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", _bytewise(14),
                                               MD.MAV_PARAM_TYPE_INT32))
         pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
-        assert _int_of(pv) == 19
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", 14.0, MD.MAV_PARAM_TYPE_REAL32))
-        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
         assert _int_of(pv) == 14
+        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", 19.0, MD.MAV_PARAM_TYPE_REAL32))
+        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
+        assert _int_of(pv) == 19
         # refusals: PARAM_ERROR then PARAM_VALUE with the old value, at once
         for name, value, ptype, code in (
                 (b"CO_FAC_EQ", _bytewise(99), MD.MAV_PARAM_TYPE_INT32,
@@ -305,7 +305,7 @@ def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
             dt = time.monotonic() - t0
             assert err is not None and err.error == code, (name, err)
             assert pv is not None and dt < 1.0, (name, dt)
-            old = {b"CO_FAC_EQ": 14, b"FS_TIMEOUT_S": 0.5, b"CO_ENABLE": 1}[name]
+            old = {b"CO_FAC_EQ": 19, b"FS_TIMEOUT_S": 0.5, b"CO_ENABLE": 1}[name]
             got = _int_of(pv) if pv.param_type == MD.MAV_PARAM_TYPE_INT32 else pv.param_value
             assert got == pytest.approx(old), name
         gcs.send(MD.MAVLink_param_set_message(1, 1, b"NO_SUCH_PARAM", 1.0,

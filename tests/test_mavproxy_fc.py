@@ -92,7 +92,7 @@ def test_mavproxy_shows_and_sets_every_mode_by_name_with_the_hyfc_module(tmp_pat
             con.expect("Mode MANUAL")
             con.expect("Received 62 parameters")
             con.send("param show CO_FAC_EQ")                # INT32 from the download, bytewise
-            con.expect("CO_FAC_EQ        14")
+            con.expect("CO_FAC_EQ        19")
             con.send("mode")
             con.expect("Available modes:")
             for name in ("COORDINATED", "UNCOORDINATED", "FAILSAFE", "MANUAL"):
@@ -158,7 +158,7 @@ def test_mavproxy_headless_finds_vehicle_downloads_and_sets(tmp_path):
     values = ParamTable.read_file(str(saved))
     assert set(values) == set(build_table().names)
     assert values["FS_TIMEOUT_S"] == pytest.approx(2.5)
-    assert values["FS_RECOVER"] == 1.0 and values["CO_FAC_EQ"] == 14.0   # INT32, whole numbers
+    assert values["FS_RECOVER"] == 1.0 and values["CO_FAC_EQ"] == 19.0   # INT32, whole numbers
     # and the fc persisted the set it received
     persisted = ParamTable.read_file(os.path.join(fc.out, "params.parm"))
     assert persisted["FS_TIMEOUT_S"] == pytest.approx(2.5)

@@ -74,10 +74,10 @@ def test_mavsdk_gets_and_sets_integer_parameters_and_out_of_range_fails_fast(mav
     from mavsdk.plugins.param import Param, ParamError, ParamResult
     _, system = mavsdk_fc
     param = Param(system)
-    assert param.get_param_int("CO_FAC_EQ") == 14
-    assert param.get_param_int("FS_RECOVER") == 1
-    param.set_param_int("CO_FAC_EQ", 19)
     assert param.get_param_int("CO_FAC_EQ") == 19
+    assert param.get_param_int("FS_RECOVER") == 1
+    param.set_param_int("CO_FAC_EQ", 14)
+    assert param.get_param_int("CO_FAC_EQ") == 14
     assert param.get_param_float("FS_TIMEOUT_S") == pytest.approx(0.5)
     t0 = time.monotonic()
     with pytest.raises(ParamError) as err:
@@ -85,7 +85,7 @@ def test_mavsdk_gets_and_sets_integer_parameters_and_out_of_range_fails_fast(mav
     dt = time.monotonic() - t0
     print(f"out-of-range set_param_int answered in {dt:.2f} s: {err.value}")
     assert err.value.result == ParamResult.VALUE_OUT_OF_RANGE and dt < 2.0
-    assert param.get_param_int("CO_FAC_EQ") == 19
+    assert param.get_param_int("CO_FAC_EQ") == 14
     with pytest.raises(ParamError) as err:
         param.set_param_float("FS_TIMEOUT_S", 1000.0)
     assert err.value.result == ParamResult.VALUE_OUT_OF_RANGE

@@ -417,11 +417,11 @@ def coordinated_factors(est, par, out, o):
     # Eq. 14: lambda_r3 = k8 beta + k9 q
     lr3 = par[k + 8] * beta + par[k + 9] * q
     if par[P_CO_FAC_EQ] > 16.5:
-        # Eq. 19
+        # Eq. 19 (default: the factors Section 4.3 builds g_Gamma from)
         le = par[k + 4] * alpha + par[k + 5] * q
         la = par[k + 6] * beta + par[k + 7] * p
     else:
-        # Eq. 14 (default; supported by the prose before Eq. 14)
+        # Eq. 14 (the prose before it)
         le = par[k + 4] * alpha + par[k + 5] * p
         la = par[k + 6] * beta + par[k + 7] * r
     # Eq. 13 + Eq. 19: lambda_r = lambda_r1 + lambda_r2 + lambda_r3
@@ -702,7 +702,8 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
         x[X_DCMD + i] = delta_out[i]
 
     # Eq. 37 observer update with the moment that acts over this step: the achieved moment
-    # g_f_delta delta of the modelled actuators (deviation, DOB_ACHIEVED) or M_c (printed).
+    # G delta of the modelled actuators (deviation, DOB_ACHIEVED 1: G = g_f_delta, the
+    # physical moment; 2: G = g_Gamma, the coordinated moment of Eq. 44) or M_c (printed).
     if par[P_DOB_ACHIEVED] > 0.5 and not literal:
         a0 = x[X_DM]
         a1 = x[X_DM + 1]
@@ -711,7 +712,7 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
         a0 = 0.5 * (a0 + x[X_DM])
         a1 = 0.5 * (a1 + x[X_DM + 1])
         a2 = 0.5 * (a2 + x[X_DM + 2])
-        g = NM_GFD
+        g = NM_GCO if par[P_DOB_ACHIEVED] > 1.5 else NM_GFD
         m0 = nm[g] * a0 + nm[g + 1] * a1 + nm[g + 2] * a2
         m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2
         m2 = nm[g + 6] * a0 + nm[g + 7] * a1 + nm[g + 8] * a2

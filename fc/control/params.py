@@ -104,10 +104,11 @@ LAW_PARAMS: tuple[Param, ...] = (
        "1 = coordinated law (factors Eqs. 13/14/19 in the allocation matrix Eq. 45, surface "
        "coordination Eq. 47); 0 = uncoordinated baseline (all factors 0, no surface "
        "coordination). Set by the fc flight mode.", integer=True),
-    _p("CO_FAC_EQ", 14, 14, 19, "-", "CO",
-       "Inertia-coupling factors: 14 = Eq. 14 (lambda_e = k4 alpha + k5 p, lambda_a = k6 beta + "
-       "k7 r); 19 = Eq. 19 (lambda_e = k4 alpha + k5 q, lambda_a = k6 beta + k7 p). lambda_r "
-       "= Eq. 13 + lambda_r3 in both.", integer=True),
+    _p("CO_FAC_EQ", 19, 14, 19, "-", "CO",
+       "Inertia-coupling factors: 19 = Eq. 19, the factors Section 4.3 builds g_Gamma from "
+       "(lambda_e = k4 alpha + k5 q, lambda_a = k6 beta + k7 p); 14 = Eq. 14 (lambda_e = k4 "
+       "alpha + k5 p, lambda_a = k6 beta + k7 r). lambda_r = Eq. 13 + lambda_r3 in both.",
+       integer=True),
     _p("CO_K1", 1, 0, 10, "s/rad", "CO", "k1 of Eq. 10/13: lambda_r1 = k1 p tan(alpha)."),
     _p("CO_K2", 1, 0, 10, "1/rad", "CO", "k2 of Eq. 12/13: k2 beta term of lambda_r2."),
     _p("CO_K3", 1, 0, 10, "s/rad", "CO",
@@ -119,9 +120,10 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("CO_K7", 1, 0, 10, "s/rad", "CO",
        "k7 of Eq. 14/19: rate term of lambda_a (r in Eq. 14, p in Eq. 19)."),
     _p("CO_K8", 1, 0, 10, "1/rad", "CO",
-       "k8 of Eq. 14: lambda_r3 = k8 beta + k9 q (not given by the paper; 1 like k1..k7)."),
+       "k8 of Eq. 14/19: lambda_r3 = k8 beta + k9 q, a term Eq. 19 writes into lambda_r "
+       "(Section 5 gives only k1..k7; 1 like them, docs/control_law.md D3)."),
     _p("CO_K9", 1, 0, 10, "s/rad", "CO",
-       "k9 of Eq. 14: q term of lambda_r3 (not given by the paper)."),
+       "k9 of Eq. 14/19: q term of lambda_r3 (not given by Section 5; 1 like k1..k7)."),
     _p("CO_DALPHA", 0.05, 0.001, 1, "-", "CO",
        "Delta_alpha of Eq. 12: added to sin(alpha) to keep the k3 term away from its singularity."),
     _p("CO_NORM", 0, 0, 2, "-", "CO",
@@ -178,9 +180,11 @@ LAW_PARAMS: tuple[Param, ...] = (
        integer=True),
     _p("DOB_C", 10, 1.01, 200, "1/s", "DOB",
        "c of Eq. 37/41: Q(e) = c omega, L = c I (c > 1); the observer's bandwidth."),
-    _p("DOB_ACHIEVED", 1, 0, 1, "-", "DOB",
-       "1 = feed the observer the moment achieved by the modelled actuators (limits, rate, lag); "
-       "0 = feed M_c as printed in Eq. 37.", integer=True),
+    _p("DOB_ACHIEVED", 1, 0, 2, "-", "DOB",
+       "Moment fed to the observer (Eq. 37): 1 = g_f_delta delta_model, the physical moment of "
+       "the modelled actuators (limits, rate, lag); 2 = g_Gamma delta_model, the coordinated "
+       "moment of Eq. 44 (M_c as the modelled actuators deliver it); 0 = M_c as printed.",
+       integer=True),
     _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
        "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
     _p("ACT_RATE", 90, 1, 1000, "deg/s", "ACT",

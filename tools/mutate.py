@@ -1,0 +1,481 @@
+"""Mutation testing of the control law: does a wrong law fail the law's tests?
+
+    python -m tools.mutate                       # kernels.py, fast unit tests, report
+    python -m tools.mutate --list                # the mutants only, no test run
+    python -m tools.mutate --jit-tests tests/test_closed_loop.py::test_coordination_pins
+
+Each mutant is ONE change to the source of a law module (default fc/control/kernels.py),
+inside the functions that carry the paper's equations (``FUNCTIONS``):
+
+    sign      a binary + becomes - and vice versa (also += / -=); a unary minus removed
+    drop      one term of a sum or difference removed (a + b -> a, a + b -> b, a - b -> -b)
+    muldiv    * becomes / and vice versa
+    const     a float constant c becomes 2 c (0.0 becomes 1.0)
+
+Index arithmetic (inside ``x[...]``) is left alone: it is layout, not an equation. The
+mutant is written into a temporary copy of the project (never in place); the chosen tests
+run in a subprocess with a per-mutant timeout. A mutant is *killed* if the tests fail (or
+time out), *survived* if they pass. Stage 1 runs ``--tests`` with NUMBA_DISABLE_JIT=1 (no
+compilation per mutant: the kernels run as plain Python, so pick tests that call the
+kernels a few thousand times at most); stage 2 (``--jit-tests``, optional) reruns only the
+survivors against tests that need compiled code (closed loops), each paying a numba
+compile of the mutant.
+
+The report (``--report``, default docs/mutation_report.md) lists every mutant with
+file:line, the function, the equation named by the nearest ``Eq.`` comment above it, the
+change and the verdict. This is a tool, not a CI test (docs/control_law.md section 12).
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import datetime as _dt
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The kernels' functions that carry the paper's equations (and their helpers). solve3 and
+#: det3 (3x3 algebra, checked against numpy) are available with --functions.
+FUNCTIONS = ("gs_inv_apply", "gs_apply", "gs_t_apply", "slow_kernel",
+             "coordinated_factors", "coordinated_matrix", "allocate", "actuator_model_step",
+             "dob_gain", "dob_estimate", "dob_update", "fast_kernel")
+KINDS = ("sign", "drop", "muldiv", "const")
+
+#: Stage 1: unit tests of each equation, fast without JIT.
+DEFAULT_TESTS = ("tests/test_law_equations.py", "tests/test_law_units.py::test_gs_inverse_and_determinant",
+                 "tests/test_law_units.py::test_solve3_matches_numpy",
+                 "tests/test_law_units.py::test_factors_hand_computed",
+                 "tests/test_law_units.py::test_allocator_exact_when_unsaturated",
+                 "tests/test_law_units.py::test_allocator_reports_shortfall_and_keeps_direction",
+                 "tests/test_law_units.py::test_surface_coordination_eq47",
+                 "tests/test_law_units.py::test_coordinated_matrix_guard_rejects_sign_flip",
+                 "tests/test_law_units.py::test_observer_converges_to_constant_disturbance",
+                 "tests/test_law_units.py::test_projection_identity_inside_and_bounded_outside",
+                 "tests/test_law_units.py::test_factors_zero_when_uncoordinated_and_clamped")
+
+COPY_DIRS = ("fc", "plant_sim", "tools", "tests")
+
+
+@dataclass
+class Mutant:
+    """One change: ``ident`` is the position of the node in the module's ast.walk order."""
+    index: int
+    line: int
+    function: str
+    equation: str
+    kind: str
+    change: str
+    source: str
+    verdict: str = ""
+    stage: str = ""
+    seconds: float = 0.0
+
+
+# -------------------------------------------------------------------------------------------
+# Finding and applying mutations (ast: the rest of the module is unparsed unchanged)
+# -------------------------------------------------------------------------------------------
+def _index_nodes(tree):
+    """ids of nodes inside a Subscript's slice (index arithmetic: not mutated)."""
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Subscript):
+            for sub in ast.walk(node.slice):
+                skip.add(id(sub))
+    return skip
+
+
+def _equation_label(lines, func_line, line):
+    """The nearest comment above ``line`` (inside the function) that names an equation."""
+    for i in range(line - 1, func_line - 1, -1):
+        s = lines[i - 1].strip()
+        if s.startswith("#") and "Eq." in s:
+            return s.lstrip("# ").split(":")[0][:60]
+    return ""
+
+
+_OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+
+
+def _candidates(tree, lines, functions):
+    """(path of the node, kind, change text, line, function, equation) per mutation."""
+    skip = _index_nodes(tree)
+    out = []
+    for fn in tree.body:
+        if not isinstance(fn, ast.FunctionDef) or fn.name not in functions:
+            continue
+        for node in ast.walk(fn):
+            if id(node) in skip or not hasattr(node, "lineno"):
+                continue
+            ln = node.lineno
+            eq = _equation_label(lines, fn.lineno, ln) or fn.name
+            if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
+                op = _OPS[type(node.op)]
+                if op in "+-":
+                    other = "-" if op == "+" else "+"
+                    out.append((node, "sign", f"'{op}' -> '{other}'", ln, fn.name, eq))
+                    out.append((node, "drop", f"drop right term of '{op}'", ln, fn.name, eq))
+                    out.append((node, "drop", f"drop left term of '{op}'", ln, fn.name, eq))
+                else:
+                    other = "/" if op == "*" else "*"
+                    out.append((node, "muldiv", f"'{op}' -> '{other}'", ln, fn.name, eq))
+            elif isinstance(node, ast.AugAssign) and type(node.op) in (ast.Add, ast.Sub):
+                op = _OPS[type(node.op)]
+                other = "-" if op == "+" else "+"
+                out.append((node, "sign", f"'{op}=' -> '{other}='", ln, fn.name, eq))
+            elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+                out.append((node, "sign", "unary '-' removed", ln, fn.name, eq))
+            elif (isinstance(node, ast.Constant) and type(node.value) is float):
+                new = 1.0 if node.value == 0.0 else 2.0 * node.value
+                out.append((node, "const", f"{node.value!r} -> {new!r} (col {node.col_offset})",
+                            ln, fn.name, eq))
+    return out
+
+
+def _mutated_source(tree, node, kind, change):
+    """The module's source with ONE change at ``node``; ``tree`` is restored afterwards."""
+    if kind == "sign" and isinstance(node, ast.UnaryOp):
+        repl = node.operand
+    elif kind == "drop" and change.startswith("drop right"):
+        repl = node.left
+    elif kind == "drop":
+        repl = (node.right if isinstance(node.op, ast.Add)
+                else ast.UnaryOp(op=ast.USub(), operand=node.right))
+    else:
+        repl = None
+    if repl is not None:
+        _replace(tree, node, repl)
+        try:
+            return ast.unparse(tree)
+        finally:
+            _replace(tree, repl, node)
+    if kind == "const":
+        old = node.value
+        node.value = 1.0 if old == 0.0 else 2.0 * old
+    else:
+        old = node.op
+        if kind == "sign":
+            node.op = ast.Sub() if isinstance(old, ast.Add) else ast.Add()
+        else:
+            node.op = ast.Div() if isinstance(old, ast.Mult) else ast.Mult()
+    try:
+        return ast.unparse(tree)
+    finally:
+        if kind == "const":
+            node.value = old
+        else:
+            node.op = old
+
+
+def _replace(tree, old, new):
+    for parent in ast.walk(tree):
+        for field, value in ast.iter_fields(parent):
+            if value is old:
+                setattr(parent, field, new)
+                return
+            if isinstance(value, list):
+                for i, v in enumerate(value):
+                    if v is old:
+                        value[i] = new
+                        return
+    raise ValueError("node not found")
+
+
+def find_mutants(path: Path, functions=FUNCTIONS, kinds=KINDS):
+    """[(Mutant, mutated source)] for the module at ``path``."""
+    text = path.read_text()
+    lines = text.splitlines()
+    tree = ast.parse(text)
+    out = []
+    base = ast.unparse(tree)
+    for i, (node, kind, change, ln, fn, eq) in enumerate(_candidates(tree, lines, functions)):
+        if kind not in kinds:
+            continue
+        src = _mutated_source(tree, node, kind, change)
+        if src == base:
+            continue
+        out.append((Mutant(i, ln, fn, eq, kind, change, lines[ln - 1].strip()), src))
+    return out
+
+
+# -------------------------------------------------------------------------------------------
+# Running the tests against one mutant
+# -------------------------------------------------------------------------------------------
+def _make_copy(dst: Path):
+    for d in COPY_DIRS:
+        shutil.copytree(ROOT / d, dst / d, ignore=shutil.ignore_patterns(
+            "__pycache__", "*.pyc", ".pytest_cache"))
+    for f in ("pyproject.toml",):
+        if (ROOT / f).exists():
+            shutil.copy2(ROOT / f, dst / f)
+
+
+def _run_tests(work: Path, rel: str, src: str, tests, jit: bool, timeout_s: float):
+    """Write ``src`` into the copy at ``rel``, run pytest; (killed, seconds, tail of output)."""
+    target = work / rel
+    original = target.read_text()
+    target.write_text(src)
+    env = dict(os.environ, PYTHONPATH=str(work), PYTHONDONTWRITEBYTECODE="1")
+    if jit:
+        env.pop("NUMBA_DISABLE_JIT", None)
+        env["NUMBA_CACHE_DIR"] = str(work / ".numba_cache")
+        shutil.rmtree(work / ".numba_cache", ignore_errors=True)
+    else:
+        env["NUMBA_DISABLE_JIT"] = "1"
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+           "-p", "no:randomly", *tests]
+    t0 = time.perf_counter()
+    try:
+        r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True,
+                           timeout=timeout_s)
+        killed = r.returncode != 0
+        tail = (r.stdout + r.stderr).strip().splitlines()[-1:] or [""]
+    except subprocess.TimeoutExpired:
+        killed, tail = True, ["timeout"]
+    finally:
+        target.write_text(original)
+    return killed, time.perf_counter() - t0, tail[0]
+
+
+def _worker(job_file: str) -> int:
+    """Stage 1 in one long-lived process (NUMBA_DISABLE_JIT=1, PYTHONPATH = the copy): for
+    each mutant of ``job_file`` (JSON: module, tests, timeout, mutants [[index, source]]),
+    execute the mutated source into the imported module's namespace, rebind the aliases
+    other modules keep (fc.control.law's entry points), run pytest in process, restore.
+    Prints one JSON line per mutant. Saves the interpreter, numpy and pytest start-up that
+    dominate a subprocess per mutant."""
+    import importlib
+    import json
+    import signal
+
+    import pytest
+
+    job = json.loads(Path(job_file).read_text())
+    mod = importlib.import_module(job["module"])
+    original = Path(mod.__file__).read_text()
+
+    def load(src):
+        exec(compile(src, mod.__file__, "exec"), mod.__dict__)
+        law = sys.modules.get("fc.control.law")
+        if law is not None and mod.__name__ == "fc.control.kernels":
+            law._slow_entry, law._fast_entry = mod.slow_entry, mod.fast_entry
+            law._cycle_entry = mod.cycle_entry
+
+    def alarm(_sig, _frm):
+        raise TimeoutError("mutant timed out")
+
+    signal.signal(signal.SIGALRM, alarm)
+    args = ["-x", "-q", "-p", "no:cacheprovider", "--no-header", "-p", "no:randomly",
+            *job["tests"]]
+    if pytest.main(args) != 0:               # the unmutated module must pass in process
+        print("BASELINE FAILED", flush=True)
+        return 2
+    for index, src in job["mutants"]:
+        t0 = time.perf_counter()
+        try:
+            load(src)
+            signal.alarm(int(job["timeout"]))
+            rc = pytest.main(args)
+            killed = rc != 0
+            why = f"pytest exit {rc}"
+        except BaseException as exc:        # a mutant that breaks the module is killed
+            killed, why = True, type(exc).__name__
+        finally:
+            signal.alarm(0)
+            load(original)
+        print("MUTANT " + json.dumps({"index": index, "killed": killed,
+                                      "seconds": time.perf_counter() - t0, "why": why}),
+              flush=True)
+    return 0
+
+
+def _run_worker(work: Path, rel: str, tests, items, timeout_s: float, on_result):
+    """Run one stage-1 worker process over ``items`` [(Mutant, source)] in the copy ``work``."""
+    import json
+    job = work / "mutate_job.json"
+    module = rel[:-3].replace("/", ".")
+    job.write_text(json.dumps({"module": module, "tests": list(tests), "timeout": timeout_s,
+                               "mutants": [[m.index, src] for m, src in items]}))
+    env = dict(os.environ, PYTHONPATH=str(work), PYTHONDONTWRITEBYTECODE="1",
+               NUMBA_DISABLE_JIT="1")
+    by_index = {m.index: m for m, _ in items}
+    proc = subprocess.Popen([sys.executable, "-m", "tools.mutate", "--worker", str(job)],
+                            cwd=work, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True)
+    for line in proc.stdout:
+        if line.startswith("BASELINE FAILED"):
+            proc.wait()
+            raise SystemExit(f"the tests fail on the unmutated code in the worker ({work})")
+        if line.startswith("MUTANT "):
+            r = json.loads(line[7:])
+            m = by_index[r["index"]]
+            m.verdict = "killed" if r["killed"] else "survived"
+            m.stage, m.seconds = "unit", r["seconds"]
+            on_result(m, r["why"])
+    proc.wait()
+    for m, _ in items:                       # the worker died before reaching these
+        if not m.verdict:
+            m.verdict, m.stage = "killed", "unit (worker died)"
+            on_result(m, "worker died")
+
+
+def run(rel: str, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs: int,
+        only=None, progress=True, functions=FUNCTIONS, kinds=KINDS):
+    """Mutate ``rel`` and run the tests; returns the list of Mutants with verdicts."""
+    found = find_mutants(ROOT / rel, functions, kinds)
+    if only:
+        found = [(m, s) for m, s in found if m.line in only]
+    with tempfile.TemporaryDirectory(prefix="hyfc-mutate-") as tmp:
+        works = []
+        for j in range(max(1, jobs)):
+            w = Path(tmp) / f"w{j}"
+            _make_copy(w)
+            works.append(w)
+        # (each worker first checks that the unmutated law passes, else it stops the run)
+
+        done = [0]
+
+        def report_one(m, why):
+            done[0] += 1
+            if progress:
+                print(f"[{done[0]}/{len(found)}] {rel}:{m.line} {m.change:28s} {m.verdict:8s} "
+                      f"{m.seconds:5.2f}s {why}", flush=True)
+
+        # one long-lived worker per copy, the mutants dealt out round-robin
+        buckets = [[f for k, f in enumerate(found) if k % len(works) == j]
+                   for j in range(len(works))]
+        with ThreadPoolExecutor(len(works)) as ex:
+            list(ex.map(lambda jb: _run_worker(works[jb[0]], rel, tests, jb[1], timeout_s,
+                                               report_one), enumerate(buckets)))
+        if jit_tests:
+            for m, src in found:
+                if m.verdict != "survived":
+                    continue
+                killed, dt, tail = _run_tests(works[0], rel, src, jit_tests, True,
+                                              jit_timeout_s)
+                m.stage, m.seconds = "jit", m.seconds + dt
+                m.verdict = "killed" if killed else "survived"
+                if progress:
+                    print(f"[jit] {rel}:{m.line} {m.change:28s} {m.verdict} {dt:.1f}s {tail[:60]}",
+                          flush=True)
+    return [m for m, _ in found]
+
+
+# -------------------------------------------------------------------------------------------
+# Report
+# -------------------------------------------------------------------------------------------
+def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
+           functions=FUNCTIONS, kinds=KINDS) -> str:
+    n = len(mutants)
+    killed = [m for m in mutants if m.verdict == "killed"]
+    surv = [m for m in mutants if m.verdict == "survived"]
+    by_kind = {}
+    for m in mutants:
+        k = by_kind.setdefault(m.kind, [0, 0])
+        k[0] += 1
+        k[1] += m.verdict == "killed"
+    out = [f"# Mutation report: `{rel}`", "",
+           f"Generated by `python -m tools.mutate` on "
+           f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')} "
+           f"({wall_s / 60:.1f} min). Functions mutated: {', '.join(f'`{f}`' for f in functions)}; "
+           f"kinds: {', '.join(kinds)}.",
+           "", "Stage 1 tests (NUMBA_DISABLE_JIT=1): " + ", ".join(f"`{t}`" for t in tests) + ".",
+           "", ("Stage 2 tests (compiled, survivors of stage 1 only): "
+                + ", ".join(f"`{t}`" for t in jit_tests) + ".") if jit_tests else
+           "Stage 2: not run.", "",
+           f"**{n} mutants: {len(killed)} killed, {len(surv)} survived "
+           f"({sum((m.source, m.change) in equivalent for m in surv)} judged equivalent).**",
+           "",
+           "| kind | mutants | killed |", "|---|---|---|"]
+    for k, (a, b) in sorted(by_kind.items()):
+        out.append(f"| {k} | {a} | {b} |")
+    out += ["", "## Survivors", ""]
+    if not surv:
+        out.append("None.")
+    else:
+        out += ["| line | function | equation | change | source | judged |",
+                "|---|---|---|---|---|---|"]
+        for m in surv:
+            why = equivalent.get((m.source, m.change), "not judged: a test is missing")
+            out.append(f"| {rel}:{m.line} | `{m.function}` | {m.equation} | {m.change} | "
+                       f"`{m.source[:70]}` | {why} |")
+    out += ["", "## Every mutant", "", "| line | function | equation | change | verdict | stage |",
+            "|---|---|---|---|---|---|"]
+    for m in mutants:
+        out.append(f"| {m.line} | `{m.function}` | {m.equation} | {m.change} | {m.verdict} | "
+                   f"{m.stage} |")
+    return "\n".join(out) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.mutate", description=__doc__.split("\n")[0])
+    ap.add_argument("--file", default="fc/control/kernels.py",
+                    help="module to mutate, relative to the project root")
+    ap.add_argument("--tests", nargs="+", default=list(DEFAULT_TESTS),
+                    help="stage 1 pytest node ids (run with NUMBA_DISABLE_JIT=1)")
+    ap.add_argument("--jit-tests", nargs="*", default=[],
+                    help="stage 2 pytest node ids (compiled), run on stage-1 survivors only")
+    ap.add_argument("--timeout", type=float, default=120.0, help="per mutant, stage 1, s")
+    ap.add_argument("--jit-timeout", type=float, default=600.0, help="per mutant, stage 2, s")
+    ap.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (stage 1)")
+    ap.add_argument("--lines", type=int, nargs="*", default=None,
+                    help="only mutants on these source lines")
+    ap.add_argument("--functions", nargs="+", default=list(FUNCTIONS),
+                    help="functions of the module to mutate")
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS,
+                    help="mutation kinds")
+    ap.add_argument("--list", action="store_true", help="list the mutants and exit")
+    ap.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation_report.md")
+    ap.add_argument("--worker", default=None, help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.worker:
+        return _worker(a.worker)
+    if a.list:
+        for m, _ in find_mutants(ROOT / a.file, a.functions, a.kinds):
+            print(f"{a.file}:{m.line} {m.function} [{m.equation}] {m.kind}: {m.change}")
+        return 0
+    t0 = time.perf_counter()
+    mutants = run(a.file, a.tests, a.jit_tests, a.timeout, a.jit_timeout, a.jobs, a.lines,
+                  functions=a.functions, kinds=a.kinds)
+    text = report(a.file, mutants, a.tests, a.jit_tests, EQUIVALENT, time.perf_counter() - t0,
+                  a.functions, a.kinds)
+    a.report.parent.mkdir(parents=True, exist_ok=True)
+    a.report.write_text(text)
+    n_s = sum(m.verdict == "survived" for m in mutants)
+    print(f"{len(mutants)} mutants, {len(mutants) - n_s} killed, {n_s} survived; "
+          f"report {a.report}")
+    return 0
+
+
+_INT_OPTION = ("equivalent: an integer option, validated to a whole number (0 or 1 for a "
+               "switch): `v < 1.0` and `v < 0.5` give the same branch for v = 0 and 1, and "
+               "int(v) = int(v + 0.5) for a whole number v")
+_NO_RUDDER_PITCH = ("equivalent for this vehicle: g_f_delta[pitch, rudder] = 0 "
+                    "(dCm/d delta_r is 0 over the whole nominal table of the winged-cone data), "
+                    "so the term is identically 0")
+
+#: Survivors read and judged equivalent, keyed (source line, change), with the reason
+#: (docs/control_law.md section 12). Keyed on the text, not the line number, so it survives
+#: edits elsewhere in the module.
+EQUIVALENT: dict = {
+    ("if par[P_CO_ENABLE] < 0.5:", "0.5 -> 1.0 (col 26)"): _INT_OPTION,
+    ("if lmax > 0.0 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 45)"): _INT_OPTION,
+    ("norm = int(par[P_CO_NORM] + 0.5)", "drop right term of '+'"): _INT_OPTION,
+    ("mode = int(par[P_CO_SURF] + 0.5)", "drop right term of '+'"): _INT_OPTION,
+    ("if par[P_ALLOC_MODE] > 0.5 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 62)"):
+        _INT_OPTION,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "drop right term of '+'"):
+        _NO_RUDDER_PITCH,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'+' -> '-'"): _NO_RUDDER_PITCH,
+    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'*' -> '/'"): _NO_RUDDER_PITCH,
+}
+
+if __name__ == "__main__":
+    raise SystemExit(main())
