@@ -277,7 +277,7 @@ def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
         assert not av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
         gcs.send(MD.MAVLink_param_request_read_message(1, 1, b"CO_FAC_EQ", -1))
         pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
-        assert pv.param_type == MD.MAV_PARAM_TYPE_INT32 and _int_of(pv) == 14
+        assert pv.param_type == MD.MAV_PARAM_TYPE_INT32 and _int_of(pv) == 19
         gcs.send(MD.MAVLink_param_request_read_message(1, 1, b"FS_TIMEOUT_S", -1))
         pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "FS_TIMEOUT_S")
         assert pv.param_type == MD.MAV_PARAM_TYPE_REAL32 and pv.param_value == pytest.approx(0.5)
