@@ -356,7 +356,8 @@ def read_rows(path: Path) -> list[dict]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.coordination", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/coord"))
+    ap.add_argument("--out", type=Path, default=Path("runs/coord"),
+                    help="output directory for the tables and JSON (default runs/coord)")
     ap.add_argument("--cases", type=int, default=200,
                     help="dispersed cases per configuration (0 = the paper case only; 200)")
     ap.add_argument("--seed", type=int, default=1, help="tools.montecarlo campaign seed (1)")
@@ -364,8 +365,10 @@ def main(argv=None) -> int:
     ap.add_argument("--limits", default="3,5,10", help="SLW_OMC_MAX values, deg/s (3,5,10)")
     ap.add_argument("--dispersed-limits", default="3,5",
                     help="SLW_OMC_MAX values for the dispersed cases (3,5)")
-    ap.add_argument("--dispersed-factors", default="none,all,e_only,a_only,r_only,no_a,all_E")
-    ap.add_argument("--dispersed-readings", default="eq14,eq19,eq19_k89_0")
+    ap.add_argument("--dispersed-factors", default="none,all,e_only,a_only,r_only,no_a,all_E",
+                    help="comma-separated factor sets flown over the dispersed cases")
+    ap.add_argument("--dispersed-readings", default="eq14,eq19,eq19_k89_0",
+                    help="comma-separated readings of the paper flown over the dispersed cases")
     ap.add_argument("--summary-only", action="store_true",
                     help="re-make summary.md from the rows already in --out")
     a = ap.parse_args(argv)

@@ -295,7 +295,8 @@ def summary(rows: list[dict]) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.envelope",
                                  description=__doc__.split("\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/env"))
+    ap.add_argument("--out", type=Path, default=Path("runs/env"),
+                    help="output directory for the grid results (default runs/env)")
     ap.add_argument("--quick", action="store_true", help="2 x 2 points (smoke test)")
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0 = in process)")
     ap.add_argument("--duration", type=float, default=20.0, help="simulated time per run, s")

@@ -459,14 +459,20 @@ def _fmt(d: dict) -> str:
 def main(argv=None) -> int:
     import argparse
     ap = argparse.ArgumentParser(description="Guided flight in process: hold, steps, mission.")
-    ap.add_argument("what", choices=("cruise", "steps", "mission"), nargs="?", default="cruise")
+    ap.add_argument("what", choices=("cruise", "steps", "mission"), nargs="?", default="cruise",
+                    help="cruise: hold the cruise point; steps: altitude, course and speed steps; "
+                         "mission: the mission scenario's targets (default cruise)")
     ap.add_argument("--scenario", default=None, help="scenario (default: cruise, or mission)")
-    ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--duration", type=float, default=None,
+                    help="sim time to fly, s (default: the chosen flight's own length)")
     ap.add_argument("--transient", type=float, default=300.0,
                     help="hold figures from this sim time on (s)")
-    ap.add_argument("--estimate", choices=("truth", "sensors"), default="sensors")
-    ap.add_argument("--seed", type=int, default=None)
-    ap.add_argument("--uncoordinated", action="store_true")
+    ap.add_argument("--estimate", choices=("truth", "sensors"), default="sensors",
+                    help="feed the loops the truth or the fc's estimator on the sensors")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="sensor noise seed (default: the scenario's)")
+    ap.add_argument("--uncoordinated", action="store_true",
+                    help="fly the uncoordinated inner law (default coordinated)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="cruise/mission: write a plot of the flight to this file")
     a = ap.parse_args(argv)

@@ -484,9 +484,12 @@ def margins_table(results: list[dict], delays: dict, frame_dt_s: float) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.margins", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd")
-    ap.add_argument("--out", type=Path, default=Path("runs/margins"))
-    ap.add_argument("--variants", default="co,unco")
-    ap.add_argument("--channels", default="roll,pitch,yaw")
+    ap.add_argument("--out", type=Path, default=Path("runs/margins"),
+                    help="output directory (default runs/margins)")
+    ap.add_argument("--variants", default="co,unco",
+                    help="comma-separated law variants: co, unco (default both)")
+    ap.add_argument("--channels", default="roll,pitch,yaw",
+                    help="comma-separated channels where the loop is broken (default all three)")
     ap.add_argument("--disturbance", action="store_true", help="keep the paper's d(t) on")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
@@ -495,10 +498,14 @@ def main(argv=None) -> int:
     w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
                    help="extra delays to fly, frames (1 ms each)")
-    w.add_argument("--out", type=Path, default=Path("runs/margins_wire"))
-    w.add_argument("--variant", default="coordinated", choices=("coordinated", "uncoordinated"))
-    w.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
-    w.add_argument("--disturbance", action="store_true")
+    w.add_argument("--out", type=Path, default=Path("runs/margins_wire"),
+                   help="output directory (default runs/margins_wire)")
+    w.add_argument("--variant", default="coordinated", choices=("coordinated", "uncoordinated"),
+                   help="the fc's flight mode (default coordinated)")
+    w.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a law parameter for the fc (repeatable)")
+    w.add_argument("--disturbance", action="store_true",
+                   help="keep the scenario's disturbance on (default off, as in process)")
     w.add_argument("--noise", action="store_true", help="keep the sensors' noise on")
     a = ap.parse_args(argv)
     ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}

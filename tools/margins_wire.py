@@ -21,13 +21,18 @@ import numpy as np
 def plant_with_relay(argv=None) -> int:
     """Entry point: ``--delay-frames N -- <plant_sim arguments>`` (see the module docstring)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if "--" not in argv:
-        raise SystemExit("usage: python -m tools.margins_wire --delay-frames N -- <plant args>")
-    cut = argv.index("--")
-    ap = argparse.ArgumentParser(prog="python -m tools.margins_wire")
-    ap.add_argument("--delay-frames", type=int, required=True)
+    cut = argv.index("--") if "--" in argv else len(argv)
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.margins_wire",
+        usage="python -m tools.margins_wire --delay-frames N -- <plant_sim arguments>",
+        description="The plant with a lockstep frame-delay relay toward its --fc "
+                    "(tools.margins wire starts it).")
+    ap.add_argument("--delay-frames", type=int, required=True,
+                    help="the plant applies at frame k the fc's answer to frame k - N")
     a = ap.parse_args(argv[:cut])
     plant_argv = argv[cut + 1:]
+    if "--fc" not in plant_argv:
+        ap.error("the plant's arguments after -- must name --fc HOST:PORT")
     from tools.linkimpair import Impairment, LinkImpair, parse_hostport
     i = plant_argv.index("--fc")
     target = parse_hostport(plant_argv[i + 1])

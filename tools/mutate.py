@@ -432,7 +432,8 @@ def main(argv=None) -> int:
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS,
                     help="mutation kinds")
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
-    ap.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation_report.md")
+    ap.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation_report.md",
+                    help="where the Markdown report goes (default docs/mutation_report.md)")
     ap.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.worker:
