@@ -2,7 +2,8 @@
 the scenario origin, sampled at the receiver rate, with seeded white noise and a latency.
 
 The sample layout G_* is the contract of docs/wire.md section 2 (defined once, in
-hyfc_wire.layout, for the plant and the fc). Per sample (every ``round(frame_hz / rate_hz)`` frames):
+hyfc_wire.layout, for the plant and the fc). Per sample (every ``round(frame_hz / rate_hz)``
+frames):
 
     pos_ned = pos_ned_true(t - latency) + [s_h n1, s_h n2, s_v n3]     (m)
     vel_ned = vel_ned_true(t - latency) + s_vel [n4, n5, n6]           (m/s)
