@@ -38,8 +38,8 @@ import math
 import numpy as np
 from numba import njit
 
-from fc.link import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P,
-                     M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
+from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N,
+                              M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
 
 try:  # the law owns its input layout (architecture.md section 5)
     from fc.control.layout import (E_ALPHA, E_BETA, E_GAMMA, E_H, E_MU, E_N, E_P,  # noqa: F401
@@ -48,11 +48,11 @@ except ImportError:  # the law is not there yet: same layout, section 5
     E_ALPHA, E_BETA, E_MU, E_P, E_Q, E_R, E_V, E_H, E_GAMMA = range(9)
     E_N = 9
 
-try:  # the kernels below freeze fc.link's M_* and layout's E_* (and the EM_* built on them)
-    import fc.link as _link
+try:  # the kernels below freeze hyfc_wire's M_* and layout's E_* (and the EM_* built on them)
+    import hyfc_wire.layout as _wire_layout
     from fc.control import layout as _layout
-    from fc.control.numba_cache import drop_stale
-    drop_stale(__file__, [_link.__file__, _layout.__file__])
+    from hyfc_wire.numba_cache import drop_stale
+    drop_stale(__file__, [_wire_layout.__file__, _layout.__file__])
 except ImportError:
     pass
 

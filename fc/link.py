@@ -1,110 +1,43 @@
-"""fc/link.py - the flight controller's only MAVLink import: codec, sockets, plant link.
+"""fc/link.py - the flight controller's MAVLink edge: codec, sockets, plant link.
 
-Everything that touches pymavlink in the fc lives here (docs/architecture.md section 1):
-the generated ``ardupilotmega`` MAVLink 2 codec, a non-blocking UDP endpoint, the
-datagram decoder that never raises, the plant link (sensor frames in, SERVO_OUTPUT_RAW
-out, docs/wire.md) and the PWM <-> deflection mapping of docs/wire.md section 3.
-``fc/gcs.py`` takes its codec (``new_codec``, ``mavlink``) from this module.
+Everything that touches MAVLink in the fc goes through here (docs/architecture.md section 1):
+the codec, the UDP endpoint, the measurement and GNSS layouts, the PWM map and the lean framing
+are the contract package's (hyfc_wire, shared with the plant and re-exported here for the fc);
+this module adds the datagram decoder that never raises, the signing key and the plant link
+(sensor frames in, SERVO_OUTPUT_RAW out, docs/wire.md). ``fc/gcs.py`` takes its codec
+(``new_codec``, ``mavlink``) from this module.
 """
 from __future__ import annotations
 
 import hashlib
 import math
 import os
-import socket
 import stat
-import struct
 from dataclasses import dataclass, field
 
 import numpy as np
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
-# The standard-modes messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345)
-# are in development.xml only (pymavlink 2.4.50): their classes are packed by the
-# ardupilotmega codec (a message packs with its own CRC extra), nothing else is used from it.
-from pymavlink.dialects.v20 import development as mavlink_dev  # noqa: E402
+from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
+from hyfc_wire.framing import LeanFramer, SensorDecoder, ServoPacker
+from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
+                              G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_ALT,
+                              M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P, M_PITCH, M_Q,
+                              M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
+from hyfc_wire.pwm import (DEFLECTION_LIMIT_RAD, PWM_MAX_US, PWM_MIN_US,  # noqa: F401
+                           PWM_TRIM_US, THROTTLE_PWM_MAX_US, THROTTLE_PWM_MIN_US,
+                           deflection_to_pwm, pwm_to_deflection, throttle_to_pwm)
+from hyfc_wire.udp import MAX_DATAGRAM_B, UdpEndpoint, parse_hostport  # noqa: F401
 
 __all__ = [
     "mavlink", "mavlink_dev", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink",
     "LinkCounters", "LeanFramer",
-    "deflection_to_pwm", "pwm_to_deflection", "load_signing_key", "parse_hostport",
+    "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "load_signing_key",
+    "parse_hostport",
     "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
     "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",
     "G_T_S", "G_LAT_DEG", "G_LON_DEG", "G_ALT_M", "G_VN", "G_VE", "G_VD", "G_FIX", "G_SATS",
     "G_HACC_M", "G_VACC_M", "G_SACC_M_S", "G_N",
 ]
-
-# Measurement vector layout (docs/architecture.md section 4), SI.
-M_T_S = 0
-M_ROLL = 1
-M_PITCH = 2
-M_YAW = 3
-M_P = 4
-M_Q = 5
-M_R = 6
-M_AOA = 7
-M_SSA = 8
-M_AIRSPEED = 9
-M_ALT = 10
-M_CLIMB = 11
-M_GROUNDSPEED = 12
-M_HEADING = 13
-M_N = 14
-
-# GNSS sample layout (docs/wire.md section 2; plant_sim/gnss.py defines the same), SI and deg.
-G_T_S = 0          # stamp of the frame that carried the sample (s)
-G_LAT_DEG = 1
-G_LON_DEG = 2
-G_ALT_M = 3        # MSL
-G_VN = 4           # m/s, NED
-G_VE = 5
-G_VD = 6
-G_FIX = 7          # GPS_FIX_TYPE
-G_SATS = 8
-G_HACC_M = 9
-G_VACC_M = 10
-G_SACC_M_S = 11
-G_N = 12
-
-# PWM mapping of docs/wire.md section 3 (ArduPilot SERVOn_MIN/TRIM/MAX).
-PWM_MIN_US = 1000
-PWM_TRIM_US = 1500
-PWM_MAX_US = 2000
-DEFLECTION_LIMIT_RAD = math.radians(20.0)
-
-MAX_DATAGRAM_B = 2048
-
-
-def parse_hostport(text: str) -> tuple[str, int]:
-    """Parse ``HOST:PORT`` into a socket address; ValueError with a clear message otherwise."""
-    host, sep, port = text.rpartition(":")
-    if not sep or not host:
-        raise ValueError(f"expected HOST:PORT, got {text!r}")
-    try:
-        port_n = int(port)
-    except ValueError:
-        raise ValueError(f"port must be an integer in {text!r}") from None
-    if not 0 <= port_n <= 65535:
-        raise ValueError(f"port out of range in {text!r}")
-    return host, port_n
-
-
-class _NullFile:
-    """Write sink for the codec: we send packed bytes ourselves."""
-
-    def write(self, _buf: bytes) -> None:
-        return None
-
-
-def new_codec(sysid: int, compid: int = 1) -> mavlink.MAVLink:
-    """A MAVLink 2 ``ardupilotmega`` codec sending as ``sysid``/``compid``.
-
-    ``robust_parsing`` is on: malformed input becomes ``MAVLink_bad_data`` instead of raising.
-    """
-    mav = mavlink.MAVLink(_NullFile(), srcSystem=sysid, srcComponent=compid)
-    mav.robust_parsing = True
-    return mav
 
 
 def decode_datagram(mav: mavlink.MAVLink, data: bytes) -> tuple[list, int]:
@@ -114,10 +47,7 @@ def decode_datagram(mav: mavlink.MAVLink, data: bytes) -> tuple[list, int]:
     the next datagram's bytes. Returns ``(messages, n_bad)`` where ``n_bad`` counts
     malformed frames (bad prefix, CRC, length, signature).
     """
-    mav.buf = bytearray()
-    mav.buf_index = 0
-    mav.expected_length = mavlink.HEADER_LEN_V1 + 2
-    mav.have_prefix_error = False
+    reset_parser(mav)
     out: list = []
     n_bad = 0
     try:
@@ -153,298 +83,6 @@ def load_signing_key(path: str) -> bytes:
     if not passphrase:
         raise ValueError(f"signing key file {path} is empty")
     return hashlib.sha256(passphrase).digest()
-
-
-def deflection_to_pwm(delta_rad: float, trim_us: int = PWM_TRIM_US) -> int:
-    """Surface deflection [rad] -> PWM [us] (docs/wire.md section 3), clipped to MIN..MAX."""
-    if not math.isfinite(delta_rad):
-        return trim_us
-    if delta_rad >= 0.0:
-        us = trim_us + delta_rad / DEFLECTION_LIMIT_RAD * (PWM_MAX_US - trim_us)
-    else:
-        us = trim_us + delta_rad / DEFLECTION_LIMIT_RAD * (trim_us - PWM_MIN_US)
-    us = int(round(us))
-    return PWM_MIN_US if us < PWM_MIN_US else PWM_MAX_US if us > PWM_MAX_US else us
-
-
-def pwm_to_deflection(pwm_us: int, trim_us: int = PWM_TRIM_US) -> float:
-    """PWM [us] -> deflection [rad], the inverse of :func:`deflection_to_pwm`."""
-    pwm_us = min(max(pwm_us, PWM_MIN_US), PWM_MAX_US)
-    if pwm_us >= trim_us:
-        return (pwm_us - trim_us) / (PWM_MAX_US - trim_us) * DEFLECTION_LIMIT_RAD
-    return (pwm_us - trim_us) / (trim_us - PWM_MIN_US) * DEFLECTION_LIMIT_RAD
-
-
-#: Throttle on SERVO_OUTPUT_RAW servo4 (docs/wire.md s. 3): PWM 1000..2000 us = 0..1.
-THROTTLE_PWM_MIN_US = 1000
-THROTTLE_PWM_MAX_US = 2000
-
-
-def throttle_to_pwm(throttle: float) -> int:
-    """Throttle 0..1 -> servo4 PWM (us), clipped to 1000..2000; 0 (no output: the plant keeps
-    its last throttle) for a value that is not finite."""
-    if not math.isfinite(throttle):
-        return 0
-    us = int(round(THROTTLE_PWM_MIN_US + throttle * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)))
-    return min(max(us, THROTTLE_PWM_MIN_US), THROTTLE_PWM_MAX_US)
-
-
-_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)   # Linux value where Python lacks it
-_TIMESPEC = struct.Struct("=qq")                          # struct timespec on 64-bit Linux
-_ANC_B = socket.CMSG_SPACE(_TIMESPEC.size) if hasattr(socket, "CMSG_SPACE") else 64
-
-
-class UdpEndpoint:
-    """A bound, non-blocking UDP socket. ``recv`` returns None when nothing is waiting."""
-
-    def __init__(self, host: str, port: int) -> None:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        except OSError:
-            pass
-        try:
-            sock.bind((host, port))
-        except OSError as exc:
-            sock.close()
-            raise OSError(f"cannot bind UDP {host}:{port}: {exc}") from exc
-        self._adopt(sock)
-
-    @classmethod
-    def wrap(cls, sock: socket.socket) -> "UdpEndpoint":
-        """An endpoint over an already bound socket (made non-blocking)."""
-        ep = cls.__new__(cls)
-        ep._adopt(sock)
-        return ep
-
-    def _adopt(self, sock: socket.socket) -> None:
-        sock.setblocking(False)
-        self.sock = sock
-        self.address = sock.getsockname()
-        self.send_errors = 0
-        #: kernel receive time of the last datagram ``recv`` returned (CLOCK_REALTIME, ns);
-        #: 0 unless :meth:`enable_rx_timestamps` succeeded
-        self.rx_ns = 0
-        self._stamped = False
-
-    def enable_rx_timestamps(self) -> bool:
-        """Ask the kernel to stamp each datagram on arrival (``SO_TIMESTAMPNS``); ``recv``
-        then stores the stamp in ``rx_ns``. Costs ~0.6 us per datagram (recvmsg instead of
-        recvfrom). Returns False where the option is not available."""
-        try:
-            self.sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-        except (OSError, AttributeError):
-            return False
-        self._stamped = True
-        return True
-
-    def recv(self) -> tuple[bytes, tuple] | None:
-        try:
-            if self._stamped:
-                data, anc, _flags, addr = self.sock.recvmsg(MAX_DATAGRAM_B, _ANC_B)
-                self.rx_ns = 0
-                for level, kind, cdata in anc:
-                    if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS \
-                            and len(cdata) >= 16:
-                        sec, nsec = _TIMESPEC.unpack_from(cdata)
-                        self.rx_ns = sec * 1_000_000_000 + nsec
-                return data, addr
-            return self.sock.recvfrom(MAX_DATAGRAM_B)
-        except (BlockingIOError, InterruptedError):
-            return None
-        except OSError:
-            # e.g. ICMP port unreachable reported on a later recv (ECONNREFUSED)
-            return None
-
-    def send(self, data: bytes, addr: tuple) -> bool:
-        try:
-            self.sock.sendto(data, addr)
-            return True
-        except OSError:
-            self.send_errors += 1
-            return False
-
-    def fileno(self) -> int:
-        return self.sock.fileno()
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-# ---- lean decode of the expected sensor datagram (performance; docs/performance.md) -------
-_MAGIC2 = mavlink.PROTOCOL_MARKER_V2
-_HDR2 = 10                                   # MAVLink 2 header length
-_mcrf4xx = getattr(mavlink, "mcrf4xx", None)  # fastcrc's CRC-16/MCRF4XX, as the codec uses
-
-
-def _crc16(data, init: int = 0xFFFF) -> int:
-    """X.25 CRC (CRC-16/MCRF4XX) as the codec computes it, from ``init``."""
-    if _mcrf4xx is not None:
-        return _mcrf4xx(data, init)
-    c = mavlink.x25crc()
-    c.crc = init
-    c.accumulate(bytes(data))
-    return c.crc
-
-
-class _LeanSensorDecoder:
-    """Fast path for the one datagram the plant link expects (docs/wire.md section 2).
-
-    Accepts only a datagram made of exactly ATTITUDE, AOA_SSA and VFR_HUD and at most one
-    GPS_INPUT (any order, each once), unsigned MAVLink 2 with good CRCs, all from
-    ``plant_sysid``, and unpacks them with
-    the generated codec's own payload structs (zero-padding truncated payloads, as the codec
-    does) straight into the measurement vector. Anything else returns -1 without touching
-    ``meas_out``, and the caller takes the codec's general parser, which also does the
-    counting: what is accepted or rejected, and the values, are the same as before; only the
-    cost of the common case changes (about 3.5 us instead of 19 us per datagram).
-    """
-
-    _CLASSES = (mavlink.MAVLink_attitude_message, mavlink.MAVLink_aoa_ssa_message,
-                mavlink.MAVLink_vfr_hud_message, mavlink.MAVLink_gps_input_message)
-
-    def __init__(self) -> None:
-        self.spec = {}
-        for slot, cls in enumerate(self._CLASSES):
-            size = cls.unpacker.size
-            self.spec[cls.id] = (slot, cls.unpacker, size, bytes((cls.crc_extra,)), bytes(size))
-        self._vals = [None, None, None, None]
-        #: the GPS_INPUT payload tuple of the last accepted datagram, None if it had none
-        self.gps = None
-
-    def decode(self, data: bytes, plant_sysid: int, meas_out: np.ndarray) -> int:
-        n = len(data)
-        pos = 0
-        vals = self._vals
-        vals[0] = vals[1] = vals[2] = vals[3] = None
-        spec = self.spec
-        while pos < n:
-            if n - pos < _HDR2 + 2 or data[pos] != _MAGIC2 or data[pos + 2] != 0:
-                return -1                        # not MAVLink 2, or signed / incompat flags
-            mlen = data[pos + 1]
-            end = pos + _HDR2 + mlen
-            if end + 2 > n or data[pos + 5] != plant_sysid:
-                return -1
-            sp = spec.get(data[pos + 7] | (data[pos + 8] << 8) | (data[pos + 9] << 16))
-            if sp is None:
-                return -1
-            slot, unpacker, size, extra, zeros = sp
-            if mlen > size or vals[slot] is not None:
-                return -1
-            if _crc16(extra, _crc16(data[pos + 1:end])) != data[end] | (data[end + 1] << 8):
-                return -1
-            payload = data[pos + _HDR2:end]
-            if mlen < size:
-                payload += zeros[mlen:]
-            vals[slot] = unpacker.unpack(payload)
-            pos = end + 2
-        att, aoa, hud, self.gps = vals
-        if att is None or aoa is None or hud is None:
-            return -1
-        # ATTITUDE <Iffffff time_boot_ms roll pitch yaw rollspeed pitchspeed yawspeed;
-        # AOA_SSA <Qff time_usec AOA SSA; VFR_HUD <ffffhH airspeed groundspeed alt climb
-        # heading throttle (wire order, checked by _lean_self_check)
-        stamp = aoa[0]
-        meas_out[M_T_S] = stamp * 1e-6
-        meas_out[M_ROLL] = att[1]
-        meas_out[M_PITCH] = att[2]
-        meas_out[M_YAW] = att[3]
-        meas_out[M_P] = att[4]
-        meas_out[M_Q] = att[5]
-        meas_out[M_R] = att[6]
-        meas_out[M_AOA] = math.radians(aoa[1])
-        meas_out[M_SSA] = math.radians(aoa[2])
-        meas_out[M_AIRSPEED] = hud[0]
-        meas_out[M_ALT] = hud[2]
-        meas_out[M_CLIMB] = hud[3]
-        meas_out[M_GROUNDSPEED] = hud[1]
-        meas_out[M_HEADING] = math.radians(hud[4])
-        return stamp
-
-
-class _LeanServoPacker:
-    """SERVO_OUTPUT_RAW with channels 1-4 only (port 0, other channels 0), framed as the
-    codec's ``msg.pack`` does (MAVLink 2, unsigned, trailing-zero truncation), from the
-    codec's own payload layout and CRC_EXTRA. Checked byte for byte against the codec by
-    ``_lean_self_check``."""
-
-    _CLS = mavlink.MAVLink_servo_output_raw_message
-
-    def __init__(self, sysid: int, compid: int) -> None:
-        import struct
-        # wire order: time_usec (u32), servo1..4 (u16) lead the payload; the rest is zero
-        assert self._CLS.unpacker.format.startswith("<IHHHH")
-        self.head = struct.Struct("<IHHHH")
-        self.hdr = bytearray((_MAGIC2, 0, 0, 0, 0, sysid & 0xFF, compid & 0xFF,
-                              self._CLS.id & 0xFF, (self._CLS.id >> 8) & 0xFF,
-                              self._CLS.id >> 16))
-        self.extra = bytes((self._CLS.crc_extra,))
-
-    def pack(self, seq: int, time_usec: int, s1: int, s2: int, s3: int, s4: int = 0) -> bytes:
-        payload = self.head.pack(time_usec, s1, s2, s3, s4).rstrip(b"\0") or b"\0"
-        h = self.hdr
-        h[1] = len(payload)
-        h[4] = seq
-        frame = bytes(h) + payload
-        crc = _crc16(self.extra, _crc16(frame[1:]))
-        return frame + bytes((crc & 0xFF, crc >> 8))
-
-
-def _payload_only(_mav, _crc_extra, payload, force_mavlink1=False):
-    return payload
-
-
-class LeanFramer:
-    """MAVLink 2 framing (unsigned) of the codec's message objects without the codec's
-    per-message overhead: the payload from the message's own generated ``pack`` (its wire-order
-    struct, arrays and strings as the codec handles them), then trailing-zero truncation,
-    header and CRC with CRC_EXTRA as ``msg.pack(mav)`` does: the same bytes (``ok`` is the
-    start-up check against the codec; False: callers use ``msg.pack``). About 3 us instead
-    of 9-12 us per message; the fc's flight log frames every message with it."""
-
-    def __init__(self, sysid: int, compid: int) -> None:
-        self.hdr = bytearray((_MAGIC2, 0, 0, 0, 0, sysid & 0xFF, compid & 0xFF, 0, 0, 0))
-        self.ok = False
-        try:
-            self.ok = self._self_check(sysid, compid)
-        except Exception:  # noqa: BLE001 - any surprise: the codec's own pack
-            self.ok = False
-
-    def frame(self, msg, seq: int) -> bytes:
-        msg._pack = _payload_only          # the generated pack hands us its payload
-        try:
-            payload = msg.pack(None)
-        finally:
-            del msg._pack
-        payload = payload.rstrip(b"\0") or b"\0"
-        h = self.hdr
-        mid = msg.get_msgId()           # (STATUSTEXT has a field named id)
-        h[1] = len(payload)
-        h[4] = seq
-        h[7] = mid & 0xFF
-        h[8] = (mid >> 8) & 0xFF
-        h[9] = mid >> 16
-        frame = bytes(h) + payload
-        crc = _crc16(bytes((msg.crc_extra,)), _crc16(frame[1:]))
-        return frame + bytes((crc & 0xFF, crc >> 8))
-
-    def _self_check(self, sysid: int, compid: int) -> bool:
-        c = new_codec(sysid, compid)
-        samples = (c.attitude_encode(123, 0.1, -0.2, 0.3, 0.0, 1e-3, -2.5),
-                   c.heartbeat_encode(1, 0, 129, 2, 4),
-                   c.debug_vect_encode(b"SIM_T", 2_000_000, 2.0, 0.0, 0.0),
-                   c.named_value_float_encode(7, b"GAMMA_DEG", -0.5),
-                   c.home_position_encode(349054000, -1178839000, 21_000_000, 0.0, 0.0, 0.0,
-                                          [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 5),
-                   c.gps_raw_int_encode(10, 3, 1, -1, 0, 65535, 65535, 65535, 0, 12, 0, 1500,
-                                        3000, 100, 0, 0),
-                   c.statustext_encode(6, b"home set"),
-                   c.system_time_encode(0, 0))
-        for seq, msg in zip((0, 1, 255, 7, 128, 3, 9, 200), samples):
-            c.seq = seq
-            if self.frame(msg, seq) != msg.pack(c):
-                return False
-        return True
 
 
 def _lean_self_check(link: "PlantLink") -> bool:
@@ -541,15 +179,15 @@ class PlantLink:
     gps: np.ndarray = None
     gps_samples: int = 0
     _tx_codec: mavlink.MAVLink = None
-    _lean: _LeanSensorDecoder | None = None
-    _packer: _LeanServoPacker | None = None
+    _lean: SensorDecoder | None = None
+    _packer: ServoPacker | None = None
 
     def __post_init__(self) -> None:
         self.gps = np.zeros(G_N)
         self.codec = new_codec(self.sysid, self.compid)
         self._tx_codec = new_codec(self.sysid, self.compid)
-        self._lean = _LeanSensorDecoder()
-        self._packer = _LeanServoPacker(self.sysid, self.compid)
+        self._lean = SensorDecoder()
+        self._packer = ServoPacker(self.sysid, self.compid)
         if not _lean_self_check(self):
             self._lean = None
             self._packer = None

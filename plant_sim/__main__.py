@@ -89,7 +89,7 @@ def main(argv=None) -> int:
             print("WARNING: not trimmable within the surface limits at every point above")
         return 0
 
-    from plant_sim.link import parse_hostport
+    from hyfc_wire.udp import parse_hostport
     from plant_sim.process import RunConfig, _Fatal, run
     try:
         fc = parse_hostport(args.fc, "--fc")

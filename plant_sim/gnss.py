@@ -1,8 +1,9 @@
 """GNSS receiver model: flat-earth NED position and velocity mapped to latitude/longitude about
 the scenario origin, sampled at the receiver rate, with seeded white noise and a latency.
 
-The sample layout G_* is the contract of docs/wire.md section 2 (fc/link.py defines the same
-constants). Per sample (every ``round(frame_hz / rate_hz)`` frames):
+The sample layout G_* is the contract of docs/wire.md section 2 (defined once, in
+hyfc_wire.layout, for the plant and the fc). Per sample (every ``round(frame_hz / rate_hz)``
+frames):
 
     pos_ned = pos_ned_true(t - latency) + [s_h n1, s_h n2, s_v n3]     (m)
     vel_ned = vel_ned_true(t - latency) + s_vel [n4, n5, n6]           (m/s)
@@ -28,26 +29,13 @@ from collections import deque
 
 import numpy as np
 
+from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
+                              G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN)  # the GNSS sample layout
 from plant_sim.dynamics import X_PD, X_PE, X_PN, X_Q0, X_Q1, X_Q2, X_Q3, X_U, X_V, X_W
 
 __all__ = ["GnssSensor", "ned_to_geodetic", "geodetic_to_ned", "G_T_S", "G_LAT_DEG",
            "G_LON_DEG", "G_ALT_M", "G_VN", "G_VE", "G_VD", "G_FIX", "G_SATS", "G_HACC_M",
            "G_VACC_M", "G_SACC_M_S", "G_N", "GNSS_STREAM"]
-
-# GNSS sample layout (SI, degrees for lat/lon), docs/wire.md section 2
-G_T_S = 0          # stamp of the frame the sample is sent with (s)
-G_LAT_DEG = 1
-G_LON_DEG = 2
-G_ALT_M = 3        # MSL
-G_VN = 4           # m/s, NED
-G_VE = 5
-G_VD = 6
-G_FIX = 7          # GPS_FIX_TYPE (3 = 3D fix)
-G_SATS = 8
-G_HACC_M = 9       # reported 1-sigma accuracies
-G_VACC_M = 10
-G_SACC_M_S = 11
-G_N = 12
 
 GNSS_STREAM = 0x474E5353      # "GNSS": second word of the receiver's generator seed
 WGS84_A_M = 6378137.0

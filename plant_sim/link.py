@@ -8,144 +8,25 @@ non-blocking UDP socket (docs/wire.md sections 2-4):
   only, converts PWM to deflection through MIN/TRIM/MAX (ArduPilot SERVOn_*), and counts
   everything it rejects (malformed bytes, wrong source address, wrong system id, other
   messages). It never raises on input.
+
+The message layouts, the lean framing (same bytes as the codec), the PWM map and the codec
+itself come from the contract package (hyfc_wire); this module is the plant's one MAVLink edge.
 """
 from __future__ import annotations
 
 import errno
 import math
-import os
 import select
 import socket
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+from hyfc_wire.codec import mavlink, new_codec, reset_parser
+from hyfc_wire.framing import GPS_HDOP, HDR2, U32, SensorFramer, ServoDecoder, ServoPacker
+from hyfc_wire.pwm import DEFAULT_PWM, PwmMap, throttle_from_pwm, throttle_to_pwm
 
-DEG = math.pi / 180.0
 RAD = 180.0 / math.pi
 MSG_ID_SERVO_OUTPUT_RAW = mavlink.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW
 BAD_DATA = mavlink.MAVLink_bad_data
-U32 = 1 << 32
-HDR2 = 10            # MAVLink 2 header length
-MAGIC2 = mavlink.PROTOCOL_MARKER_V2
-
-_mcrf4xx = getattr(mavlink, "mcrf4xx", None)     # fastcrc's CRC-16/MCRF4XX, as the codec uses
-
-
-def _crc16(data, init: int = 0xFFFF) -> int:
-    """X.25 CRC (CRC-16/MCRF4XX) of the codec, starting from ``init``."""
-    if _mcrf4xx is not None:
-        return _mcrf4xx(data, init)
-    c = mavlink.x25crc()
-    c.crc = init
-    c.accumulate(bytes(data))
-    return c.crc
-
-
-class _Packer:
-    """Lean MAVLink 2 framing of one message type with the generated codec's own payload
-    struct (wire field order), CRC_EXTRA and message id, written in place into a bytearray.
-    Produces the same bytes as ``msg.pack(mav)`` (checked at link start-up)."""
-
-    def __init__(self, cls, msg_id: int):
-        self.st = cls.unpacker
-        self.size = cls.unpacker.size
-        self.crc_extra = cls.crc_extra
-        self.id_lo = msg_id & 0xFF
-        self.id_mid = (msg_id >> 8) & 0xFF
-        self.id_hi = msg_id >> 16
-
-    def pack_into(self, buf: bytearray, mv: memoryview, pos: int, seq: int, sysid: int,
-                  compid: int, *fields) -> int:
-        """Frame at ``pos``; returns the position after it."""
-        pl = pos + HDR2
-        self.st.pack_into(buf, pl, *fields)
-        n = self.size
-        while n > 1 and buf[pl + n - 1] == 0:       # MAVLink 2 trailing-zero truncation
-            n -= 1
-        buf[pos] = MAGIC2
-        buf[pos + 1] = n
-        buf[pos + 2] = 0
-        buf[pos + 3] = 0
-        buf[pos + 4] = seq
-        buf[pos + 5] = sysid
-        buf[pos + 6] = compid
-        buf[pos + 7] = self.id_lo
-        buf[pos + 8] = self.id_mid
-        buf[pos + 9] = self.id_hi
-        end = pl + n
-        buf[end] = self.crc_extra                   # CRC covers header[1:], payload, CRC_EXTRA
-        crc = _crc16(mv[pos + 1:end + 1])
-        buf[end] = crc & 0xFF
-        buf[end + 1] = crc >> 8
-        return end + 2
-
-
-_P_ATT = _Packer(mavlink.MAVLink_attitude_message, mavlink.MAVLINK_MSG_ID_ATTITUDE)
-_P_AOA = _Packer(mavlink.MAVLink_aoa_ssa_message, mavlink.MAVLINK_MSG_ID_AOA_SSA)
-_P_HUD = _Packer(mavlink.MAVLink_vfr_hud_message, mavlink.MAVLINK_MSG_ID_VFR_HUD)
-_P_GPS = _Packer(mavlink.MAVLink_gps_input_message, mavlink.MAVLINK_MSG_ID_GPS_INPUT)
-GPS_HDOP = 1.0       # GPS_INPUT hdop/vdop: a nominal constellation (accuracies carry the noise)
-_SERVO = mavlink.MAVLink_servo_output_raw_message
-# wire order: time_usec, servo1..8, port, servo9..16
-_P_SERVO = _Packer(_SERVO, MSG_ID_SERVO_OUTPUT_RAW)
-_SERVO_CRC_EXTRA = _SERVO.crc_extra
-_SERVO_SIZE = _SERVO.unpacker.size
-_ZEROS = bytes(_SERVO_SIZE)
-
-
-def parse_hostport(text: str, what: str) -> tuple[str, int]:
-    """'HOST:PORT' -> (host, port); ValueError with a clear message otherwise."""
-    host, sep, port = text.rpartition(":")
-    if not sep or not host:
-        raise ValueError(f"{what}: expected HOST:PORT, got {text!r}")
-    try:
-        p = int(port)
-    except ValueError:
-        raise ValueError(f"{what}: port must be an integer, got {port!r}") from None
-    if not 0 <= p <= 65535:
-        raise ValueError(f"{what}: port {p} out of range 0..65535")
-    return host, p
-
-
-#: Throttle on SERVO_OUTPUT_RAW servo4 (docs/wire.md s. 3): PWM 1000..2000 us = 0..1.
-THROTTLE_PWM_MIN_US = 1000
-THROTTLE_PWM_MAX_US = 2000
-
-
-def throttle_from_pwm(pwm_us: int) -> float:
-    """servo4 PWM (us) -> throttle 0..1, clipped (1000 us = 0, 2000 us = 1)."""
-    f = (pwm_us - THROTTLE_PWM_MIN_US) / (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)
-    return 0.0 if f < 0.0 else 1.0 if f > 1.0 else f
-
-
-class PwmMap:
-    """PWM (us) <-> deflection (rad) as ArduPilot's SERVOn_MIN/TRIM/MAX (docs/wire.md s. 3)."""
-
-    def __init__(self, pwm_min: int, pwm_trim: int, pwm_max: int, limit_rad: float):
-        if not pwm_min < pwm_trim < pwm_max:
-            raise ValueError("PWM map needs MIN < TRIM < MAX")
-        self.pwm_min = pwm_min
-        self.pwm_trim = pwm_trim
-        self.pwm_max = pwm_max
-        self.limit_rad = limit_rad
-        self._up = limit_rad / (pwm_max - pwm_trim)
-        self._down = limit_rad / (pwm_trim - pwm_min)
-
-    def to_rad(self, pwm: int) -> float:
-        if pwm < self.pwm_min:
-            pwm = self.pwm_min
-        elif pwm > self.pwm_max:
-            pwm = self.pwm_max
-        d = pwm - self.pwm_trim
-        return d * self._up if d >= 0 else d * self._down
-
-    def to_pwm(self, rad: float) -> int:
-        if rad >= 0.0:
-            v = self.pwm_trim + rad / self._up
-        else:
-            v = self.pwm_trim + rad / self._down
-        v = int(round(v))
-        return min(self.pwm_max, max(self.pwm_min, v))
+_SENSOR_FRAMER = SensorFramer()
 
 
 class PlantLink:
@@ -169,8 +50,7 @@ class PlantLink:
         self.sock.bind((bind_addr[0], int(bind_addr[1])))
         self.sock.setblocking(False)
         self.local_addr = self.sock.getsockname()
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.mav.robust_parsing = True
+        self.mav = new_codec(sysid, compid)
         self.fc_sysid = fc_sysid
         self.pwm = pwm
         self._out = bytearray(512)
@@ -192,9 +72,7 @@ class PlantLink:
         self.rejected_sysid = 0
         self.ignored_messages = 0
         self.send_errors = 0
-        self._crcbuf = bytearray(300)
-        self._crc_mv = memoryview(self._crcbuf)
-        self._pad = bytearray(_SERVO_SIZE)
+        self._servo_decoder = ServoDecoder()
         self.lean = True
         self.lean = self._self_check()     # False: use the codec's message objects throughout
 
@@ -217,33 +95,11 @@ class PlantLink:
         if not self.lean:
             self._build_with_codec(stamp_us, meas, throttle_pct, gnss)
             return
-        buf = self._out
-        mv = self._out_mv
         mav = self.mav
-        seq = mav.seq
-        sy = mav.srcSystem
-        co = mav.srcComponent
-        hdg = int(meas[13] * RAD + 0.5) % 360
-        thr = int(min(100.0, max(0.0, throttle_pct)) + 0.5)
-        pos = _P_ATT.pack_into(buf, mv, 0, seq, sy, co, (stamp_us // 1000) % U32,
-                               meas[1], meas[2], meas[3], meas[4], meas[5], meas[6])
-        pos = _P_AOA.pack_into(buf, mv, pos, (seq + 1) & 0xFF, sy, co, stamp_us,
-                               meas[7] * RAD, meas[8] * RAD)
-        # VFR_HUD wire order: airspeed, groundspeed, alt, climb, heading, throttle
-        pos = _P_HUD.pack_into(buf, mv, pos, (seq + 2) & 0xFF, sy, co, meas[9], meas[12],
-                               meas[10], meas[11], hdg, thr)
-        if gnss is None:
-            mav.seq = (seq + 3) & 0xFF
-        else:
-            # GPS_INPUT wire order: time_usec, time_week_ms, lat, lon, alt, hdop, vdop, vn, ve,
-            # vd, speed_accuracy, horiz_accuracy, vert_accuracy, ignore_flags, time_week,
-            # gps_id, fix_type, satellites_visible, yaw
-            pos = _P_GPS.pack_into(buf, mv, pos, (seq + 3) & 0xFF, sy, co, stamp_us, 0,
-                                   int(round(gnss[1] * 1e7)), int(round(gnss[2] * 1e7)),
-                                   gnss[3], GPS_HDOP, GPS_HDOP, gnss[4], gnss[5], gnss[6],
-                                   gnss[11], gnss[9], gnss[10], 0, 0, 0, int(gnss[7]),
-                                   int(gnss[8]), 0)
-            mav.seq = (seq + 4) & 0xFF
+        pos, frames = _SENSOR_FRAMER.pack_into(self._out, self._out_mv, mav.seq, mav.srcSystem,
+                                               mav.srcComponent, stamp_us, meas, throttle_pct,
+                                               gnss)
+        mav.seq = (mav.seq + frames) & 0xFF
         self._out_len = pos
 
     def _build_with_codec(self, stamp_us: int, meas, throttle_pct: float, gnss=None) -> None:
@@ -280,7 +136,7 @@ class PlantLink:
             self.mav.seq = seq0
             if lean != ref:
                 return False
-        m = mavlink.MAVLink(None, srcSystem=self.fc_sysid, srcComponent=1)
+        m = new_codec(self.fc_sysid)
         frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 1500, 0, 0, 0, 0).pack(m)
         got = self._decode_servo_fast(frame, len(frame))
         return got == (self.fc_sysid, 987654, 1234, 1766, 0, 1500)
@@ -375,9 +231,7 @@ class PlantLink:
                 self.rejected_malformed += 1
             if mav.buf_len() > 0:   # a datagram is self-contained: drop leftover partial bytes
                 self.rejected_malformed += 1
-            mav.buf = bytearray()
-            mav.buf_index = 0
-            mav.expected_length = mavlink.HEADER_LEN_V1 + 2
+            reset_parser(mav)
             if not msgs:
                 continue
             for m in msgs:
@@ -423,27 +277,9 @@ class PlantLink:
         return self._decode_servo_fast(data, len(data))
 
     def _decode_servo_fast(self, buf, n: int):
-        """Decode a datagram that is exactly one unsigned MAVLink 2 SERVO_OUTPUT_RAW with a good
-        CRC: returns (sysid, time_usec, servo1, servo2, servo3, servo4), else None (the caller then
-        takes the codec's general parser, which also counts malformed input)."""
-        if n < HDR2 + 3 or buf[0] != MAGIC2 or buf[2] != 0:
-            return None
-        mlen = buf[1]
-        if n != HDR2 + mlen + 2 or mlen > _SERVO_SIZE:
-            return None
-        if buf[7] != MSG_ID_SERVO_OUTPUT_RAW or buf[8] != 0 or buf[9] != 0:
-            return None
-        end = HDR2 + mlen
-        cb = self._crcbuf
-        cb[0:end - 1] = buf[1:end]
-        cb[end - 1] = _SERVO_CRC_EXTRA
-        if _crc16(self._crc_mv[:end]) != buf[end] | (buf[end + 1] << 8):
-            return None
-        pad = self._pad
-        pad[0:mlen] = buf[HDR2:end]
-        pad[mlen:] = _ZEROS[mlen:]
-        v = _SERVO.unpacker.unpack_from(pad, 0)
-        return buf[5], v[0], v[1], v[2], v[3], v[4]
+        """(sysid, time_usec, servo1..4) of a datagram that is exactly one good unsigned
+        SERVO_OUTPUT_RAW, else None (the caller takes the general parser, which counts)."""
+        return self._servo_decoder.decode(buf, n)
 
     def counters(self) -> dict:
         return {
@@ -475,9 +311,9 @@ class ServoResponder:
         self.sock.bind(bind_addr)
         self.sock.setblocking(False)
         self.addr = self.sock.getsockname()
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=1)
-        self.mav.robust_parsing = True
-        self.pwm = pwm or PwmMap(1000, 1500, 2000, 20.0 * DEG)
+        self.mav = new_codec(sysid)
+        self.pwm = pwm or DEFAULT_PWM
+        self._servo_packer = ServoPacker(sysid)
         self.answered = 0
         self.peer = None
         self._rx = bytearray(2048)
@@ -512,10 +348,7 @@ class ServoResponder:
             return False
         d = fn(stamp, vals)
         pw = [self.pwm.to_pwm(v) for v in d[:3]]
-        s4 = 0
-        if len(d) > 3:
-            s4 = int(round(THROTTLE_PWM_MIN_US
-                           + min(max(d[3], 0.0), 1.0) * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US)))
+        s4 = throttle_to_pwm(d[3]) if len(d) > 3 else 0
         msg = self.mav.servo_output_raw_encode(stamp % U32, 0, pw[0], pw[1], pw[2], s4, 0, 0, 0, 0)
         b = msg.pack(self.mav)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
@@ -545,11 +378,8 @@ class ServoResponder:
         pay = bytearray(16)
         pay[0:min(mlen, 16)] = b[pos + HDR2:pos + HDR2 + min(mlen, 16)]
         stamp = int.from_bytes(pay[0:8], "little")
-        end = _P_SERVO.pack_into(self._tx, self._tx_mv, 0, self.mav.seq, self.mav.srcSystem,
-                                 self.mav.srcComponent, stamp % U32, 1500, 1500, 1500,
-                                 0, 0, 0, 0, 0,         # servo4..8
-                                 0,                     # port
-                                 0, 0, 0, 0, 0, 0, 0, 0)  # servo9..16
+        end = self._servo_packer.pack_into(self._tx, self._tx_mv, 0, self.mav.seq, stamp % U32,
+                                           1500, 1500, 1500)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.sock.sendto(self._tx_mv[:end], addr)
         self.answered += 1
@@ -560,7 +390,7 @@ class ServoResponder:
 
     def servo_frame(self, stamp_us: int, pwm3, sysid: int | None = None) -> bytes:
         """Bytes of a SERVO_OUTPUT_RAW frame (optionally from another system id)."""
-        mav = self.mav if sysid is None else mavlink.MAVLink(None, srcSystem=sysid, srcComponent=1)
+        mav = self.mav if sysid is None else new_codec(sysid)
         return mav.servo_output_raw_encode(stamp_us % U32, 0, pwm3[0], pwm3[1], pwm3[2],
                                            0, 0, 0, 0, 0).pack(mav)
 

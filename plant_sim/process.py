@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
-from plant_sim.link import PlantLink, PwmMap
+from plant_sim.link import PlantLink
 from plant_sim.scenario import Scenario
 from plant_sim.sensors import M_N
 from plant_sim.sim import PlantSim

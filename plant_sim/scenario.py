@@ -3,7 +3,8 @@
 ``load(name_or_path) -> Scenario``. Every key of the schema below has a default, a unit in its
 name and a range; unknown keys, wrong types and out-of-range values raise ``ScenarioError``
 with a message naming the file and the dotted key. The command timeline is a list of
-``[[command]]`` tables ``{ t_s, alpha_deg, beta_deg, mu_deg }`` (architecture.md section 7).
+``[[command]]`` tables ``{ t_s, alpha_deg, beta_deg, mu_deg }`` (architecture.md section 7),
+read as every reader reads it (hyfc_wire.timeline: sorted by t_s, a left-out angle holds).
 Degrees only here, at the edge; ``Scenario`` exposes SI helpers.
 """
 from __future__ import annotations
@@ -15,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hyfc_wire.timeline import COMMAND, TARGET, TableSpec, TimelineError, read_entries, rows
 from plant_sim import vehicle
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
@@ -168,13 +170,9 @@ SCHEMA: dict[str, Any] = {
     },
 }
 
-COMMAND_KEYS = {"t_s": (0.0, 1e6), "alpha_deg": (-10.0, 30.0), "beta_deg": (-20.0, 20.0),
-                "mu_deg": (-90.0, 90.0)}
-#: Guidance targets ``[[target]]`` (guided scenarios: cruise, mission): altitude, course and
-#: speed from ``t_s`` on. Like the command timeline they belong to the controller; the plant
-#: ignores them and the in-process guided loop (tools.guided_loop) reads them.
-TARGET_KEYS = {"t_s": (0.0, 1e6), "alt_m": (0.0, 80000.0), "course_deg": (-360.0, 360.0),
-               "speed_m_s": (100.0, 8000.0)}
+#: The ``[[command]]`` and ``[[target]]`` timelines (guided scenarios: cruise, mission) belong
+#: to the controller; the plant reads them with the contract's reader (hyfc_wire.timeline: one
+#: meaning for every reader) and uses the commands only for the trim report.
 
 
 def _check_value(where: str, key: Key, value: Any) -> Any:
@@ -286,7 +284,7 @@ class Scenario:
                          f"mu_deg = {float(m)!r}")
         for row in self.targets:
             lines.append("\n[[target]]")
-            lines.extend(f"{k} = {float(v)!r}" for k, v in zip(TARGET_KEYS, row))
+            lines.extend(f"{k} = {float(v)!r}" for k, v in zip(TARGET.keys, row))
         return "\n".join(lines) + "\n"
 
 
@@ -314,11 +312,11 @@ def parse(text: str, src: str = "<string>", name: str = "") -> Scenario:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"{src}: not valid TOML: {e}") from None
-    cmds_raw = raw.pop("command", [])
-    tgts_raw = raw.pop("target", [])
+    cmds_raw = raw.pop("command", None)
+    tgts_raw = raw.pop("target", None)
     data = _apply(src, SCHEMA, raw, "")
-    commands = _timeline(src, "command", cmds_raw, COMMAND_KEYS)
-    targets = _timeline(src, "target", tgts_raw, TARGET_KEYS)
+    commands = _timeline(src, cmds_raw, COMMAND)
+    targets = _timeline(src, tgts_raw, TARGET)
     t = data["timing"]
     ratio = t["physics_hz"] / t["frame_hz"]
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -333,30 +331,12 @@ def parse(text: str, src: str = "<string>", name: str = "") -> Scenario:
     return Scenario(name=data["name"], path=src, data=data, commands=commands, targets=targets)
 
 
-def _timeline(src: str, what: str, raw: Any, keys: dict) -> list:
-    """Validate an array of tables ``[[what]]`` with the float ``keys`` {name: (lo, hi)}, the
-    first being ``t_s`` (non-decreasing); returns a list of tuples in ``keys`` order."""
-    if not isinstance(raw, list):
-        raise ScenarioError(f"{src}: '{what}' must be an array of tables ([[{what}]])")
-    rows = []
-    last_t = -1.0
-    for i, c in enumerate(raw):
-        if not isinstance(c, dict):
-            raise ScenarioError(f"{src}: {what}[{i}] must be a table")
-        for k in c:
-            if k not in keys:
-                raise ScenarioError(f"{src}: unknown key '{what}[{i}].{k}' "
-                                    f"(known: {', '.join(keys)})")
-        row = []
-        for k, (lo, hi) in keys.items():
-            if k not in c:
-                raise ScenarioError(f"{src}: '{what}[{i}].{k}' is missing")
-            row.append(_check_value(f"{src}: '{what}[{i}].{k}'", Key("float", 0.0, lo, hi), c[k]))
-        if row[0] < last_t:
-            raise ScenarioError(f"{src}: '{what}[{i}].t_s' goes back in time ({row[0]} < {last_t})")
-        last_t = row[0]
-        rows.append(tuple(row))
-    return rows
+def _timeline(src: str, raw: Any, spec: TableSpec) -> list:
+    """The ``[[spec.name]]`` timeline as full rows (tuples in ``spec.keys`` order, file units)."""
+    try:
+        return rows(read_entries(raw, spec, src), spec, src)
+    except TimelineError as e:
+        raise ScenarioError(str(e)) from None
 
 
 def load(name_or_path: str | os.PathLike) -> Scenario:

@@ -2,8 +2,8 @@
 airspeed, altitude, climb), ground speed, each with seeded white noise, a constant bias and a
 latency.
 
-The measurement vector layout is the contract of docs/architecture.md section 4 (M_* below;
-fc/ defines the same constants and tools/closed_loop.py checks they agree).
+The measurement vector layout is the contract of docs/architecture.md section 4 (``M_*``,
+defined once in hyfc_wire.layout for the plant and the fc).
 
 Per channel i (all configurable, each off-able: std 0, bias 0, latency 0):
     meas[i] = clean[i](t - latency_i) + bias_i + std_i * n,   n ~ N(0, 1) (seeded)
@@ -22,31 +22,14 @@ import math
 import numpy as np
 from numba import njit
 
+from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB,  # noqa: F401 (re-exported)
+                              M_GROUNDSPEED, M_HEADING, M_N, M_P, M_PITCH, M_Q, M_R, M_ROLL,
+                              M_SSA, M_T_S, M_YAW, MEAS_NAMES)
 from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim.dynamics import (P_BIAS, P_DELAY, P_NOISE, P_DT, P_SENSORS_ON, X_P, X_PD, X_Q,
                                 X_R, X_STEP, euler_from_quat, flight_path)
 
 _refresh_jit_cache(__file__)
-
-M_T_S = 0
-M_ROLL = 1
-M_PITCH = 2
-M_YAW = 3
-M_P = 4
-M_Q = 5
-M_R = 6
-M_AOA = 7
-M_SSA = 8
-M_AIRSPEED = 9
-M_ALT = 10
-M_CLIMB = 11
-M_GROUNDSPEED = 12
-M_HEADING = 13
-M_N = 14
-
-MEAS_NAMES = ("t_s", "roll_rad", "pitch_rad", "yaw_rad", "p_rad_s", "q_rad_s", "r_rad_s",
-              "aoa_rad", "ssa_rad", "airspeed_m_s", "alt_m", "climb_m_s", "groundspeed_m_s",
-              "heading_rad")
 
 RING_N = 256          # latency buffer length in frames (max latency RING_N - 1 frames)
 

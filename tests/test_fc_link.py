@@ -1,4 +1,5 @@
-"""fc/link.py: PWM mapping, the never-raising decoder, plant-link filtering (loopback UDP)."""
+"""fc/link.py: the never-raising decoder, plant-link filtering (loopback UDP); the PWM map is
+tested with the contract (tests/test_wire_contract.py)."""
 from __future__ import annotations
 
 import math
@@ -10,29 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fc.link import (PWM_MAX_US, PWM_MIN_US, PlantLink, UdpEndpoint, decode_datagram,
-                     deflection_to_pwm, load_signing_key, new_codec, parse_hostport,
-                     pwm_to_deflection)
+from fc.link import PlantLink, UdpEndpoint, decode_datagram, load_signing_key, new_codec
 from tests.fc_harness import ScriptedPlant, level_meas
-
-
-def test_pwm_mapping_matches_wire_md():
-    assert deflection_to_pwm(0.0) == 1500
-    assert deflection_to_pwm(math.radians(20)) == 2000
-    assert deflection_to_pwm(math.radians(-20)) == 1000
-    assert deflection_to_pwm(math.radians(0.04)) == 1501          # 1 us = 0.04 deg
-    assert deflection_to_pwm(math.radians(45)) == PWM_MAX_US       # clipped
-    assert deflection_to_pwm(math.radians(-45)) == PWM_MIN_US
-    assert deflection_to_pwm(math.nan) == 1500                     # never a garbage PWM
-    for us in (1000, 1234, 1500, 1777, 2000):
-        assert deflection_to_pwm(pwm_to_deflection(us)) == us
-
-
-def test_parse_hostport():
-    assert parse_hostport("127.0.0.1:14550") == ("127.0.0.1", 14550)
-    for bad in ("14550", "host:", "host:x", "host:70000"):
-        with pytest.raises(ValueError):
-            parse_hostport(bad)
 
 
 @settings(max_examples=300, deadline=None)

@@ -428,32 +428,6 @@ def test_attitude_law_api_contract():
     assert d["lambda_e"] == 0.0 and "M_c_m_Nm" in d
 
 
-def test_stale_numba_cache_is_dropped(tmp_path):
-    import os
-    import time
-    from fc.control.numba_cache import drop_stale
-    mod = tmp_path / "kern.py"
-    dep = tmp_path / "dep.py"
-    mod.write_text("#\n")
-    dep.write_text("#\n")
-    pyc = tmp_path / "__pycache__"
-    pyc.mkdir()
-    files = [pyc / "kern.f-1.py311.nbi", pyc / "kern.f-1.py311.1.nbc"]
-    other = pyc / "other.g-1.py311.nbi"
-    for f in files + [other]:
-        f.write_bytes(b"x")
-    now = time.time()
-    os.utime(dep, (now - 100, now - 100))
-    for f in files:
-        os.utime(f, (now, now))
-    # GIVEN a cache newer than its dependency: kept
-    assert drop_stale(mod, [dep]) == 0 and all(f.exists() for f in files)
-    # WHEN the dependency changes after the cache was written: the module's cache goes
-    os.utime(dep, (now + 100, now + 100))
-    assert drop_stale(mod, [dep]) == 2
-    assert not any(f.exists() for f in files) and other.exists()
-
-
 def test_bad_input_holds_the_last_command():
     law = AttitudeLaw()
     est = paper_est()

@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from tools.linkimpair import Impairment, LinkImpair, RelayProcess, parse_hostport
+from tools.linkimpair import Impairment, LinkImpair, RelayProcess
 
 HDR = struct.Struct("<Id")   # sequence number, send time [s, monotonic]
 
@@ -239,13 +239,6 @@ def test_mutate_always_changes_the_datagram():
 def test_bad_configuration_is_refused(kw):
     with pytest.raises(ValueError):
         Impairment(**kw)
-
-
-def test_parse_hostport():
-    assert parse_hostport("127.0.0.1:9") == ("127.0.0.1", 9)
-    for bad in ("9", ":9", "h:x", "h:99999"):
-        with pytest.raises(ValueError):
-            parse_hostport(bad)
 
 
 def test_command_line_relay_prints_listen_and_counters():

@@ -29,13 +29,6 @@ enabled = {"true" if sensors else "false"}
 """)
 
 
-def test_layout_matches_the_fc():
-    import fc.link as fl
-    for name in gn.__all__:
-        if name.startswith("G_"):
-            assert getattr(fl, name) == getattr(gn, name), name
-
-
 @pytest.mark.parametrize("lat0, lon0, alt0", [(34.9054, -117.8839, 0.0), (-45.0, 179.9, 1500.0),
                                                (0.0, 0.0, 0.0), (80.0, -179.95, 10.0)])
 def test_lat_lon_round_trip_and_scale(lat0, lon0, alt0):

@@ -1,4 +1,4 @@
-"""The plant's MAVLink link: PWM map, lean framing identical to pymavlink's codec, strict
+"""The plant's MAVLink link: lean framing identical to pymavlink's codec, strict
 acceptance of servo frames, robustness against malformed datagrams (loopback sockets)."""
 import math
 import os
@@ -11,30 +11,9 @@ import pytest
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
-from plant_sim.link import PlantLink, PwmMap, parse_hostport  # noqa: E402
+from plant_sim.link import PlantLink, PwmMap  # noqa: E402
 
 DEG = math.pi / 180.0
-
-
-def test_pwm_map_matches_wire_md():
-    m = PwmMap(1000, 1500, 2000, 20.0 * DEG)
-    assert m.to_rad(1500) == 0.0
-    assert m.to_rad(2000) == pytest.approx(20.0 * DEG)
-    assert m.to_rad(1000) == pytest.approx(-20.0 * DEG)
-    assert m.to_rad(1501) == pytest.approx(0.04 * DEG)
-    assert m.to_rad(900) == pytest.approx(-20.0 * DEG) and m.to_rad(2600) == pytest.approx(20.0 * DEG)
-    asym = PwmMap(1100, 1400, 1900, 20.0 * DEG)       # different spans above and below trim
-    assert asym.to_rad(1250) == pytest.approx(-10.0 * DEG)
-    assert asym.to_rad(1650) == pytest.approx(10.0 * DEG)
-    for pwm in range(1000, 2001, 7):
-        assert m.to_pwm(m.to_rad(pwm)) == pwm
-
-
-def test_parse_hostport():
-    assert parse_hostport("127.0.0.1:14560", "--fc") == ("127.0.0.1", 14560)
-    for bad in ("14560", "host:", "host:x", "h:70000"):
-        with pytest.raises(ValueError, match="--fc"):
-            parse_hostport(bad, "--fc")
 
 
 @pytest.fixture()

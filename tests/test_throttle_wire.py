@@ -13,20 +13,9 @@ os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
 from fc.link import PlantLink as FcPlantLink, UdpEndpoint, throttle_to_pwm  # noqa: E402
-from plant_sim.link import PlantLink, PwmMap, throttle_from_pwm  # noqa: E402
+from plant_sim.link import PlantLink, PwmMap  # noqa: E402
 
 DEG = math.pi / 180.0
-
-
-def test_throttle_pwm_map_is_1000_to_2000_and_inverts():
-    assert throttle_to_pwm(0.0) == 1000 and throttle_to_pwm(1.0) == 2000
-    assert throttle_to_pwm(0.4224) == 1422
-    assert throttle_to_pwm(-0.3) == 1000 and throttle_to_pwm(7.0) == 2000     # clipped
-    assert throttle_to_pwm(math.nan) == 0                                      # no output
-    assert throttle_from_pwm(1000) == 0.0 and throttle_from_pwm(2000) == 1.0
-    assert throttle_from_pwm(900) == 0.0 and throttle_from_pwm(2100) == 1.0
-    for us in range(1000, 2001, 37):
-        assert throttle_to_pwm(throttle_from_pwm(us)) == us
 
 
 @pytest.fixture()

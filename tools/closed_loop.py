@@ -37,11 +37,12 @@ from plant_sim.sensors import M_N, measure
 from fc.estimator import LIMITS_HI, LIMITS_LO, estimate_kernel
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim, truth_kernel
 
-from fc.control.numba_cache import drop_stale
+from hyfc_wire.numba_cache import drop_stale
+from hyfc_wire.timeline import command_arrays
 
 # _run inlines the law's and the plant's kernels: recompile when any of them changed
 _ROOT = Path(__file__).resolve().parents[1]
-drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim")
+drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire")
                       for f in (_ROOT / pkg).glob("*.py")]
            + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])
 
@@ -220,16 +221,6 @@ class ClosedLoopResult:
         return out
 
 
-def command_timeline(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """The scenario's [[command]] timeline as (times (k,) s, commands (k, 3) rad)."""
-    if not scenario.commands:
-        raise ValueError(f"scenario {scenario.name!r} has no [[command]] timeline")
-    c = np.array(scenario.commands, dtype=np.float64)
-    order = np.argsort(c[:, 0], kind="stable")
-    c = c[order]
-    return np.ascontiguousarray(c[:, 0]), np.ascontiguousarray(np.radians(c[:, 1:4]))
-
-
 def simulate(scenario: str | Scenario, *, coordinated: bool = True,
              duration_s: float | None = None, seed: int | None = None,
              law_overrides: dict | None = None, fast_hz: float = 500.0,
@@ -287,7 +278,7 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
     if not dur > 0.0:
         raise ValueError(f"duration_s must be > 0, got {dur}")
     n_frames = int(round(dur / sim.frame_dt_s)) + 1
-    cmd_t, cmd_v = command_timeline(sc)
+    cmd_t, cmd_v = command_arrays(sc.commands)
     rec = int(record_every)
     n_rec_max = (n_frames + rec - 1) // rec
     out_truth = np.zeros((n_rec_max, TRUTH_N))

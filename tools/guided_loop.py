@@ -37,10 +37,11 @@ from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, 
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
 from tools.closed_loop import _divisor, sense_frame
 
-from fc.control.numba_cache import drop_stale
+from hyfc_wire.numba_cache import drop_stale
+from hyfc_wire.timeline import target_arrays
 
 _ROOT = Path(__file__).resolve().parents[1]
-drop_stale(__file__, [str(f) for pkg in ("fc/control", "fc/guidance", "plant_sim")
+drop_stale(__file__, [str(f) for pkg in ("fc/control", "fc/guidance", "plant_sim", "hyfc_wire")
                       for f in (_ROOT / pkg).glob("*.py")]
            + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])
 
@@ -280,14 +281,12 @@ class GuidedResult:
 
 def target_timeline(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """The scenario's [[target]] timeline as (times (k,) s, targets (k, TG_N) SI)."""
-    if not scenario.targets:
-        raise ValueError(f"scenario {scenario.name!r} has no [[target]] timeline")
-    rows = np.array(scenario.targets, dtype=np.float64)
-    tg = np.zeros((len(rows), G.TG_N))
-    tg[:, G.TG_H] = rows[:, 1]
-    tg[:, G.TG_CHI] = np.radians(rows[:, 2])
-    tg[:, G.TG_V] = rows[:, 3]
-    return np.ascontiguousarray(rows[:, 0]), tg
+    t_s, alt_course_speed = target_arrays(scenario.targets, scenario.name)
+    tg = np.zeros((len(t_s), G.TG_N))
+    tg[:, G.TG_H] = alt_course_speed[:, 0]
+    tg[:, G.TG_CHI] = alt_course_speed[:, 1]
+    tg[:, G.TG_V] = alt_course_speed[:, 2]
+    return t_s, tg
 
 
 def fly(scenario: str | Scenario, *, duration_s: float | None = None, seed: int | None = None,

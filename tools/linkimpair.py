@@ -67,6 +67,8 @@ import threading
 import time
 from dataclasses import asdict, dataclass
 
+from hyfc_wire.udp import parse_hostport
+
 __all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "mutate",
            "COUNTER_NAMES"]
 
@@ -104,20 +106,6 @@ def mutate(data: bytes, rng: random.Random) -> bytes:
     if bytes(b) == data:
         b.append(rng.getrandbits(8))
     return bytes(b)
-
-
-def parse_hostport(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` -> (host, port); ValueError with a clear message otherwise."""
-    host, sep, port = str(text).rpartition(":")
-    if not sep or not host:
-        raise ValueError(f"expected HOST:PORT, got {text!r}")
-    try:
-        n = int(port)
-    except ValueError:
-        raise ValueError(f"port must be an integer in {text!r}") from None
-    if not 0 <= n <= 65535:
-        raise ValueError(f"port out of range in {text!r}")
-    return host, n
 
 
 @dataclass(frozen=True)

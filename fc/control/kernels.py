@@ -62,7 +62,7 @@ from fc.control.params import (
 )
 
 from fc.control import layout as _layout, nominal as _nominal, params as _params
-from fc.control.numba_cache import drop_stale
+from hyfc_wire.numba_cache import drop_stale
 
 # this module's kernels freeze the constants of layout/params and inline nominal's functions
 drop_stale(__file__, [_layout.__file__, _params.__file__, _nominal.__file__])

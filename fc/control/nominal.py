@@ -37,7 +37,7 @@ from fc.control.layout import (
 from fc.control.params import P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_MDL_MASS, P_MDL_XCG
 
 from fc.control import layout as _layout, params as _params
-from fc.control.numba_cache import drop_stale
+from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_layout.__file__, _params.__file__])
 

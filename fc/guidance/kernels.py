@@ -61,7 +61,7 @@ from fc.guidance.params import (
     P_GS_VI_MAX,
 )
 from fc.control import layout as _claw, nominal as _nominal
-from fc.control.numba_cache import drop_stale
+from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_layout.__file__, _params.__file__, _claw.__file__, _nominal.__file__])
 

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hyfc_wire import timeline
+
 from tools import metrics
 
 TIMELINE_FILE = "timeline.toml"
@@ -37,19 +39,12 @@ class RunDataError(RuntimeError):
 
 # ---- timeline ---------------------------------------------------------------------------
 def read_timeline(path: Path) -> list[dict]:
-    """The ``[[command]]`` tables of a TOML file (scenario or timeline), sorted by t_s."""
-    with open(path, "rb") as f:
-        data = tomllib.load(f)
-    cmds = data.get("command", [])
-    if not isinstance(cmds, list):
-        raise RunDataError(f"{path}: 'command' must be an array of tables")
-    out = []
-    for k, c in enumerate(cmds):
-        if "t_s" not in c:
-            raise RunDataError(f"{path}: command #{k} has no t_s")
-        out.append({key: float(v) for key, v in c.items()
-                    if key in ("t_s", "alpha_deg", "beta_deg", "mu_deg")})
-    return sorted(out, key=lambda c: c["t_s"])
+    """The ``[[command]]`` tables of a TOML file (scenario or timeline): hyfc_wire.timeline's
+    entries (sorted by t_s, the keys each gives, deg)."""
+    try:
+        return timeline.read_file(path)
+    except timeline.TimelineError as e:
+        raise RunDataError(str(e)) from None
 
 
 def write_timeline(path: Path, commands: list[dict], header: str = "") -> None:

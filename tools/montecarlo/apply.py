@@ -103,14 +103,6 @@ def apply(scenario, values: dict):
     return parse(edited.to_toml(), src=f"{scenario.path} (dispersed)", name=scenario.name)
 
 
-def command_timeline(scenario) -> tuple[np.ndarray, np.ndarray]:
-    """The scenario's [[command]] timeline: times (k,) s, commands (k, 3) rad."""
-    if not scenario.commands:
-        return np.array([0.0]), np.zeros((1, 3))
-    c = np.array(scenario.commands, dtype=float)
-    return c[:, 0].copy(), np.radians(c[:, 1:4])
-
-
 def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
                     full: bool = False):
     """Fly one variant of a dispersed scenario with ``tools.closed_loop.simulate``.

@@ -312,13 +312,13 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
     """The scenario's command timeline: (times s (k,), commands deg (k, 3) alpha/beta/mu)."""
     if cfg.backend == "standin":
         return np.array([0.0]), np.array([[5.0, 0.0, 4.0]])
-    from tools.montecarlo import apply
-    t, cmd_rad = apply.command_timeline(_base_scenario(cfg.scenario))
+    from hyfc_wire.timeline import command_arrays
+    t, cmd_rad = command_arrays(_base_scenario(cfg.scenario).commands)
     return np.asarray(t, float), np.degrees(np.asarray(cmd_rad, float))
 
 
 #: the sources whose contents decide a case's result (fingerprinted into campaign.json)
-_CODE_GLOBS = ("fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
+_CODE_GLOBS = ("hyfc_wire/*.py", "fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
                "tools/closed_loop.py", "tools/metrics.py", "tools/montecarlo/case.py",
                "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py")
 
