@@ -133,7 +133,7 @@ def flight_from_result(res, full: bool = False):
     With ``full``, ``Flight.full`` holds the arrays ``tools.plots`` draws (rates, surfaces,
     limits) plus the plant's truth and the law's status with their column names.
     """
-    from tools.montecarlo.case import Flight
+    from tools.montecarlo.flight import Flight
     fl = Flight(t_s=res.t_s, alpha_rad=res.alpha_rad, beta_rad=res.beta_rad, mu_rad=res.mu_rad,
                 cmd_t_s=np.asarray(res.cmd_t_s, float), cmd_rad=np.asarray(res.cmd_rad, float),
                 diverged=bool(res.diverged))

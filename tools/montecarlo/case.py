@@ -33,6 +33,7 @@ import numpy as np
 
 from tools import metrics as mt
 from tools.montecarlo import dispersions as dsp
+from tools.montecarlo.flight import Flight
 
 CHANNELS = ("alpha", "beta", "mu")
 VARIANTS = ("coordinated", "uncoordinated")
@@ -103,26 +104,6 @@ class CampaignConfig:
         d["dispersions_text"] = self.dispersions_canonical()
         text = json.dumps(d, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-@dataclass
-class Flight:
-    """What a backend returns for one variant of one case (SI).
-
-    t_s : (n,) times; alpha_rad, beta_rad, mu_rad : (n,) true aerodynamic angles;
-    cmd_t_s : (k,) command timeline times; cmd_rad : (k, 3) alpha, beta, mu commands;
-    diverged : the backend's own verdict (the metrics' is OR-ed in);
-    full : anything else the backend produced (for ``rerun``), not stored in rows.
-    """
-
-    t_s: np.ndarray
-    alpha_rad: np.ndarray
-    beta_rad: np.ndarray
-    mu_rad: np.ndarray
-    cmd_t_s: np.ndarray
-    cmd_rad: np.ndarray
-    diverged: bool = False
-    full: object = None
 
 
 # ---------------------------------------------------------------------------------------
@@ -320,7 +301,8 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
 #: the sources whose contents decide a case's result (fingerprinted into campaign.json)
 _CODE_GLOBS = ("fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
                "tools/closed_loop.py", "tools/metrics.py", "tools/montecarlo/case.py",
-               "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py")
+               "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py",
+               "tools/montecarlo/flight.py")
 
 
 def code_fingerprint() -> str:
