@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from fc.params import wire_number
+from tools.sitl.procs import free_udp_port  # noqa: F401  (tests import it from here)
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil  # noqa: E402
@@ -31,18 +32,14 @@ M_T_S, M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R, M_AOA, M_SSA = range(9)
 M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING = range(9, 14)
 
 
+#: the failsafe time-out of the ``flying`` fixture (tests/conftest.py), s
+FLYING_FS_TIMEOUT_S = 0.3
+
+
 def param_number(m) -> float:
     """The number a PARAM_VALUE carries: INT32 values travel bytewise in the float field
     (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE), REAL32 as the float itself."""
     return wire_number(m.param_value, m.param_type)
-
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def level_meas(t_s: float, alpha_deg: float = 1.0, beta_deg: float = 0.0, roll_deg: float = 0.0,

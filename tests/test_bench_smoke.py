@@ -15,6 +15,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
+pytestmark = pytest.mark.hil     # the benchmark starts the fc and plant processes over UDP
+
 #: One or more figures per point of the benchmark (law, plant, floor, lockstep, real time,
 #: start-up, memory, in-process closed loop).
 EXPECTED = (

@@ -20,7 +20,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("fc", "plant_sim", "tools")
 #: subcommands chosen by argv[0] before any parser is built: module -> argv prefixes
-DISPATCHED = {"tools.montecarlo": [[], ["rerun"], ["summary"], ["compare"]]}
+DISPATCHED = {"tools.montecarlo": [[], ["rerun"], ["summary"], ["compare"]],
+              "tools.bench": [[], ["law"], ["plant"], ["pingpong"], ["fc-timing"], ["campaign"]]}
 
 
 def entry_points() -> list[str]:

@@ -1,6 +1,6 @@
 """Closed loop in process (no UDP): the control law flies the plant_sim dynamics.
 
-tools.closed_loop.simulate runs the law's kernels and the plant's RK4 frames in one numba
+tools.sitl.closed_loop.simulate runs the law's kernels and the plant's RK4 frames in one numba
 loop (truth-fed estimated state). Runs are 8 s of sim time: the paper's steps settle in
 about 3-4 s (measured), so the last 1 s window of final_error_deg is well after settling.
 Bounds are justified next to each assertion; the measured figures are in docs/control_law.md.
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from tools.closed_loop import simulate
+from tools.sitl.closed_loop import simulate
 
 DURATION_S = 8.0
 DEG = math.pi / 180.0

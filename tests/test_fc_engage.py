@@ -14,6 +14,8 @@ import pytest
 from fc.internals_log import load
 from tests.fc_harness import FcProcess, ScriptedPlant, level_meas
 
+pytestmark = pytest.mark.hil     # the fc as a real process over loopback UDP
+
 
 def test_law_armed_before_data_starts_from_first_healthy_frame(tmp_path):
     # GIVEN the fc armed in COORDINATED from its command line, with the reference prefilter on

@@ -8,28 +8,10 @@ import time
 
 import pytest
 
-from tests.fc_harness import ClosedLoop, FcProcess, GcsClient, free_udp_port, mavlink as ML
+from tests.fc_harness import FLYING_FS_TIMEOUT_S as FS_TIMEOUT_S
+from tests.fc_harness import mavlink as ML
 
 pytestmark = pytest.mark.hil
-
-FS_TIMEOUT_S = 0.3
-
-
-@pytest.fixture()
-def flying(tmp_path):
-    out = str(tmp_path)
-    with open(os.path.join(out, "params.parm"), "w") as f:
-        f.write(f"FS_TIMEOUT_S {FS_TIMEOUT_S}\nFS_RECOVER_S 0.2\nCMD_ALPHA_DEG 3\n")
-    gcs_port = free_udp_port()
-    with FcProcess(out, "--arm", "--flight-mode", "COORDINATED", gcs_ports=(gcs_port,)) as fc:
-        gcs = GcsClient(gcs_port)
-        loop = ClosedLoop(fc.plant_port)
-        try:
-            assert gcs.wait("HEARTBEAT", 10) is not None
-            yield fc, gcs, loop
-        finally:
-            loop.close()
-            gcs.close()
 
 
 def _drain(gcs):

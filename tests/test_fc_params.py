@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 
 import pytest
 from pymavlink import mavparm
@@ -10,7 +11,7 @@ from pymavlink import mavparm
 from fc.params import (PROCESS_PARAMS, ParamFileError, ParamTable, build_table,
                        render_markdown, set_aside)
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = str(Path(__file__).resolve().parents[1])
 
 
 @pytest.fixture()

@@ -1,11 +1,11 @@
-"""Tier 1: tools.metrics against closed-form step responses (docs/metrics.md)."""
+"""Tier 1: tools.sitl.metrics against closed-form step responses (docs/metrics.md)."""
 import math
 
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from tools import metrics as M
+from tools.sitl import metrics as M
 
 DT_S = 1e-3
 D2R = math.pi / 180.0

@@ -2,7 +2,7 @@
 consistent with the rows, a re-run of one case identical to its row, and an interrupted campaign
 that resumes without repeating finished cases.
 
-The cases fly the real in-process closed loop (``tools.closed_loop``: the product's control law
+The cases fly the real in-process closed loop (``tools.sitl.closed_loop``: the product's control law
 and plant) on the full 20 s paper scenario with the shipped ``paper`` dispersions; a case takes
 about 40 ms per variant once compiled, so the file needs no shortened cases (about 10 s warm;
 the first run on a fresh checkout also compiles the numba kernels on each worker).
@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tools import metrics as mt
+from tools.sitl import metrics as mt
 from tools.montecarlo import dispersions as dsp
 from tools.montecarlo import results, summary
 from tools.montecarlo.campaign import CampaignError, run_campaign
@@ -180,7 +180,7 @@ def test_other_campaign_in_same_directory_refused(campaign):
 
 
 def test_metrics_are_the_main_jobs(campaign):
-    """The row's metrics are tools.metrics' on the case's trajectory (same definitions as
+    """The row's metrics are tools.sitl.metrics' on the case's trajectory (same definitions as
     summary.json): checked on the decimated trace, within its resolution."""
     cfg, out, _ = campaign
     t = results.read_rows(out, traces=True).to_pylist()

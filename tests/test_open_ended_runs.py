@@ -34,7 +34,7 @@ from plant_sim import truthlog
 from plant_sim.link import ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
-from tools.hil.gcs import RingRecord
+from tools.sitl.gcs import RingRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 #: frames flown before the stop (0.1 s of sim time at the paper scenario's 500 Hz)

@@ -20,8 +20,6 @@ from fc.link import UdpEndpoint
 from plant_sim.link import PlantLink, PwmMap
 from tests.fc_harness import level_meas
 from tests.fc_harness import mavlink as ML
-# the fc as a process, armed in COORDINATED with FS_TIMEOUT_S 0.3 s, flown by a ClosedLoop
-from tests.test_fc_failsafe import flying  # noqa: F401 - a fixture
 
 
 def _goodbye_bytes(sysid: int = 2) -> bytes:

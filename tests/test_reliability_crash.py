@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from fc.params import ParamTable, build_table
-from tools.soak import Rig, RigConfig, tracking_error_deg
+from tools.sitl.rig import Rig, RigConfig, tracking_error_deg
 
 pytestmark = [pytest.mark.hil]
 

@@ -29,7 +29,7 @@ import pytest
 
 from fc.params import ParamTable
 from tests.fc_harness import param_number
-from tools.soak import (Flood, GroundStation, Rig, RigConfig, free_udp_port, late_ticks,
+from tools.sitl.rig import (Flood, GroundStation, Rig, RigConfig, free_udp_port, late_ticks,
                         tracking_error_deg, ROOT, child_env)
 
 pytestmark = [pytest.mark.hil]

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from tools.linkimpair import Impairment
-from tools.soak import (PROMISE1_IMPAIRMENT, Rig, RigConfig, late_ticks, tracking_error_deg)
+from tools.sitl.rig import (PROMISE1_IMPAIRMENT, Rig, RigConfig, late_ticks, tracking_error_deg)
 
 pytestmark = [pytest.mark.hil]
 

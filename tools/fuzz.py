@@ -17,7 +17,7 @@ The long run (by hand; not CI)::
     python -m tools.fuzz run --duration 600 --seed 1 [--rate 2000] [--out DIR]
                              [--targets fc-plant,fc-gcs,plant] [--corrupt 0.1]
 
-flies the paper scenario in real time (tools.soak.Rig) with the plant link corrupting 10 % of
+flies the paper scenario in real time (tools.sitl.rig.Rig) with the plant link corrupting 10 % of
 datagrams in flight both ways (so each process decodes mutated frames from its legitimate peer)
 and a fuzzer writing ``--rate`` datagrams/s to the fc's ground-station port and, from foreign
 addresses, to the fc's plant port and the plant's port. Every second it checks that both
@@ -276,7 +276,7 @@ def load_corpus(directory: str) -> dict[str, bytes]:
 
 # ---------------------------------------------------------------------- long run
 def run(args) -> int:
-    from tools.soak import Rig, RigConfig, tracking_error_deg  # noqa: F401
+    from tools.sitl.rig import Rig, RigConfig, tracking_error_deg  # noqa: F401
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-fuzz-"))
     imp = Impairment(corrupt=args.corrupt)
     cfg = RigConfig(out=out, duration_s=args.duration, seed=args.seed, impair_up=imp,

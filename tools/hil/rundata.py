@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools import metrics
+from tools.sitl import metrics
 
 TIMELINE_FILE = "timeline.toml"
 CHANNELS = ("alpha", "beta", "mu")

@@ -7,14 +7,14 @@ gives the same rows.
 
 A *backend* flies one variant of one dispersed case and returns its attitude history:
 
-- ``closed_loop`` (default): ``tools.closed_loop.simulate``, the product's control law flying
+- ``closed_loop`` (default): ``tools.sitl.closed_loop.simulate``, the product's control law flying
   the product's plant in process (same code as the two-process product, without UDP);
 - ``hil``: the two processes over loopback UDP (``tools.montecarlo.hil``), a faithful subset;
 - ``standin``: a cheap decoupled second-order model, **not a flight simulation**: it exists
   only to exercise the campaign machinery (tests of resumption, summaries, plots) in a few
   milliseconds. A campaign run with it says so in every row and in its summary.
 
-Metrics are those of the main job's ``summary.json`` (``tools.metrics``), computed here from
+Metrics are those of the main job's ``summary.json`` (``tools.sitl.metrics``), computed here from
 the true alpha, beta, mu of the plant against the scenario's command timeline.
 """
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, asdict
 
 import numpy as np
 
-from tools import metrics as mt
+from tools.sitl import metrics as mt
 from tools.montecarlo import dispersions as dsp
 from tools.montecarlo.flight import Flight
 
@@ -300,7 +300,7 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
 
 #: the sources whose contents decide a case's result (fingerprinted into campaign.json)
 _CODE_GLOBS = ("fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
-               "tools/closed_loop.py", "tools/metrics.py", "tools/montecarlo/case.py",
+               "tools/sitl/closed_loop.py", "tools/sitl/metrics.py", "tools/montecarlo/case.py",
                "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py",
                "tools/montecarlo/flight.py")
 

@@ -6,7 +6,7 @@ both with SIGINT, and prints the fast loop's wake-up lateness from fc_internals.
 (median, p99, p99.9, max, share of ticks more than 20 % of a period late) plus the
 execution time per tick. Ticks before ``--warmup`` seconds are dropped (numba cache load).
 
-    python -m tools.measure_fc_timing --fast-hz 500 1000 --duration 20
+    python -m tools.bench fc-timing --fast-hz 500 1000 --duration 20
 
 Figures only; nothing here asserts a timing goal.
 """
@@ -24,15 +24,9 @@ import threading
 
 import numpy as np
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tools.sitl.procs import free_udp_port
 
-
-def _free_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _wait_ready(proc: subprocess.Popen, timeout_s: float) -> bool:
@@ -83,8 +77,8 @@ def _flood(port: int, stop: threading.Event, counter: list) -> None:
 
 def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, out: str,
             scenario: str, spin_us: int, rt_priority: int, flood: bool = False) -> dict:
-    plant_port = _free_port()
-    gcs_bind = _free_port()
+    plant_port = free_udp_port()
+    gcs_bind = free_udp_port()
     tag = f"{int(fast_hz)}{'_flood' if flood else ''}"
     fc_dir = os.path.join(out, f"fc_{tag}")
     plant_dir = os.path.join(out, f"plant_{tag}")
@@ -93,7 +87,7 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
     fc = subprocess.Popen(
         [sys.executable, "-m", "fc", "--mode", "realtime", "--fast-hz", str(fast_hz),
          "--slow-hz", str(slow_hz), "--plant-bind", f"127.0.0.1:{plant_port}",
-         "--gcs-bind", f"127.0.0.1:{gcs_bind}", "--gcs", f"127.0.0.1:{_free_port()}", "--out", fc_dir,
+         "--gcs-bind", f"127.0.0.1:{gcs_bind}", "--gcs", f"127.0.0.1:{free_udp_port()}", "--out", fc_dir,
          "--arm", "--flight-mode", "COORDINATED", "--spin-us", str(spin_us),
          "--rt-priority", str(rt_priority)],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -143,7 +137,7 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.measure_fc_timing", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m tools.bench fc-timing", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--fast-hz", type=float, nargs="+", default=[500.0, 1000.0],
                     help="fast-loop rates to measure, one run each, Hz (default 500 1000)")

@@ -1,6 +1,6 @@
 """The loopback UDP round-trip floor: ping-pong between two processes (prints figures).
 
-    python -m tools.udp_pingpong [--n 20000] [--payload mavlink|raw] [--json FILE]
+    python -m tools.bench pingpong [--n 20000] [--payload mavlink|raw] [--json FILE]
 
 Two processes on 127.0.0.1, each with its own UDP socket. The parent sends, the child
 answers, the parent times each round trip with ``time.perf_counter_ns``:
@@ -163,7 +163,7 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
     """Time ``n`` round trips to a child process; returns :func:`summarize_us` plus counts."""
     if payload not in PAYLOADS:
         raise ValueError(f"payload must be one of {PAYLOADS}, not {payload!r}")
-    child = subprocess.Popen([sys.executable, "-m", "tools.udp_pingpong", "--echo",
+    child = subprocess.Popen([sys.executable, "-m", "tools.bench.pingpong", "--echo",
                               "--payload", payload], stdout=subprocess.PIPE, text=True,
                              stdin=subprocess.DEVNULL)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -223,7 +223,7 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.udp_pingpong",
+    ap = argparse.ArgumentParser(prog="python -m tools.bench pingpong",
                                  description="Loopback UDP ping-pong between two processes "
                                              "(the lockstep floor); prints figures.")
     ap.add_argument("--n", type=int, default=20000, help="timed round trips (default 20000)")

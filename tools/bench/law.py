@@ -1,6 +1,6 @@
 """Benchmark of the control law: cost of one full cycle and of each part, in microseconds.
 
-    python -m tools.bench_law [--batches 2000] [--batch 50] [--calls 20000]
+    python -m tools.bench law [--batches 2000] [--batch 50] [--calls 20000]
 
 Two views, both printed as median and p99 (plus p99.9 for the per-call view):
 
@@ -217,7 +217,7 @@ def bench_parts(batches: int, batch: int):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench law", description=__doc__.split("\n")[0])
     ap.add_argument("--batches", type=int, default=2000,
                     help="timed batches per part, inside numba (default 2000)")
     ap.add_argument("--batch", type=int, default=50,

@@ -1,6 +1,6 @@
 """Plant benchmark: cost per RK4 step, plant-side cost per frame, lockstep exchanges per second.
 
-    python -m tools.bench_plant [--scenario paper] [--seconds 20] [--lockstep-seconds 10]
+    python -m tools.bench plant [--scenario paper] [--seconds 20] [--lockstep-seconds 10]
 
 Prints (medians of repeated batches; the machine is shared, so read the spread too):
 1. RK4 step (us): the whole loop inside numba (dynamics.advance_frames), and one
@@ -148,7 +148,7 @@ def bench_jsbsim(batches: int = 7, steps: int = 2000):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.bench_plant", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench plant", description=__doc__.split("\n")[0])
     ap.add_argument("--scenario", default="paper",
                     help="plant scenario name or TOML path (default paper)")
     ap.add_argument("--seconds", type=float, default=20.0, help="sim seconds for the RK4 batches")

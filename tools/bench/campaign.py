@@ -1,6 +1,6 @@
 """Campaign throughput benchmark: prints figures, asserts nothing.
 
-    python -m tools.montecarlo.bench [--runs 1000] [--workers 1,2] [--scenario paper]
+    python -m tools.bench campaign [--runs 1000] [--workers 1,2] [--scenario paper]
                                      [--duration S] [--backend closed_loop|standin] [--keep DIR]
 
 For each worker count, runs a fresh campaign of ``--runs`` cases (both variants) on a new
@@ -27,7 +27,7 @@ from tools.montecarlo.case import CampaignConfig
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m tools.montecarlo.bench")
+    p = argparse.ArgumentParser(prog="python -m tools.bench campaign")
     p.add_argument("--runs", type=int, default=1000, help="cases per campaign (default 1000)")
     p.add_argument("--workers", default="1,2", help="comma-separated worker counts")
     p.add_argument("--scenario", default="paper",
