@@ -10,7 +10,7 @@ Three targets, each a UDP port a peer may write to:
 (tools.linkimpair.mutate: bit flips, truncation, garbage), a valid frame with a bad CRC, a
 frame of the wrong message type, a valid frame whose fields are NaN/Inf/huge, a MAVLink 1
 frame, a burst of frames glued together. ``corpus()`` is the recorded, deterministic set
-(tests/fuzz_corpus/, replayed by tests/test_reliability_fuzz.py).
+(tests/fuzz_corpus/, replayed by tests/hil/test_reliability_fuzz.py).
 
 The long run (by hand; not CI)::
 
@@ -263,7 +263,7 @@ def write_corpus(directory: str) -> int:
         (d / f"{name}.bin").write_bytes(data)
     (d / "README.md").write_text(
         "# Recorded fuzz corpus (promise 4, docs/reliability.md)\n\n"
-        "One hostile UDP datagram per `.bin` file, replayed by tests/test_reliability_fuzz.py\n"
+        "One hostile UDP datagram per `.bin` file, replayed by tests/hil/test_reliability_fuzz.py\n"
         "to every port of the fc (plant link, ground-station link) and to the plant. Regenerate\n"
         "with `python -m tools.fuzz corpus --write tests/fuzz_corpus`; add any input that ever\n"
         "crashed a process here (tools.fuzz run writes them to OUT/last_inputs/).\n")

@@ -20,7 +20,7 @@ from tools.montecarlo.campaign import (CampaignError, cluster_client, prepare_di
 from tools.montecarlo.case import CampaignConfig
 
 pytest.importorskip("distributed")
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _cfg() -> CampaignConfig:

@@ -37,7 +37,7 @@ pytestmark = [pytest.mark.hil]
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as ml  # noqa: E402
 
-CORPUS = Path(__file__).resolve().parents[1] / "tests" / "fuzz_corpus"
+CORPUS = Path(__file__).resolve().parents[2] / "tests" / "fuzz_corpus"
 EXAMPLES = 120
 #: no shrinking: against a live process a failure is reported as drawn (bounded run time)
 HYP = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("fc", "plant_sim", "tools")
 #: subcommands chosen by argv[0] before any parser is built: module -> argv prefixes
 DISPATCHED = {"tools.montecarlo": [[], ["rerun"], ["summary"], ["compare"]],

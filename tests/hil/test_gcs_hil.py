@@ -23,7 +23,7 @@ def vehicle(tmp_path_factory):
     out = str(tmp_path_factory.mktemp("fc_gcs"))
     gcs_port = free_udp_port()
     # the test talks to the GCS between bursts of plant frames: a long data-loss timeout
-    # keeps the failsafe (tests/test_fc_failsafe.py) out of this module
+    # keeps the failsafe (tests/hil/test_fc_failsafe.py) out of this module
     with open(os.path.join(out, "params.parm"), "w") as f:
         f.write("FS_TIMEOUT_S 30\n")
     fc = FcProcess(out, gcs_ports=(gcs_port,))

@@ -19,7 +19,7 @@ from fc.control.params import (LAW_PARAMS, P_CO_ENABLE, P_CO_FAC_EQ, P_CO_K1,
                                P_CO_LAM_MAX, P_N, PARAM_INDEX, check_value, default_si_array)
 
 DEG = math.pi / 180.0
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def paper_est(alpha_deg=1.0, beta_deg=5.0, mu_deg=0.0, p=0.0, q=0.0, r=0.0):

@@ -24,7 +24,7 @@ import pytest
 
 from tests.fc_harness import FcProcess, GcsClient, ScriptedPlant, level_meas, mavlink
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLIGHT_S = 20.0
 ATT_HZ = 10.0          # fc/gcs.py STREAM_DEFAULTS_S: ATTITUDE every 0.1 s
 # messages with a time field and its scale to seconds

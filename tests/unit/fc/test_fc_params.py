@@ -11,7 +11,7 @@ from pymavlink import mavparm
 from fc.params import (PROCESS_PARAMS, ParamFileError, ParamTable, build_table,
                        render_markdown, set_aside)
 
-REPO = str(Path(__file__).resolve().parents[1])
+REPO = str(Path(__file__).resolve().parents[3])
 
 
 @pytest.fixture()

@@ -22,7 +22,7 @@ from fc.estimator import (FLAG_OLD_STAMP, LIMITS_HI, LIMITS_LO, Estimator, estim
 from fc.link import M_AIRSPEED, M_ALT, M_AOA, M_N, M_P, M_PITCH, M_ROLL, M_SSA, M_T_S
 
 DEG = math.pi / 180.0
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def _meas_seq(n: int, seed: int = 5) -> np.ndarray:

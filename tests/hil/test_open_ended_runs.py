@@ -36,7 +36,7 @@ from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
 from tools.sitl.gcs import RingRecord
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: frames flown before the stop (0.1 s of sim time at the paper scenario's 500 Hz)
 STOP_AFTER_FRAMES = 50
 #: traced allocation allowed for a whole plant run (the fixed lateness histogram is 0.8 MB)

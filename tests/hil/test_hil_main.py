@@ -32,7 +32,7 @@ from tools.hil.rundata import strip_wall_clock
 from tools.hil.runner import parse_progress, shaping_params
 
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: sim time flown by the lockstep runs: long enough for the paper's steps to settle
 LOCKSTEP_S = 8.0
 SEED = 7
