@@ -23,12 +23,10 @@ from numba import njit
 from plant_sim._jitcache import refresh as _refresh_jit_cache
 from plant_sim import dynamics as dy
 from plant_sim.dynamics import (AX_ALPHA, AX_BETA, AX_L, AX_M, AX_MACH, AX_N, AX_QBAR,
-                                AX_THRUST, AX_V, P_N, W_AUX, W_N, X_CLIP, X_CMD_L, X_DL, X_N,
+                                AX_THRUST, AX_V, W_AUX, W_N, X_CLIP, X_CMD_L, X_DL, X_N,
                                 X_P, X_PD, X_PE, X_PN, X_Q, X_R, X_STEP, X_U, X_V, X_W)
 from plant_sim.scenario import Scenario
-from plant_sim.sensors import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING,
-                               M_N, M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW, MEAS_NAMES,
-                               RING_N)
+from plant_sim.sensors import M_N, MEAS_NAMES, RING_N
 from plant_sim import sensors as se
 from plant_sim.gnss import GnssSensor
 from plant_sim.params import build_params  # noqa: F401  (also the public name here)

@@ -15,41 +15,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import socket
-import subprocess
 import sys
 import tempfile
 import threading
 
 import numpy as np
 
-from tools.sitl.procs import free_udp_port
+from tools.sitl.procs import Child, free_udp_port
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
-
-def _wait_ready(proc: subprocess.Popen, timeout_s: float) -> bool:
-    ready = threading.Event()
-
-    def _reader():
-        for line in proc.stdout:
-            if line.strip() == "READY":
-                ready.set()
-        ready.set()
-
-    threading.Thread(target=_reader, daemon=True).start()
-    return ready.wait(timeout_s) and proc.poll() is None
-
-
-def _stop(proc: subprocess.Popen, timeout_s: float = 20.0) -> int:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-    try:
-        return proc.wait(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        return proc.wait(timeout=10)
 
 
 def _flood(port: int, stop: threading.Event, counter: list) -> None:
@@ -84,34 +59,29 @@ def measure(fast_hz: float, slow_hz: float, duration_s: float, warmup_s: float, 
     plant_dir = os.path.join(out, f"plant_{tag}")
     stop_flood = threading.Event()
     flood_count: list = []
-    fc = subprocess.Popen(
-        [sys.executable, "-m", "fc", "--mode", "realtime", "--fast-hz", str(fast_hz),
-         "--slow-hz", str(slow_hz), "--plant-bind", f"127.0.0.1:{plant_port}",
-         "--gcs-bind", f"127.0.0.1:{gcs_bind}", "--gcs", f"127.0.0.1:{free_udp_port()}", "--out", fc_dir,
-         "--arm", "--flight-mode", "COORDINATED", "--spin-us", str(spin_us),
-         "--rt-priority", str(rt_priority)],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    fc = Child("fc", [sys.executable, "-m", "fc", "--mode", "realtime", "--fast-hz", str(fast_hz),
+                      "--slow-hz", str(slow_hz), "--plant-bind", f"127.0.0.1:{plant_port}",
+                      "--gcs-bind", f"127.0.0.1:{gcs_bind}", "--gcs",
+                      f"127.0.0.1:{free_udp_port()}", "--out", fc_dir,
+                      "--arm", "--flight-mode", "COORDINATED", "--spin-us", str(spin_us),
+                      "--rt-priority", str(rt_priority)], None, cwd=REPO)
     try:
-        if not _wait_ready(fc, 90):
-            raise RuntimeError("fc did not become READY: " + (fc.stderr.read() if fc.poll() else ""))
-        plant = subprocess.Popen(
-            [sys.executable, "-m", "plant_sim", "run", "--scenario", scenario, "--mode",
-             "realtime", "--fc", f"127.0.0.1:{plant_port}", "--bind", "127.0.0.1:0",
-             "--out", plant_dir, "--duration", str(duration_s + warmup_s + 5.0)],
-            cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        fc.wait_for_line("READY", 90)
+        plant = Child("plant", [sys.executable, "-m", "plant_sim", "run", "--scenario", scenario,
+                                "--mode", "realtime", "--fc", f"127.0.0.1:{plant_port}",
+                                "--bind", "127.0.0.1:0", "--out", plant_dir, "--duration",
+                                str(duration_s + warmup_s + 5.0)], None, cwd=REPO)
         if flood:   # from the end of the warm-up, so the plant's start-up is not starved
             threading.Timer(warmup_s, lambda: threading.Thread(
                 target=_flood, args=(gcs_bind, stop_flood, flood_count), daemon=True).start()
             ).start()
         try:
-            plant.wait(timeout=duration_s + warmup_s + 2.0)
-        except subprocess.TimeoutExpired:
-            pass
+            plant.wait_exit(duration_s + warmup_s + 2.0)
         finally:
             stop_flood.set()
-            _stop(plant)
+            plant.stop(int_wait_s=20.0, term_wait_s=None)
     finally:
-        rc = _stop(fc)
+        rc = fc.stop(int_wait_s=20.0, term_wait_s=None)
     sys.path.insert(0, REPO)
     from fc.internals_log import load
     log = load(fc_dir)

@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import socket
-import subprocess
 import sys
 import time
 
 import numpy as np
+
+from tools.sitl.procs import Child
 
 __all__ = ["run_pingpong", "summarize_us"]
 
@@ -119,7 +121,7 @@ def _echo_links(sock: socket.socket) -> int:
 def _child_alive(child) -> None:
     """A lost exchange: fail at once if the echo child died (instead of n timeouts)."""
     if child is not None and child.poll() is not None:
-        raise RuntimeError(f"udp_pingpong echo child exited with code {child.returncode}")
+        raise RuntimeError(f"pingpong echo child exited with code {child.poll()}")
 
 
 def _run_links(sock: socket.socket, peer: tuple, n: int, warm: int, child=None) -> dict:
@@ -163,14 +165,11 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
     """Time ``n`` round trips to a child process; returns :func:`summarize_us` plus counts."""
     if payload not in PAYLOADS:
         raise ValueError(f"payload must be one of {PAYLOADS}, not {payload!r}")
-    child = subprocess.Popen([sys.executable, "-m", "tools.bench.pingpong", "--echo",
-                              "--payload", payload], stdout=subprocess.PIPE, text=True,
-                             stdin=subprocess.DEVNULL)
+    child = Child("pingpong-echo", [sys.executable, "-m", "tools.bench.pingpong", "--echo",
+                                    "--payload", payload], None)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        line = child.stdout.readline()
-        if not line.startswith("PORT "):
-            raise RuntimeError(f"udp_pingpong child did not start (printed {line!r})")
+        line = child.wait_for_line("PORT ", 60.0)
         peer = ("127.0.0.1", int(line.split()[1]))
         warm = max(n // 20, 10)
         if payload == "links":
@@ -213,13 +212,9 @@ def run_pingpong(n: int = 20000, payload: str = "mavlink") -> dict:
         return res
     finally:
         sock.close()
-        try:
-            child.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            child.kill()
-            child.wait(timeout=5.0)
-        if child.stdout:
-            child.stdout.close()
+        if child.wait_exit(5.0) is None:      # after STOP it ends by itself
+            child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
+        child.close()
 
 
 def main(argv=None) -> int:

@@ -20,8 +20,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,6 +33,7 @@ from plant_sim import dynamics as dy
 from plant_sim.link import PlantLink, PwmMap, ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
+from tools.sitl.procs import Child
 
 
 def _median_spread(vals):
@@ -92,23 +93,20 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
 def bench_lockstep(sc_name: str, sim_seconds: float):
     resp = ServoResponder()
     with tempfile.TemporaryDirectory() as tmp:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "plant_sim", "run", "--scenario", sc_name, "--mode", "lockstep",
-             "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0", "--out", tmp,
-             "--duration", str(sim_seconds), "--progress-every", "0"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        proc = Child("plant", [sys.executable, "-m", "plant_sim", "run", "--scenario", sc_name,
+                               "--mode", "lockstep", "--fc", f"127.0.0.1:{resp.addr[1]}",
+                               "--bind", "127.0.0.1:0", "--out", tmp,
+                               "--duration", str(sim_seconds), "--progress-every", "0"], None)
         try:
             deadline = time.monotonic() + 300.0
             while proc.poll() is None and time.monotonic() < deadline:
                 resp.serve_fast(timeout_s=0.5)
-            _, err = proc.communicate(timeout=30)
+            proc.wait_exit(30)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait(timeout=10)
+            rc = proc.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
             resp.close()
-        if proc.returncode != 0:
-            raise SystemExit(f"plant failed: {err.strip()}")
+        if rc != 0:
+            raise SystemExit(f"plant failed: {proc.death_message()}")
         return json.loads((Path(tmp) / "plant_summary.json").read_text())
 
 

@@ -1,4 +1,6 @@
-"""The main job's scripted ground station: tools.hil's only MAVLink import.
+"""The scripted ground station of the SITL harness: the main job's (tools.hil) and the
+reliability rig's (tools.sitl.rig, ``record=True``, no heartbeats); tools.hil's only MAVLink
+import.
 
 A small MAVLink 2 ground station (system id 250, component 190) on its own non-blocking UDP
 socket, using pymavlink's generated ``ardupilotmega`` codec (docs/architecture.md section 1).
@@ -14,10 +16,13 @@ line, docs/hil.md). Every message it sends carries the next sequence number of i
 (heartbeat thread and commands share it under a lock).
 
 It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
-stamps, so a run can be checked against the plant's truth.
+stamps, so a run can be checked against the plant's truth; with ``record`` it also keeps every
+message (bounded), the NAMED_VALUE_FLOAT counters and STATUSTEXTs for the rig's waits, and it
+can sign (MAVLink 2 signing key).
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import socket
@@ -43,6 +48,8 @@ MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_USER_1 = mavlink.MAV_CMD_USER_1   # fc/gcs.py CMD_ATTITUDE
 #: telemetry records kept (the newest; about 7 h of ATTITUDE at the fc's default 10 Hz)
 RECORD_ROWS = 1 << 18
+#: high-rate streams left out of ``ScriptedGcs.msgs`` (``record``)
+RECORD_SKIP = ("ATTITUDE", "AOA_SSA", "VFR_HUD", "DEBUG_VECT", "SERVO_OUTPUT_RAW")
 
 
 class GcsError(RuntimeError):
@@ -97,28 +104,77 @@ class Telemetry:
         return self.sim_t_s
 
 
-class ScriptedGcs:
-    """A ground station on 127.0.0.1:``port`` (0 = any free port; see ``self.port``)."""
+_LINK_IDS = itertools.count()
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 0):
+
+class _ToVehicle:
+    """The codec's output file: what ``mav.send`` / ``mav.*_send`` writes goes to the vehicle
+    (once it has been heard), so callers can use pymavlink's generated senders directly."""
+
+    def __init__(self, gcs: "ScriptedGcs"):
+        self.gcs = gcs
+
+    def write(self, buf: bytes) -> None:
+        addr = self.gcs.vehicle_addr
+        if addr is not None:
+            try:
+                self.gcs.sock.sendto(buf, addr)
+            except OSError:
+                pass
+
+
+class ScriptedGcs:
+    """A ground station on 127.0.0.1:``port`` (0 = any free port; see ``self.port``).
+
+    Parameters
+    ----------
+    sysid, compid : its MAVLink ids (default 250/190, a Mission Planner-like GCS).
+    key : MAVLink 2 signing key (32 bytes): outgoing messages are signed, incoming unsigned
+        ones are refused by the codec.
+    heartbeat : send a GCS HEARTBEAT every second (an operator's ground station does; the
+        reliability rig's recorder does not).
+    record : also keep every message received (``msgs``: (monotonic s, message), without the
+        high-rate streams), the latest NAMED_VALUE_FLOAT values (``named``) and STATUSTEXTs
+        (``texts``: (monotonic s, severity, text)), for ``wait`` / ``find`` / ``wait_named``.
+
+    ``conn`` is the object itself and ``mav`` its codec, so ``gcs.conn.mav.param_set_send(...)``
+    works as with a pymavlink connection.
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, sysid: int = GCS_SYSID,
+                 compid: int = GCS_COMPID, key: bytes | None = None, heartbeat: bool = True,
+                 record: bool = False):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((host, port))
         self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
-        self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
+        self.mav = mavlink.MAVLink(_ToVehicle(self), srcSystem=sysid, srcComponent=compid)
         self.mav.robust_parsing = True
+        if key is not None:           # as pymavlink's mavutil setup_signing(key, sign_outgoing)
+            self.mav.signing.secret_key = key
+            self.mav.signing.sign_outgoing = True
+            self.mav.signing.link_id = next(_LINK_IDS)     # one per link, as mavutil does
+            self.mav.signing.timestamp = int((time.time() - 1420070400) * 100 * 1000)
+        self.conn = self
         self.vehicle_addr: tuple[str, int] | None = None
         self.tel = Telemetry()
         self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
+        self.record = record
+        self.msgs: list = []            # (monotonic time, message), with ``record``
+        self.named: dict[str, float] = {}
+        self.texts: list[tuple[float, int, str]] = []
         self._cond = threading.Condition()
+        self.cv = self._cond
         self._tx_lock = threading.Lock()
         self._stop = threading.Event()
         #: set to make every pending and later wait_for() raise GcsError at once
         self.abort = threading.Event()
         self._rx = threading.Thread(target=self._rx_loop, name="gcs-rx", daemon=True)
         self._rx.start()
-        self._hb_thread = threading.Thread(target=self._hb_loop, name="gcs-hb", daemon=True)
-        self._hb_thread.start()
+        self._hb_thread = None
+        if heartbeat:
+            self._hb_thread = threading.Thread(target=self._hb_loop, name="gcs-hb", daemon=True)
+            self._hb_thread.start()
 
     # ---- receive ---------------------------------------------------------------------------
     def _rx_loop(self) -> None:
@@ -137,12 +193,26 @@ class ScriptedGcs:
                 self.tel.bad_datagrams += 1
                 continue
             for m in msgs:
-                if m.get_srcSystem() != VEHICLE_SYSID:
+                if m.get_type() == "BAD_DATA" or m.get_srcSystem() != VEHICLE_SYSID:
                     continue
                 with self._cond:
                     self.vehicle_addr = addr
                     self._handle(m)
+                    if self.record:
+                        self._keep(m)
                     self._cond.notify_all()
+
+    def _keep(self, m) -> None:
+        t = m.get_type()
+        now = time.monotonic()
+        if t == "NAMED_VALUE_FLOAT":
+            self.named[m.name] = m.value
+        elif t == "STATUSTEXT":
+            self.texts.append((now, m.severity, m.text))
+        if t not in RECORD_SKIP:
+            self.msgs.append((now, m))
+            if len(self.msgs) > 20000:
+                del self.msgs[:10000]
 
     def _handle(self, m) -> None:
         t = m.get_type()
@@ -183,6 +253,52 @@ class ScriptedGcs:
                 if remaining <= 0:
                     raise GcsError(f"{what} not seen within {timeout_s:.0f} s")
                 self._cond.wait(timeout=min(remaining, 0.2))
+
+    def wait(self, pred, timeout_s: float, since: float = 0.0):
+        """First recorded message after ``since`` (monotonic s) satisfying ``pred(m)``; None at
+        the timeout (needs ``record``)."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                for t, m in self.msgs:
+                    if t >= since and pred(m):
+                        return m
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._cond.wait(min(left, 0.2))
+
+    def find(self, pred, since: float = 0.0, until: float = math.inf):
+        """First recorded message received in [since, until] satisfying ``pred`` (no wait)."""
+        with self._cond:
+            for t, m in self.msgs:
+                if since <= t <= until and pred(m):
+                    return m
+        return None
+
+    def wait_text(self, needle: str, timeout_s: float, since: float = 0.0) -> str | None:
+        m = self.wait(lambda m: m.get_type() == "STATUSTEXT" and needle in m.text, timeout_s,
+                      since)
+        return None if m is None else m.text
+
+    def wait_named(self, name: str, pred, timeout_s: float) -> float | None:
+        """Wait until NAMED_VALUE_FLOAT ``name`` satisfies ``pred(value)``; returns the value."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                v = self.named.get(name)
+                if v is not None and pred(v):
+                    return v
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._cond.wait(min(left, 0.2))
+
+    def heartbeat_mode(self, timeout_s: float = 3.0, since: float = 0.0):
+        """custom_mode of the vehicle's first HEARTBEAT after ``since``; None at the timeout."""
+        m = self.wait(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1,
+                      timeout_s, since)
+        return None if m is None else m.custom_mode
 
     # ---- send ------------------------------------------------------------------------------
     def _send(self, msg) -> None:
@@ -243,6 +359,15 @@ class ScriptedGcs:
             return result
         raise GcsError(f"no COMMAND_ACK for command {command}")
 
+    def command(self, command: int, *params: float, timeout_s: float = 5.0):
+        """One COMMAND_LONG (no retry); the COMMAND_ACK message, None at the timeout (needs
+        ``record``)."""
+        p = list(params) + [0.0] * (7 - len(params))
+        since = time.monotonic()
+        self.mav.command_long_send(VEHICLE_SYSID, VEHICLE_COMPID, command, 0, *p)
+        return self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
+                         timeout_s, since)
+
     def arm(self, timeout_s: float = 15.0) -> None:
         """Arm; a refusal (e.g. the vehicle has no valid plant data yet) is retried, as an
         operator would, each time new telemetry arrives, until ``timeout_s``."""
@@ -287,5 +412,6 @@ class ScriptedGcs:
     def close(self) -> None:
         self._stop.set()
         self._rx.join(timeout=2.0)
-        self._hb_thread.join(timeout=2.0)
+        if self._hb_thread is not None:
+            self._hb_thread.join(timeout=2.0)
         self.sock.close()

@@ -1,9 +1,11 @@
-"""Child processes of the main job: start in their own process group, read their output,
-stop them cleanly (SIGINT, then SIGTERM, then SIGKILL, each with a bounded wait).
+"""Child processes of the SITL harness: start in their own process group, read their output,
+wait on it with bounded waits, stop them cleanly (SIGINT, then SIGTERM, then SIGKILL, each with
+a bounded wait). Used by the main job (tools.hil), the reliability rig (tools.sitl.rig), the
+benchmarks (tools.bench), the link-impairment relay and the tests' fc process.
 
 No orphans: every child is started with ``start_new_session=True`` (its own process group),
 so signals go to the whole group (the child and anything it starts), and the terminal's
-Ctrl-C reaches only tools.hil, which forwards the stop.
+Ctrl-C reaches only the parent, which forwards the stop.
 """
 from __future__ import annotations
 
@@ -30,35 +32,46 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
 
 
 class Child:
-    """One child process with its stdout/stderr copied to a console log and its stdout lines
-    delivered through a queue (``lines``).
+    """One child process with its output copied to a console log and each stdout line
+    delivered twice: through a queue (``lines``, consumed by a reader such as tools.hil) and
+    kept in ``history`` (guarded by ``cv``, for waits on any line seen so far).
 
     Parameters
     ----------
     name : short name used in messages ("plant", "fc").
     argv : the command line.
-    console_path : file receiving everything the child prints (stdout and stderr).
+    console_path : file receiving everything the child prints (stdout and stderr); None: none.
     env : environment (default: inherited).
+    cwd : working directory (default: inherited).
+    merge_stderr : stderr joins stdout (one stream, in ``lines``/``history``); else stderr
+        lines go to the console with a ``[stderr]`` prefix and the last 20 to ``stderr_tail``.
+    console_mode : "w" (truncate) or "a" (append to an existing console log).
     """
 
-    def __init__(self, name: str, argv: list[str], console_path: Path,
-                 env: dict | None = None, cwd: str | None = None):
+    def __init__(self, name: str, argv: list[str], console_path: Path | None,
+                 env: dict | None = None, cwd: str | None = None, merge_stderr: bool = False,
+                 console_mode: str = "w"):
         self.name = name
         self.argv = argv
-        self.console_path = Path(console_path)
+        self.console_path = None if console_path is None else Path(console_path)
         self.lines: queue.Queue[str] = queue.Queue()
+        self.history: list[str] = []
+        self.cv = threading.Condition()
         self.stderr_tail: list[str] = []
-        self._console = open(self.console_path, "w", buffering=1)
+        self._console = (open(os.devnull, "w") if console_path is None
+                         else open(self.console_path, console_mode, buffering=1))
         self._console.write("$ " + " ".join(argv) + "\n")
         self._lock = threading.Lock()
         self.proc = subprocess.Popen(
-            argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE,
             text=True, bufsize=1, start_new_session=True, env=env, cwd=cwd)
         self.pgid = self.proc.pid  # new session: pgid == pid
-        self._threads = [
-            threading.Thread(target=self._pump, args=(self.proc.stdout, True), daemon=True),
-            threading.Thread(target=self._pump, args=(self.proc.stderr, False), daemon=True),
-        ]
+        self._threads = [threading.Thread(target=self._pump, args=(self.proc.stdout, True),
+                                          daemon=True)]
+        if not merge_stderr:
+            self._threads.append(threading.Thread(target=self._pump,
+                                                  args=(self.proc.stderr, False), daemon=True))
         for t in self._threads:
             t.start()
 
@@ -71,7 +84,12 @@ class Child:
                     del self.stderr_tail[:-20]
             if is_stdout:
                 self.lines.put(line.rstrip("\n"))
+                with self.cv:
+                    self.history.append(line.rstrip("\n"))
+                    self.cv.notify_all()
         stream.close()
+        with self.cv:
+            self.cv.notify_all()
 
     @property
     def pid(self) -> int:
@@ -111,6 +129,35 @@ class Child:
             if on_other is not None:
                 on_other(line)
 
+    def wait_line(self, pred, timeout_s: float) -> str | None:
+        """First stdout line satisfying ``pred`` (already seen or new); None when the timeout
+        passes or the child has exited with nothing matching."""
+        deadline = time.monotonic() + timeout_s
+        i = 0
+        with self.cv:
+            while True:
+                while i < len(self.history):
+                    if pred(self.history[i]):
+                        return self.history[i]
+                    i += 1
+                left = deadline - time.monotonic()
+                if left <= 0 or (self.proc.poll() is not None and not self._threads[0].is_alive()):
+                    return None
+                self.cv.wait(min(left, 0.2))
+
+    def wait_exit(self, timeout_s: float) -> int | None:
+        """The exit code once the child has exited, None if it still runs after ``timeout_s``."""
+        try:
+            return self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def kill9(self) -> int:
+        """SIGKILL the process itself (not its group: a crash), wait for it; its exit code."""
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait(timeout=10)
+        return self.proc.returncode
+
     def death_message(self) -> str:
         rc = self.poll()
         how = (f"was killed by signal {-rc}" if rc is not None and rc < 0
@@ -134,11 +181,15 @@ class Child:
             return False
 
     def stop(self, int_wait_s: float = STOP_INT_WAIT_S,
-             term_wait_s: float = STOP_TERM_WAIT_S) -> int | None:
-        """Stop the child's process group: SIGINT, then SIGTERM, then SIGKILL. Returns the
-        child's exit code (negative: killed by that signal)."""
-        for sig, wait_s in ((signal.SIGINT, int_wait_s), (signal.SIGTERM, term_wait_s),
-                            (signal.SIGKILL, 5.0)):
+             term_wait_s: float | None = STOP_TERM_WAIT_S,
+             first_signal: int = signal.SIGINT) -> int | None:
+        """Stop the child's process group: ``first_signal`` (SIGINT), then SIGTERM (left out
+        when ``term_wait_s`` is None), then SIGKILL. Returns the child's exit code (negative:
+        killed by that signal)."""
+        steps = [(first_signal, int_wait_s)]
+        if term_wait_s is not None:
+            steps.append((signal.SIGTERM, term_wait_s))
+        for sig, wait_s in (*steps, (signal.SIGKILL, 5.0)):
             if self.poll() is None:
                 self._signal_group(sig)
                 try:

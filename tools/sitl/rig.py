@@ -13,9 +13,7 @@ import json
 import math
 import os
 import signal
-import subprocess
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from tools.linkimpair import Impairment, LinkImpair
-from tools.sitl.procs import free_udp_port
+from tools.sitl.gcs import ScriptedGcs
+from tools.sitl.procs import Child, free_udp_port
 
 ROOT = Path(__file__).resolve().parents[2]
 READY_TIMEOUT_S = 120.0            # cold numba cache on a busy 2-core machine
@@ -40,181 +39,27 @@ def child_env() -> dict:
     return env
 
 
-class Proc:
-    """A child process in its own process group; stdout lines collected; bounded waits."""
+class Proc(Child):
+    """A child of the rig (``tools.sitl.procs.Child``): cwd the repository, ``child_env()``,
+    stderr merged into stdout, console appended; ``history`` holds the lines seen so far."""
 
     def __init__(self, name: str, argv: list[str], console: Path) -> None:
-        self.name = name
-        self.argv = argv
-        self.lines: list[str] = []
-        self.cv = threading.Condition()
-        self.console_path = console
-        self._console = open(console, "a", buffering=1)
-        self._console.write("$ " + " ".join(argv) + "\n")
-        self.proc = subprocess.Popen(argv, cwd=ROOT, env=child_env(), stdin=subprocess.DEVNULL,
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     bufsize=1, start_new_session=True)
-        self._t = threading.Thread(target=self._pump, daemon=True)
-        self._t.start()
-
-    def _pump(self) -> None:
-        for line in self.proc.stdout:
-            self._console.write(line)
-            with self.cv:
-                self.lines.append(line.rstrip("\n"))
-                self.cv.notify_all()
-        with self.cv:
-            self.cv.notify_all()
-
-    @property
-    def pid(self) -> int:
-        return self.proc.pid
-
-    def wait_line(self, pred, timeout_s: float) -> str | None:
-        """First output line satisfying ``pred`` (already seen or new), None at timeout/exit."""
-        deadline = time.monotonic() + timeout_s
-        i = 0
-        with self.cv:
-            while True:
-                while i < len(self.lines):
-                    if pred(self.lines[i]):
-                        return self.lines[i]
-                    i += 1
-                left = deadline - time.monotonic()
-                if left <= 0 or (self.proc.poll() is not None and not self._t.is_alive()):
-                    return None
-                self.cv.wait(min(left, 0.2))
-
-    def wait_exit(self, timeout_s: float) -> int | None:
-        try:
-            return self.proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            return None
+        super().__init__(name, argv, console, env=child_env(), cwd=str(ROOT), merge_stderr=True,
+                         console_mode="a")
 
     def stop(self, sig: int = signal.SIGINT, timeout_s: float = 15.0) -> int:
         """Signal the group, wait, escalate to SIGKILL. Returns the exit code."""
-        if self.proc.poll() is None:
-            try:
-                os.killpg(self.proc.pid, sig)
-            except ProcessLookupError:
-                pass
-            if self.wait_exit(timeout_s) is None:
-                try:
-                    os.killpg(self.proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-                self.proc.wait(timeout=10)
-        self._t.join(5)
-        self._console.close()
-        return self.proc.returncode
-
-    def kill9(self) -> int:
-        """SIGKILL the process itself (the crash of promise 3)."""
-        self.proc.send_signal(signal.SIGKILL)
-        self.proc.wait(timeout=10)
-        return self.proc.returncode
+        return super().stop(int_wait_s=timeout_s, term_wait_s=None, first_signal=sig)
 
 
-class GroundStation:
-    """A pymavlink ground station bound where the fc sends telemetry; records in a thread."""
+class GroundStation(ScriptedGcs):
+    """The rig's ground station: the scripted one (``tools.sitl.gcs.ScriptedGcs``) bound where
+    the fc sends telemetry, recording everything, without heartbeats of its own."""
 
     def __init__(self, port: int, sysid: int = 250, compid: int = 190,
                  key: bytes | None = None) -> None:
-        os.environ["MAVLINK20"] = "1"
-        from pymavlink import mavutil
-        self.mavutil = mavutil
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=sysid,
-                                               source_component=compid, dialect="ardupilotmega")
-        if key is not None:
-            self.conn.setup_signing(key, sign_outgoing=True)
-        self.cv = threading.Condition()
-        self.msgs: list = []            # (monotonic time, message)
-        self.named: dict[str, float] = {}
-        self.texts: list[tuple[float, int, str]] = []
-        self._stop = threading.Event()
-        self._t = threading.Thread(target=self._run, daemon=True)
-        self._t.start()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                m = self.conn.recv_match(blocking=True, timeout=0.1)
-            except Exception:  # noqa: BLE001 - socket closed at shutdown
-                if self._stop.is_set():
-                    return
-                continue
-            if m is None:
-                continue
-            t = m.get_type()
-            if t == "BAD_DATA":
-                continue
-            now = time.monotonic()
-            with self.cv:
-                if t == "NAMED_VALUE_FLOAT":
-                    self.named[m.name] = m.value
-                elif t == "STATUSTEXT":
-                    self.texts.append((now, m.severity, m.text))
-                if t not in ("ATTITUDE", "AOA_SSA", "VFR_HUD", "DEBUG_VECT", "SERVO_OUTPUT_RAW"):
-                    self.msgs.append((now, m))
-                    if len(self.msgs) > 20000:
-                        del self.msgs[:10000]
-                self.cv.notify_all()
-
-    def wait(self, pred, timeout_s: float, since: float = 0.0):
-        """First recorded message after ``since`` satisfying ``pred(m)``; None at timeout."""
-        deadline = time.monotonic() + timeout_s
-        with self.cv:
-            while True:
-                for t, m in self.msgs:
-                    if t >= since and pred(m):
-                        return m
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self.cv.wait(min(left, 0.2))
-
-    def find(self, pred, since: float = 0.0, until: float = math.inf):
-        """First recorded message received in [since, until] satisfying ``pred`` (no wait)."""
-        with self.cv:
-            for t, m in self.msgs:
-                if since <= t <= until and pred(m):
-                    return m
-        return None
-
-    def wait_text(self, needle: str, timeout_s: float, since: float = 0.0) -> str | None:
-        m = self.wait(lambda m: m.get_type() == "STATUSTEXT" and needle in m.text, timeout_s,
-                      since)
-        return None if m is None else m.text
-
-    def wait_named(self, name: str, pred, timeout_s: float) -> float | None:
-        """Wait until NAMED_VALUE_FLOAT ``name`` satisfies ``pred(value)``; returns the value."""
-        deadline = time.monotonic() + timeout_s
-        with self.cv:
-            while True:
-                v = self.named.get(name)
-                if v is not None and pred(v):
-                    return v
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self.cv.wait(min(left, 0.2))
-
-    def heartbeat_mode(self, timeout_s: float = 3.0, since: float = 0.0):
-        m = self.wait(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1,
-                      timeout_s, since)
-        return None if m is None else m.custom_mode
-
-    def command(self, command: int, *params: float, timeout_s: float = 5.0):
-        p = list(params) + [0.0] * (7 - len(params))
-        since = time.monotonic()
-        self.conn.mav.command_long_send(1, 1, command, 0, *p)
-        return self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
-                         timeout_s, since)
-
-    def close(self) -> None:
-        self._stop.set()
-        self._t.join(2)
-        self.conn.close()
+        super().__init__("127.0.0.1", port, sysid=sysid, compid=compid, key=key,
+                         heartbeat=False, record=True)
 
 
 @dataclass
@@ -287,7 +132,7 @@ class Rig:
         if self.fc.wait_line(lambda s: s.strip() == "READY", READY_TIMEOUT_S) is None:
             rc = self.fc.stop(signal.SIGKILL)
             raise RuntimeError(f"fc did not print READY (rc={rc}); see {self.fc.console_path}: "
-                               + " | ".join(self.fc.lines[-5:]))
+                               + " | ".join(self.fc.history[-5:]))
         return self.fc
 
     def start(self, plant: bool = True) -> "Rig":
@@ -342,7 +187,7 @@ class Rig:
     def plant_time_now(self) -> float:
         """The plant's latest reported sim time (its last PROGRESS line), 0 before any."""
         with self.plant.cv:
-            for ln in reversed(self.plant.lines):
+            for ln in reversed(self.plant.history):
                 if ln.startswith("PROGRESS"):
                     return _progress_t(ln)
         return 0.0
@@ -439,28 +284,26 @@ class Flood:
                      f"{target[0]}:{target[1]}", "--rate", repr(float(rate_hz)),
                      "--duration", repr(float(duration_s)), "--seed", str(seed),
                      "--sysid", str(sysid)]
-        self.proc: subprocess.Popen | None = None
+        self.child: Child | None = None
         self.sent: int | None = None
 
     def start(self) -> "Flood":
-        self.proc = subprocess.Popen(self.argv, cwd=ROOT, env=child_env(),
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.child = Child("flood", self.argv, None, env=child_env(), cwd=str(ROOT))
         return self
 
     def wait(self, timeout_s: float) -> int:
-        try:
-            out, err = self.proc.communicate(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            out, err = self.proc.communicate(timeout=5)
-        for line in out.splitlines():
+        """The number of datagrams sent (the child's ``FLOOD sent=N`` line); killed at the
+        timeout."""
+        if self.child.wait_exit(timeout_s) is None:
+            self.stop()
+        self.child.close()
+        for line in self.child.history:
             if line.startswith("FLOOD sent="):
                 self.sent = int(line.split("=")[1].split()[0])
         if self.sent is None:
-            raise RuntimeError(f"flood did not report: rc={self.proc.returncode} {err[-500:]}")
+            raise RuntimeError(f"flood did not report: {self.child.death_message()}")
         return self.sent
 
     def stop(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=5)
+        if self.child is not None and self.child.poll() is None:
+            self.child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
