@@ -176,7 +176,11 @@ class FcProcess:
 
 
 class GcsClient:
-    """A pymavlink ground station listening where the fc sends (``udpin``)."""
+    """A pymavlink ground station listening where the fc sends (``udpin``).
+
+    Deliberately pymavlink's stock ``mavutil`` connection, read synchronously, not the
+    harness's ``tools.sitl.gcs.ScriptedGcs``: these tests check the fc against the connection a
+    third-party ground station (MAVProxy, scripts) uses."""
 
     def __init__(self, port: int, sysid: int = 255, compid: int = 190) -> None:
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=sysid,

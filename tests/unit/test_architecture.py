@@ -27,6 +27,7 @@ ALLOWED: dict[str, tuple[str, ...]] = {
     "fc.guidance": ("fc.control",),        # the pure outer loop: itself and the law's layout
     "fc": (),                              # never plant_sim, tools or tests
     "plant_sim": (),                       # never fc, tools or tests
+    "tools.sitl": ("fc", "plant_sim", "tools.linkimpair"),   # the harness: no command line
     "tools": ("fc", "plant_sim"),          # never tests
     "tests": ("fc", "plant_sim", "tools"),
 }

@@ -12,6 +12,7 @@ Modules (imported explicitly; importing the package imports nothing):
 - ``metrics``: step-response and surface metrics (docs/metrics.md) of summary.json and the
   campaigns.
 
-Direction: tools.sitl imports fc and plant_sim (and tools.linkimpair); the command lines
-(``python -m tools.X``) import tools.sitl; nothing in tools.sitl imports a command line.
+Direction: tools.sitl imports fc, plant_sim and the link-impairment relay (tools.linkimpair)
+only; the command lines (``python -m tools.X``) import tools.sitl, never the reverse
+(tests/unit/test_architecture.py).
 """
