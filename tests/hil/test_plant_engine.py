@@ -120,31 +120,23 @@ def test_target_timeline_parses_round_trips_and_rejects_bad_rows():
 def test_plant_process_flies_the_throttle_from_servo4(tmp_path):
     """The plant process (lockstep, cruise scenario) applies servo4 as the engine throttle."""
     import json
-    import subprocess
     import sys
-    import time
 
     from plant_sim import truthlog
     from plant_sim.link import ServoResponder
+    from tools.sitl.procs import run_serving
     trim = list(PlantSim(load("cruise")).trim_rad)
     resp = ServoResponder()
     out = tmp_path / "engine"
-    proc = subprocess.Popen([sys.executable, "-m", "plant_sim", "run", "--scenario", "cruise",
-                             "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0",
-                             "--out", str(out), "--duration", "2.0", "--progress-every", "0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    argv = [sys.executable, "-m", "plant_sim", "run", "--scenario", "cruise",
+            "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0",
+            "--out", str(out), "--duration", "2.0", "--progress-every", "0"]
     try:
-        deadline = time.monotonic() + 60
-        while proc.poll() is None and time.monotonic() < deadline:
-            resp.serve_one(lambda stamp, vals: trim + [0.9 if stamp >= 1_000_000 else -1.0],
-                           timeout_s=0.2)
-        _stdout, stderr = proc.communicate(timeout=30)
+        proc = run_serving("plant", argv, lambda: resp.serve_one(
+            lambda stamp, vals: trim + [0.9 if stamp >= 1_000_000 else -1.0], timeout_s=0.2), 60.0)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
         resp.close()
-    assert proc.returncode == 0, stderr
+    assert proc.poll() == 0, proc.stderr_tail
     assert json.loads((out / "plant_summary.json").read_text())["frames"] == 1000
     tr = truthlog.load(out)
     t, thrust = tr["t_s"], tr["thrust_N"]

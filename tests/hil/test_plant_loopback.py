@@ -8,9 +8,7 @@ a wrong system id and a foreign source address are rejected and counted without 
 import json
 import math
 import socket
-import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -19,6 +17,7 @@ from plant_sim import truthlog
 from plant_sim.link import ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
+from tools.sitl.procs import run_serving
 
 pytestmark = pytest.mark.hil
 
@@ -39,29 +38,27 @@ def _run(tmp_path, name, inject):
     foreign = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     foreign.bind(("127.0.0.1", 0))
     out = tmp_path / name
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "plant_sim", "run", "--scenario", "paper", "--mode", "lockstep",
-         "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0", "--out", str(out),
-         "--duration", str(DURATION_S), "--seed", "5", "--progress-every", "0"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    argv = [sys.executable, "-m", "plant_sim", "run", "--scenario", "paper", "--mode", "lockstep",
+            "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0", "--out", str(out),
+            "--duration", str(DURATION_S), "--seed", "5", "--progress-every", "0"]
+    n = 0
+
+    def serve() -> None:
+        nonlocal n
+        if resp.serve_one(_law, timeout_s=0.5):
+            n += 1
+            if inject and n in (10, 200) and resp.peer:
+                resp.send_raw(b"\xfd\x09garbage-not-mavlink", resp.peer)
+                resp.send_raw(resp.servo_frame(123456, (1500, 1500, 1500), sysid=77), resp.peer)
+                foreign.sendto(resp.servo_frame(0, (1000, 1000, 1000)), resp.peer)
+
     try:
-        deadline = time.monotonic() + 60.0
-        n = 0
-        while proc.poll() is None and time.monotonic() < deadline:
-            if resp.serve_one(_law, timeout_s=0.5):
-                n += 1
-                if inject and n in (10, 200) and resp.peer:
-                    resp.send_raw(b"\xfd\x09garbage-not-mavlink", resp.peer)
-                    resp.send_raw(resp.servo_frame(123456, (1500, 1500, 1500), sysid=77), resp.peer)
-                    foreign.sendto(resp.servo_frame(0, (1000, 1000, 1000)), resp.peer)
-        stdout, stderr = proc.communicate(timeout=30)
+        proc = run_serving("plant", argv, serve, 60.0)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
         resp.close()
         foreign.close()
-    assert proc.returncode == 0, stderr
+    assert proc.poll() == 0, proc.stderr_tail
+    stdout = "\n".join(proc.history)
     return out, stdout, resp.answered
 
 

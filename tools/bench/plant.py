@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import statistics
 import sys
 import tempfile
@@ -33,7 +32,7 @@ from plant_sim import dynamics as dy
 from plant_sim.link import PlantLink, PwmMap, ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
-from tools.sitl.procs import Child
+from tools.sitl.procs import run_serving
 
 
 def _median_spread(vals):
@@ -93,19 +92,14 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
 def bench_lockstep(sc_name: str, sim_seconds: float):
     resp = ServoResponder()
     with tempfile.TemporaryDirectory() as tmp:
-        proc = Child("plant", [sys.executable, "-m", "plant_sim", "run", "--scenario", sc_name,
-                               "--mode", "lockstep", "--fc", f"127.0.0.1:{resp.addr[1]}",
-                               "--bind", "127.0.0.1:0", "--out", tmp,
-                               "--duration", str(sim_seconds), "--progress-every", "0"], None)
+        argv = [sys.executable, "-m", "plant_sim", "run", "--scenario", sc_name, "--mode",
+                "lockstep", "--fc", f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0",
+                "--out", tmp, "--duration", str(sim_seconds), "--progress-every", "0"]
         try:
-            deadline = time.monotonic() + 300.0
-            while proc.poll() is None and time.monotonic() < deadline:
-                resp.serve_fast(timeout_s=0.5)
-            proc.wait_exit(30)
+            proc = run_serving("plant", argv, lambda: resp.serve_fast(timeout_s=0.5), 300.0)
         finally:
-            rc = proc.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
             resp.close()
-        if rc != 0:
+        if proc.poll() != 0:
             raise SystemExit(f"plant failed: {proc.death_message()}")
         return json.loads((Path(tmp) / "plant_summary.json").read_text())
 

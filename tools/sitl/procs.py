@@ -213,3 +213,20 @@ class Child:
                 rc = self.poll()
                 self._console.write(f"# exit code {rc}\n")
                 self._console.close()
+
+
+def run_serving(name: str, argv: list[str], serve, timeout_s: float,
+                cwd: str | None = None) -> Child:
+    """Run a child to its end while calling ``serve()`` (one bounded step of the peer it talks
+    to, e.g. ``ServoResponder.serve_one``) in a loop; SIGKILL it if it is still running after
+    ``timeout_s``. Returns the stopped ``Child`` (exit code ``poll()``, ``history``,
+    ``stderr_tail``)."""
+    child = Child(name, argv, None, cwd=cwd)
+    try:
+        deadline = time.monotonic() + timeout_s
+        while child.poll() is None and time.monotonic() < deadline:
+            serve()
+        child.wait_exit(30.0)
+    finally:
+        child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
+    return child
