@@ -66,7 +66,7 @@ import threading
 import time
 from dataclasses import asdict, dataclass
 
-from tools.sitl.procs import Child
+from tools.sitl.procs import ROOT, Child, repo_env
 
 __all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "mutate",
            "COUNTER_NAMES"]
@@ -482,10 +482,7 @@ class RelayProcess:
         return self.listen_address[1]
 
     def __enter__(self) -> "RelayProcess":
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-        env = dict(os.environ)
-        env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-        self.child = Child("linkimpair", self.argv, None, env=env, cwd=root)
+        self.child = Child("linkimpair", self.argv, None, env=repo_env(), cwd=str(ROOT))
         try:
             line = self.child.wait_for_line("LISTEN ", self.start_timeout_s)
         except RuntimeError as exc:

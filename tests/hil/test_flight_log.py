@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import subprocess
 import sys
@@ -23,6 +22,7 @@ import numpy as np
 import pytest
 
 from tests.fc_harness import FcProcess, GcsClient, ScriptedPlant, level_meas, mavlink
+from tools.sitl.procs import repo_env as _env
 
 ROOT = Path(__file__).resolve().parents[2]
 FLIGHT_S = 20.0
@@ -33,12 +33,6 @@ TIME_FIELDS = {"ATTITUDE": ("time_boot_ms", 1e-3), "AOA_SSA": ("time_usec", 1e-6
                "SYSTEM_TIME": ("time_boot_ms", 1e-3), "GPS_RAW_INT": ("time_usec", 1e-6),
                "GLOBAL_POSITION_INT": ("time_boot_ms", 1e-3),
                "HOME_POSITION": ("time_usec", 1e-6), "SERVO_OUTPUT_RAW": ("time_usec", 1e-6)}
-
-
-def _env():
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
 
 
 def _tool(name: str, *args: str) -> str:

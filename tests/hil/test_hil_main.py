@@ -30,6 +30,7 @@ from tools.hil import rundata
 from tools.hil.cli import format_table
 from tools.hil.rundata import strip_wall_clock
 from tools.hil.runner import parse_progress, shaping_params
+from tools.sitl.procs import repo_env as _env
 
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -43,12 +44,6 @@ METRIC_KEYS = {"overshoot_pct", "settling_time_s", "rise_time_s", "final_error_d
                "rms_error_deg"}
 RUN_KEYS = {"alpha", "beta", "mu", "max_surface_deg", "saturated_s", "sim_time_s",
             "wall_time_s", "real_time_factor", "late_ticks", "diverged"}
-
-
-def _env():
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
 
 
 def _hil(*args, timeout_s=RUN_TIMEOUT_S):

@@ -35,6 +35,7 @@ from plant_sim.link import ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
 from tools.sitl.gcs import RingRecord
+from tools.sitl.procs import repo_env
 
 ROOT = Path(__file__).resolve().parents[2]
 #: frames flown before the stop (0.1 s of sim time at the paper scenario's 500 Hz)
@@ -160,7 +161,7 @@ def _free_udp_port() -> int:
 @pytest.mark.hil
 def test_realtime_duration_0_flies_until_sigint_then_writes_the_summary(tmp_path):
     out = tmp_path / "open"
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env = repo_env()
     proc = subprocess.Popen(
         [sys.executable, "-m", "tools.hil", "run", "--mode", "realtime", "--duration", "0",
          "--variant", "coordinated", "--out", str(out), "--no-plots", "--progress-every", "0.5",

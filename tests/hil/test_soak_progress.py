@@ -13,12 +13,14 @@ from pathlib import Path
 
 import pytest
 
+from tools.sitl.procs import repo_env
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.hil
 def test_soak_prints_progress_while_it_runs(tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env = repo_env()
     proc = subprocess.Popen([sys.executable, "-m", "tools.soak", "--duration", "5",
                              "--progress-every", "1", "--flood-rate", "0", "--out",
                              str(tmp_path / "soak")],

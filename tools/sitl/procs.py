@@ -19,6 +19,8 @@ import threading
 import time
 from pathlib import Path
 
+#: the repository root (children run our packages from here)
+ROOT = Path(__file__).resolve().parents[2]
 #: waits (s) after SIGINT and after SIGTERM before escalating
 STOP_INT_WAIT_S = 15.0
 STOP_TERM_WAIT_S = 5.0
@@ -29,6 +31,15 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind((host, 0))
         return s.getsockname()[1]
+
+
+def repo_env(**extra: str) -> dict:
+    """The environment for a child running our packages: ours, with the repository root first
+    on PYTHONPATH (so a child imports this tree, not an installed copy), plus ``extra``."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    env.update(extra)
+    return env
 
 
 class Child:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import signal
 import sys
 import time
@@ -22,7 +21,7 @@ import numpy as np
 
 from tools.linkimpair import Impairment, LinkImpair
 from tools.sitl.gcs import ScriptedGcs
-from tools.sitl.procs import Child, free_udp_port
+from tools.sitl.procs import Child, free_udp_port, repo_env
 
 ROOT = Path(__file__).resolve().parents[2]
 READY_TIMEOUT_S = 120.0            # cold numba cache on a busy 2-core machine
@@ -33,10 +32,8 @@ PROMISE1_IMPAIRMENT = Impairment(loss=0.05, jitter_s=0.005, dup=0.01, reorder=0.
 
 
 def child_env() -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    env["MAVLINK20"] = "1"
-    return env
+    """``repo_env`` with MAVLink 2 for pymavlink in the child."""
+    return repo_env(MAVLINK20="1")
 
 
 class Proc(Child):
