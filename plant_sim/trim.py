@@ -20,6 +20,7 @@ import itertools
 import numpy as np
 
 from plant_sim import dynamics as dy
+from plant_sim.params import build_params
 from plant_sim.scenario import Scenario
 from plant_sim.vehicle import B_REF_M, C_REF_M, S_REF_M2
 
@@ -53,7 +54,6 @@ class TrimResult:
 
 def trim_at(sc: Scenario, alpha_rad: float, beta_rad: float) -> TrimResult:
     """Trim deflections at (alpha, beta) with the scenario's flight condition and vehicle."""
-    from plant_sim.sim import build_params
     p, _ = build_params(sc)
     ini = sc.data["initial"]
     x = np.zeros(dy.X_N)

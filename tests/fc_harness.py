@@ -12,12 +12,12 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 
 from fc.params import wire_number
+from tools.sitl.procs import Child, free_udp_port  # noqa: F401  (tests import it from here)
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil  # noqa: E402
@@ -31,18 +31,14 @@ M_T_S, M_ROLL, M_PITCH, M_YAW, M_P, M_Q, M_R, M_AOA, M_SSA = range(9)
 M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING = range(9, 14)
 
 
+#: the failsafe time-out of the ``flying`` fixture (tests/conftest.py), s
+FLYING_FS_TIMEOUT_S = 0.3
+
+
 def param_number(m) -> float:
     """The number a PARAM_VALUE carries: INT32 values travel bytewise in the float field
     (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE), REAL32 as the float itself."""
     return wire_number(m.param_value, m.param_type)
-
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def level_meas(t_s: float, alpha_deg: float = 1.0, beta_deg: float = 0.0, roll_deg: float = 0.0,
@@ -130,7 +126,8 @@ class ScriptedPlant:
 
 
 class FcProcess:
-    """``python -m fc`` with free ports; waits for READY; SIGINT on exit (kill if stuck)."""
+    """``python -m fc`` with free ports (a ``tools.sitl.procs.Child``); waits for READY; SIGINT
+    on exit (kill if stuck)."""
 
     def __init__(self, out_dir: str, *extra: str, gcs_ports: tuple[int, ...] = (),
                  ready_timeout_s: float = 90.0) -> None:
@@ -147,49 +144,31 @@ class FcProcess:
         self.args = args
         self.ready_timeout_s = ready_timeout_s
         self.proc: subprocess.Popen | None = None
-        self.stdout_lines: list[str] = []
         self.returncode: int | None = None
 
     def __enter__(self) -> "FcProcess":
-        self.proc = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
-        ready = threading.Event()
-
-        def _reader():
-            for line in self.proc.stdout:
-                self.stdout_lines.append(line.rstrip("\n"))
-                if line.strip() == "READY":
-                    ready.set()
-            ready.set()
-
-        threading.Thread(target=_reader, daemon=True).start()
-        if not ready.wait(self.ready_timeout_s) or self.proc.poll() is not None:
+        self.child = Child("fc", self.args, None, cwd=REPO)
+        self.proc = self.child.proc
+        if self.child.wait_line(lambda s: s.strip() == "READY", self.ready_timeout_s) is None:
             err = self._kill()
             raise RuntimeError(f"fc did not become READY: rc={self.proc.returncode} {err}")
         return self
 
+    @property
+    def stdout_lines(self) -> list[str]:
+        return self.child.history
+
     def _kill(self) -> str:
-        try:
-            self.proc.kill()
-        except ProcessLookupError:
-            pass
-        try:
-            _, err = self.proc.communicate(timeout=10)
-        except (subprocess.TimeoutExpired, ValueError):
-            err = ""
-        return err or ""
+        self.child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
+        return "\n".join(self.child.stderr_tail)
 
     def stop(self, timeout_s: float = 20.0) -> int:
+        """SIGINT, wait up to ``timeout_s``, then SIGKILL; the exit code (also ``returncode``,
+        the last stderr lines in ``stderr``)."""
         if self.proc is None or self.returncode is not None:
             return self.returncode
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-        try:
-            self.proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            self._kill()
-        self.returncode = self.proc.returncode
-        self.stderr = self.proc.stderr.read() if self.proc.stderr else ""
+        self.returncode = self.child.stop(int_wait_s=timeout_s, term_wait_s=None)
+        self.stderr = "\n".join(self.child.stderr_tail)
         return self.returncode
 
     def __exit__(self, *exc) -> None:
@@ -197,7 +176,11 @@ class FcProcess:
 
 
 class GcsClient:
-    """A pymavlink ground station listening where the fc sends (``udpin``)."""
+    """A pymavlink ground station listening where the fc sends (``udpin``).
+
+    Deliberately pymavlink's stock ``mavutil`` connection, read synchronously, not the
+    harness's ``tools.sitl.gcs.ScriptedGcs``: these tests check the fc against the connection a
+    third-party ground station (MAVProxy, scripts) uses."""
 
     def __init__(self, port: int, sysid: int = 255, compid: int = 190) -> None:
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=sysid,

@@ -17,7 +17,7 @@ A *configuration* is (factor set, reading, sideslip sign, rate-command limit):
 - sign (:data:`SIGNS`): the paper's (beta0, mu_c) = (+5, +4) deg and its mirror (-5, -4);
 - ``SLW_OMC_MAX``: the 3 deg/s rate-command limit of deviation V1 and looser values.
 
-The paper case is flown in process with the law fed the plant's truth (tools.closed_loop,
+The paper case is flown in process with the law fed the plant's truth (tools.sitl.closed_loop,
 as docs/control_law.md's figures). Dispersed cases are those of ``tools.montecarlo`` (the
 ``paper`` dispersion file, campaign seed ``--seed``; case i is the montecarlo's case i), flown
 with the sensors and the fc's estimator in the loop, as the montecarlo's closed-loop backend
@@ -118,7 +118,7 @@ def signed_scenario(base, sign: str):
 
 
 def run_metrics(res) -> dict:
-    """Figures of one flight (tools.closed_loop.ClosedLoopResult) as a flat dict.
+    """Figures of one flight (tools.sitl.closed_loop.ClosedLoopResult) as a flat dict.
 
     Per channel: overshoot %, settling s, wrong-way dip (undershoot) %, final error deg.
     Surfaces: peak deg per surface, time on a limit s, usage = sum over surfaces of the
@@ -148,7 +148,7 @@ def _f(v) -> float:
 
 def fly(cfg: Config, case: int | None, campaign_seed: int = 1, duration_s: float = 20.0) -> dict:
     """One run: the paper case (``case`` None, truth) or dispersed case ``case`` (sensors)."""
-    from tools.closed_loop import simulate
+    from tools.sitl.closed_loop import simulate
     base, seed, est = _scenario_for(case, campaign_seed)
     sc = signed_scenario(base, cfg.sign)
     res = simulate(sc, coordinated=cfg.coordinated, duration_s=duration_s, seed=seed,

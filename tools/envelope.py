@@ -9,7 +9,7 @@ surfaces starting at the plant's moment trim of the initial state (``actuators.i
 at the commanded one (alpha 5, beta 0 deg): a point whose commanded state cannot be trimmed
 within the surface limits is reported as such. Variants: uncoordinated, and coordinated with
 the factors of Eq. 14 and of Eq. 19 (readings set explicitly, tools.coordination.READINGS).
-The law sees the plant's truth (as tools.closed_loop's paper-case figures). Each point is one
+The law sees the plant's truth (as tools.sitl.closed_loop's paper-case figures). Each point is one
 Dask task (LocalCluster, ``--workers``; 0 = in this process).
 
     python -m tools.envelope --out runs/env                 # the full grid
@@ -80,7 +80,7 @@ def trim_point(sc) -> dict:
 
 def fly_point(mach: float, h_m: float, duration_s: float = 20.0, variants=tuple(VARIANTS)) -> list:
     """The Dask task: trim one point and fly each variant; one row per variant."""
-    from tools.closed_loop import simulate
+    from tools.sitl.closed_loop import simulate
     from tools.coordination import READINGS, run_metrics
     v, q = flight_condition(mach, h_m)
     base = {"mach": float(mach), "h_km": h_m / 1e3, "V_m_s": v, "qbar_kPa": q / 1e3}

@@ -10,14 +10,14 @@ Three targets, each a UDP port a peer may write to:
 (tools.linkimpair.mutate: bit flips, truncation, garbage), a valid frame with a bad CRC, a
 frame of the wrong message type, a valid frame whose fields are NaN/Inf/huge, a MAVLink 1
 frame, a burst of frames glued together. ``corpus()`` is the recorded, deterministic set
-(tests/fuzz_corpus/, replayed by tests/test_reliability_fuzz.py).
+(tests/fuzz_corpus/, replayed by tests/hil/test_reliability_fuzz.py).
 
 The long run (by hand; not CI)::
 
     python -m tools.fuzz run --duration 600 --seed 1 [--rate 2000] [--out DIR]
                              [--targets fc-plant,fc-gcs,plant] [--corrupt 0.1]
 
-flies the paper scenario in real time (tools.soak.Rig) with the plant link corrupting 10 % of
+flies the paper scenario in real time (tools.sitl.rig.Rig) with the plant link corrupting 10 % of
 datagrams in flight both ways (so each process decodes mutated frames from its legitimate peer)
 and a fuzzer writing ``--rate`` datagrams/s to the fc's ground-station port and, from foreign
 addresses, to the fc's plant port and the plant's port. Every second it checks that both
@@ -263,7 +263,7 @@ def write_corpus(directory: str) -> int:
         (d / f"{name}.bin").write_bytes(data)
     (d / "README.md").write_text(
         "# Recorded fuzz corpus (promise 4, docs/reliability.md)\n\n"
-        "One hostile UDP datagram per `.bin` file, replayed by tests/test_reliability_fuzz.py\n"
+        "One hostile UDP datagram per `.bin` file, replayed by tests/hil/test_reliability_fuzz.py\n"
         "to every port of the fc (plant link, ground-station link) and to the plant. Regenerate\n"
         "with `python -m tools.fuzz corpus --write tests/fuzz_corpus`; add any input that ever\n"
         "crashed a process here (tools.fuzz run writes them to OUT/last_inputs/).\n")
@@ -276,7 +276,7 @@ def load_corpus(directory: str) -> dict[str, bytes]:
 
 # ---------------------------------------------------------------------- long run
 def run(args) -> int:
-    from tools.soak import Rig, RigConfig, tracking_error_deg  # noqa: F401
+    from tools.sitl.rig import Rig, RigConfig, tracking_error_deg  # noqa: F401
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-fuzz-"))
     imp = Impairment(corrupt=args.corrupt)
     cfg = RigConfig(out=out, duration_s=args.duration, seed=args.seed, impair_up=imp,

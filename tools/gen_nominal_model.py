@@ -17,7 +17,7 @@ Usage::
     python -m tools.gen_nominal_model            # (re)write the committed file
     python -m tools.gen_nominal_model --check    # exit 1 if the committed file differs
 
-tests/test_law_nominal.py regenerates the tables and checks they match the committed file.
+tests/unit/control/test_law_nominal.py regenerates the tables and checks they match the committed file.
 """
 from __future__ import annotations
 

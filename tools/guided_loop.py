@@ -1,7 +1,7 @@
 """In-process guided flight: guidance (fc.guidance) + the paper's law (fc.control) + the plant.
 
 The outer loop of docs/guidance.md flies the plant through the attitude law, in one numba
-loop like tools.closed_loop (whose set-up it reuses): per frame the plant's sensors (or
+loop like tools.sitl.closed_loop (whose set-up it reuses): per frame the plant's sensors (or
 truth), the guidance when due (default 50 Hz), the law's slow and fast loops when due, the
 throttle and surface commands into the plant, one plant frame. Targets come from the
 scenario's ``[[target]]`` timeline (cruise, mission) or from the caller.
@@ -35,7 +35,7 @@ from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
 from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
-from tools.closed_loop import _divisor, sense_frame
+from tools.sitl.closed_loop import _divisor, sense_frame
 
 from hyfc_wire.numba_cache import drop_stale
 from hyfc_wire.timeline import target_arrays

@@ -61,13 +61,13 @@ import random
 import select
 import signal
 import socket
-import subprocess
 import sys
 import threading
 import time
 from dataclasses import asdict, dataclass
 
 from hyfc_wire.udp import parse_hostport
+from tools.sitl.procs import ROOT, Child, repo_env
 
 __all__ = ["Impairment", "LinkImpair", "RelayProcess", "parse_hostport", "mutate",
            "COUNTER_NAMES"]
@@ -460,7 +460,7 @@ class RelayProcess:
             if imp.delay_frames:
                 self.argv += [f"--{prefix}-delay-frames", str(imp.delay_frames)]
         self.start_timeout_s = start_timeout_s
-        self.proc: subprocess.Popen | None = None
+        self.child: Child | None = None
         self.listen_address: tuple[str, int] | None = None
         self.counters: dict | None = None
 
@@ -469,36 +469,21 @@ class RelayProcess:
         return self.listen_address[1]
 
     def __enter__(self) -> "RelayProcess":
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-        env = dict(os.environ)
-        env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-        self.proc = subprocess.Popen(self.argv, cwd=root, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
-        got: list[str] = []
-        ready = threading.Event()
-
-        def _first_line():
-            got.append(self.proc.stdout.readline())
-            ready.set()
-
-        threading.Thread(target=_first_line, daemon=True).start()
-        if not ready.wait(self.start_timeout_s) or not got[0].startswith("LISTEN "):
-            self.proc.kill()
-            _, err = self.proc.communicate(timeout=5)
-            raise RuntimeError(f"linkimpair did not start: {got} {err}")
-        self.listen_address = parse_hostport(got[0].split()[1])
+        self.child = Child("linkimpair", self.argv, None, env=repo_env(), cwd=str(ROOT))
+        try:
+            line = self.child.wait_for_line("LISTEN ", self.start_timeout_s)
+        except RuntimeError as exc:
+            self.child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
+            raise RuntimeError(f"linkimpair did not start: {exc}") from None
+        self.listen_address = parse_hostport(line.split()[1])
         return self
 
     def stop(self, timeout_s: float = 10.0) -> dict | None:
-        if self.proc is None or self.proc.returncode is not None:
+        """SIGINT (the relay prints its counters as one JSON line and exits), then SIGKILL."""
+        if self.child is None or self.child.poll() is not None and self.counters is not None:
             return self.counters
-        self.proc.send_signal(signal.SIGINT)
-        try:
-            out, _ = self.proc.communicate(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            out, _ = self.proc.communicate(timeout=5)
-        for line in (out or "").splitlines():
+        self.child.stop(int_wait_s=timeout_s, term_wait_s=None)
+        for line in self.child.history:
             if line.startswith("{"):
                 self.counters = json.loads(line)
         return self.counters

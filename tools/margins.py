@@ -9,7 +9,7 @@ the law's surface command is split into three *virtual* channels
 
 and a perturbation is inserted in one of them (or in all three) between the law and the
 plant's actuators, in closed-loop simulation of the full nonlinear law against the full plant
-(the law fed the plant's truth, in one numba loop as tools.closed_loop):
+(the law fed the plant's truth, in one numba loop as tools.sitl.closed_loop):
 
 - **gain**: v_out = k v; the gain margin is the smallest k > 1 (and the largest k < 1) at which
   the loop loses stability (divergence, or a persistent oscillation: :func:`stable`);
@@ -51,7 +51,7 @@ from numba import njit
 from fc.control import layout as L
 from plant_sim import dynamics as dy
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
-from tools.closed_loop import law_frame
+from tools.sitl.closed_loop import law_frame
 
 CHANNELS = ("roll", "pitch", "yaw")
 ALL = 3                                   # channel index meaning all three

@@ -1,5 +1,8 @@
 """``python -m tools.bench [--quick] [--json FILE] [--only PARTS] [--keep DIR]``
 
+and ``python -m tools.bench {law,plant,pingpong,fc-timing,campaign} ...`` (``SUBCOMMANDS``: the
+focused benchmarks, each with its own options; ``python -m tools.bench law --help``).
+
 Measures, in one run, every figure of docs/performance.md and prints a table with the target
 and the ratio to each peer or floor measured in the same run (JSBSim X-15 step, the loopback
 UDP ping-pong between two processes); with ``--json`` it also writes the same figures:
@@ -94,18 +97,14 @@ def part_law(rep: Report, quick: bool) -> None:
             p = rep.fig(f"law_{key}_p99_us", r[key]["p99_us"])
             rep.row(f"1 {label}", f"median {_f(m)} us, p99 {_f(p)} us", "", "", "", "law")
     rep.fig("timer_overhead_ns", r["timer_overhead_ns"])
-    try:      # the law engineer's in-numba per-part benchmark (tools/bench_law.py)
-        from tools.bench_law import bench_parts
-        parts = bench_parts(200 if quick else 2000, 50)
-    except (ImportError, AttributeError, TypeError) as exc:
-        rep.skipped["law_parts_in_numba"] = f"tools.bench_law.bench_parts unavailable: {exc}"
-        return
+    from tools.bench.law import bench_parts    # the in-numba per-part benchmark (tools/bench/law.py)
+    parts = bench_parts(200 if quick else 2000, 50)
     rep.details["law_parts_in_numba"] = parts
     for name, vals in parts.items():
         key = "law_numba_" + "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_")
         m = rep.fig(key + "_median_us", vals[0])
         p = rep.fig(key + "_p99_us", vals[1])
-        rep.row(f"1 inside numba (tools.bench_law): {name}", f"median {_f(m, '.3f')} us, "
+        rep.row(f"1 inside numba (tools.bench law): {name}", f"median {_f(m, '.3f')} us, "
                 f"p99 {_f(p, '.3f')} us", "", "", "", "law")
 
 
@@ -134,14 +133,10 @@ def part_plant(rep: Report, quick: bool) -> None:
             ratio, "plant")
     rep.row("2 plant RK4 step, whole batch inside numba", f"{_f(loop)} us", "",
             ANCHOR["rk4"], "", "plant")
-    try:      # the plant engineer's per-frame path benchmark (tools/bench_plant.py)
-        from tools.bench_plant import bench_frame_path
-        med, lo, hi = bench_frame_path("paper", 1000 if quick else 5000, 3 if quick else 5)
-    except (ImportError, AttributeError, TypeError, ValueError) as exc:
-        rep.skipped["plant_frame_path_us"] = f"tools.bench_plant.bench_frame_path: {exc}"
-        return
+    from tools.bench.plant import bench_frame_path   # the per-frame path (tools/bench/plant.py)
+    med, lo, hi = bench_frame_path("paper", 1000 if quick else 5000, 3 if quick else 5)
     fp = rep.fig("plant_frame_path_us", med)
-    rep.row("2 plant per-frame path, no network (tools.bench_plant: encode sensors, decode "
+    rep.row("2 plant per-frame path, no network (tools.bench plant: encode sensors, decode "
             "servo, truth row, advance 2 RK4 steps, measure)", f"{_f(fp, '.1f')} us "
             f"(batches {_f(lo, '.1f')}-{_f(hi, '.1f')})", "", "", "", "plant")
 
@@ -151,7 +146,7 @@ def part_pingpong(rep: Report, quick: bool, qos_held: bool = False) -> None:
     latency request in both modes, so the ping-pong holds it too (without it an idle vCPU
     halts and every wake-up waits for the hypervisor); one more pass of the links payload
     without the request shows what the machine costs when nothing holds it."""
-    from tools.udp_pingpong import run_pingpong
+    from tools.bench.pingpong import run_pingpong
     n = 2000 if quick else 20000
     rounds = 1 if quick else 4      # payloads interleaved, so a load change hits all three
     runs: dict = {"mavlink": [], "links": [], "raw": []}
@@ -491,8 +486,24 @@ def print_table(rep: Report, out=sys.stdout) -> None:
         print(f"| {k} | skipped: {v} | | | |", file=out)
 
 
+#: ``python -m tools.bench NAME ...``: the focused benchmarks, each its own command line
+SUBCOMMANDS = {
+    "law": "tools.bench.law",            # the law's cost per cycle and per part, inside numba
+    "plant": "tools.bench.plant",        # the plant's per-frame path and lockstep throughput
+    "pingpong": "tools.bench.pingpong",  # the loopback UDP floor between two processes
+    "fc-timing": "tools.bench.fc_timing",  # the fc's real-time tick lateness per fast rate
+    "campaign": "tools.bench.campaign",  # Monte Carlo campaign wall time per worker count
+}
+
+
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in SUBCOMMANDS:
+        import importlib
+        return importlib.import_module(SUBCOMMANDS[argv[0]]).main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m tools.bench",
+                                 epilog="focused benchmarks: python -m tools.bench {"
+                                        + ",".join(SUBCOMMANDS) + "} --help",
                                  description="hyfc benchmarks: prints a table of figures with "
                                              "targets and peers (docs/performance.md).")
     ap.add_argument("--quick", action="store_true",

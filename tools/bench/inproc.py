@@ -281,7 +281,7 @@ def closed_loop_figures(quick: bool = False) -> dict:
     """Simulated seconds per wall second of the closed loop without UDP, one thread."""
     sim_s = 5.0 if quick else 30.0
     try:
-        from tools.closed_loop import simulate
+        from tools.sitl.closed_loop import simulate
     except ImportError:
         simulate = None
     if simulate is not None:
@@ -299,7 +299,7 @@ def closed_loop_figures(quick: bool = False) -> dict:
         wall = float(np.median(walls))
         cpu = float(np.median(cpus))
         t_sim = float(res.t_s[-1] - res.t_s[0]) if res.t_s.size > 1 else sim_s
-        return {"source": "tools.closed_loop.simulate (whole loop in numba, every frame "
+        return {"source": "tools.sitl.closed_loop.simulate (whole loop in numba, every frame "
                           "recorded)", "sim_time_s": t_sim, "wall_time_s": wall,
                 "sim_s_per_wall_s": t_sim / wall, "cpu_time_s": cpu,
                 "sim_s_per_cpu_s": t_sim / cpu if cpu > 0 else float("nan"),
@@ -333,7 +333,7 @@ def closed_loop_figures(quick: bool = False) -> dict:
         advance_frame(x, delta, p, w, n_sub)
     wall = time.perf_counter() - t0
     cpu = time.thread_time() - c0
-    return {"source": "tools.bench (kernels called from a Python loop; tools.closed_loop "
+    return {"source": "tools.bench (kernels called from a Python loop; tools.sitl.closed_loop "
                       "not available)",
             "sim_time_s": n * dt_f, "wall_time_s": wall, "sim_s_per_wall_s": n * dt_f / wall,
             "cpu_time_s": cpu, "sim_s_per_cpu_s": n * dt_f / cpu,

@@ -1,7 +1,7 @@
 """Two-process figures of tools.bench: lockstep, real time, start-up, memory.
 
 Every run starts real processes on 127.0.0.1 with free ports, in their own process groups
-(``tools.hil.procs.Child``), and stops them in ``finally``:
+(``tools.sitl.procs.Child``), and stops them in ``finally``:
 
 - the fc: ``python -m fc`` (the real flight controller, armed in COORDINATED);
 - the plant: ``python -m plant_sim run`` (lockstep real-time factor as the plant reports it in
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.hil.procs import Child, free_udp_port
+from tools.sitl.procs import Child, free_udp_port
 
 GCS_STREAM_HZ = 50          # REQUEST_DATA_STREAM rate asked by the benchmark's ground station
 READY_TIMEOUT_S = 120.0     # a cold numba cache compiles for tens of seconds on a loaded machine

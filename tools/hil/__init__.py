@@ -5,6 +5,7 @@ a run directory; ``python -m tools.hil report RUN_DIR`` rebuilds its summary and
 logs. See docs/hil.md.
 
 Modules: ``cli`` (command line, summary table), ``runner`` (one variant: start, drive, watch,
-stop), ``procs`` (child processes in their own process groups), ``gcs`` (the scripted ground
-station, the only MAVLink import of this process), ``rundata`` (logs -> summary and plot data).
+stop), ``rundata`` (logs -> summary and plot data). The child processes and the scripted ground
+station (the only MAVLink import of this process) are the SITL harness's: ``tools.sitl.procs``,
+``tools.sitl.gcs``.
 """

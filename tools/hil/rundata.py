@@ -21,7 +21,7 @@ import numpy as np
 
 from hyfc_wire import timeline
 
-from tools import metrics
+from tools.sitl import metrics
 
 TIMELINE_FILE = "timeline.toml"
 CHANNELS = ("alpha", "beta", "mu")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tools.hil import rundata
-from tools.hil.procs import Child, free_udp_port
+from tools.sitl.procs import Child, free_udp_port
 
 FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}
 CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
@@ -143,7 +143,7 @@ class Progress:
 def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Event,
                     errors: queue.Queue) -> None:
     """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
-    from tools.hil.gcs import GcsError
+    from tools.sitl.gcs import GcsError
     try:
         # AOA_SSA stamp 0: the controller has no plant frame yet
         gcs.wait_for(lambda tel: tel.heartbeats > 0 and bool(tel.sim_t_s), 60.0,
@@ -206,7 +206,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     driver_stop = threading.Event()   # ends the realtime ground-station script
     driver = None
     try:
-        from tools.hil.gcs import ScriptedGcs
+        from tools.sitl.gcs import ScriptedGcs
         gcs = ScriptedGcs()
         fc_argv = cfg.fc_argv0() + ["--mode", cfg.mode,
                    "--plant-bind", f"127.0.0.1:{plant_port}",

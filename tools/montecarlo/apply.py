@@ -105,14 +105,14 @@ def apply(scenario, values: dict):
 
 def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
                     full: bool = False):
-    """Fly one variant of a dispersed scenario with ``tools.closed_loop.simulate``.
+    """Fly one variant of a dispersed scenario with ``tools.sitl.closed_loop.simulate``.
 
     Every frame is recorded (as the plant's truth log of the main job), so the metrics are
     taken on the same samples as ``summary.json``'s. The law sees the fc's estimate from the
     plant's sensor model (``estimate="sensors"``), as in the two-process product, so sensor
     noise and bias dispersions act in process too.
     """
-    from tools import closed_loop
+    from tools.sitl import closed_loop
     res = closed_loop.simulate(scenario, coordinated=(variant == "coordinated"),
                                duration_s=duration_s, seed=sim_seed,
                                law_overrides=law_overrides or None, estimate="sensors")
@@ -120,17 +120,17 @@ def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overr
 
 
 def flight_from_result(res, full: bool = False):
-    """A ``case.Flight`` from a ``tools.closed_loop.ClosedLoopResult``.
+    """A ``case.Flight`` from a ``tools.sitl.closed_loop.ClosedLoopResult``.
 
     With ``full``, ``Flight.full`` holds the arrays ``tools.plots`` draws (rates, surfaces,
     limits) plus the plant's truth and the law's status with their column names.
     """
-    from tools.montecarlo.case import Flight
+    from tools.montecarlo.flight import Flight
     fl = Flight(t_s=res.t_s, alpha_rad=res.alpha_rad, beta_rad=res.beta_rad, mu_rad=res.mu_rad,
                 cmd_t_s=np.asarray(res.cmd_t_s, float), cmd_rad=np.asarray(res.cmd_rad, float),
                 diverged=bool(res.diverged))
     if full:
-        from tools import metrics as mt
+        from tools.sitl import metrics as mt
         peak, sat_s = mt.surface_metrics(res.t_s, res.delta_rad, res.surface_limit_rad)
         fl.full = {
             "p_rad_s": res.p_rad_s, "q_rad_s": res.q_rad_s, "r_rad_s": res.r_rad_s,

@@ -7,14 +7,14 @@ gives the same rows.
 
 A *backend* flies one variant of one dispersed case and returns its attitude history:
 
-- ``closed_loop`` (default): ``tools.closed_loop.simulate``, the product's control law flying
+- ``closed_loop`` (default): ``tools.sitl.closed_loop.simulate``, the product's control law flying
   the product's plant in process (same code as the two-process product, without UDP);
 - ``hil``: the two processes over loopback UDP (``tools.montecarlo.hil``), a faithful subset;
 - ``standin``: a cheap decoupled second-order model, **not a flight simulation**: it exists
   only to exercise the campaign machinery (tests of resumption, summaries, plots) in a few
   milliseconds. A campaign run with it says so in every row and in its summary.
 
-Metrics are those of the main job's ``summary.json`` (``tools.metrics``), computed here from
+Metrics are those of the main job's ``summary.json`` (``tools.sitl.metrics``), computed here from
 the true alpha, beta, mu of the plant against the scenario's command timeline.
 """
 from __future__ import annotations
@@ -31,8 +31,9 @@ from dataclasses import dataclass, field, asdict
 
 import numpy as np
 
-from tools import metrics as mt
+from tools.sitl import metrics as mt
 from tools.montecarlo import dispersions as dsp
+from tools.montecarlo.flight import Flight
 
 CHANNELS = ("alpha", "beta", "mu")
 VARIANTS = ("coordinated", "uncoordinated")
@@ -103,26 +104,6 @@ class CampaignConfig:
         d["dispersions_text"] = self.dispersions_canonical()
         text = json.dumps(d, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-@dataclass
-class Flight:
-    """What a backend returns for one variant of one case (SI).
-
-    t_s : (n,) times; alpha_rad, beta_rad, mu_rad : (n,) true aerodynamic angles;
-    cmd_t_s : (k,) command timeline times; cmd_rad : (k, 3) alpha, beta, mu commands;
-    diverged : the backend's own verdict (the metrics' is OR-ed in);
-    full : anything else the backend produced (for ``rerun``), not stored in rows.
-    """
-
-    t_s: np.ndarray
-    alpha_rad: np.ndarray
-    beta_rad: np.ndarray
-    mu_rad: np.ndarray
-    cmd_t_s: np.ndarray
-    cmd_rad: np.ndarray
-    diverged: bool = False
-    full: object = None
 
 
 # ---------------------------------------------------------------------------------------
@@ -318,9 +299,10 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
 
 
 #: the sources whose contents decide a case's result (fingerprinted into campaign.json)
-_CODE_GLOBS = ("hyfc_wire/*.py", "fc/control/*.py", "fc/control/data/*", "plant_sim/*.py", "plant_sim/scenarios/*",
-               "tools/closed_loop.py", "tools/metrics.py", "tools/montecarlo/case.py",
-               "tools/montecarlo/apply.py", "tools/montecarlo/dispersions.py")
+_CODE_GLOBS = ("hyfc_wire/*.py", "fc/control/*.py", "fc/control/data/*", "plant_sim/*.py",
+               "plant_sim/scenarios/*", "tools/sitl/closed_loop.py", "tools/sitl/metrics.py",
+               "tools/montecarlo/case.py", "tools/montecarlo/apply.py",
+               "tools/montecarlo/dispersions.py", "tools/montecarlo/flight.py")
 
 
 def code_fingerprint() -> str:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools import metrics as mt
+from tools.sitl import metrics as mt
 from tools.hil.rundata import json_safe
 from tools.montecarlo import results
 from tools.montecarlo.campaign import load_manifest

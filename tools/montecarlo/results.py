@@ -29,7 +29,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from tools import metrics as mt
+from tools.sitl import metrics as mt
 from tools.montecarlo.case import CHANNELS
 
 ROWS_DIR = "rows"

@@ -6,7 +6,7 @@ recomputed at any time, with another specification, without re-running a case
 
 A row *meets the spec* when it did not diverge, raised no error, and every channel has
 overshoot <= overshoot_max_pct (an undefined overshoot, for a step under
-``tools.metrics.MIN_STEP_DEG``, passes), a settling time that exists and is
+``tools.sitl.metrics.MIN_STEP_DEG``, passes), a settling time that exists and is
 <= settling_max_s, and final error <= final_error_max_deg. A row *fails* when it diverged or
 raised; failures are listed with their seeds. Worst cases are the rows with the largest
 overshoot / settling / final error per channel and variant.

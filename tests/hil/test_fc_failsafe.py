@@ -1,0 +1,105 @@
+"""HIL tier: plant-data failsafe and recovery, a GCS that goes away or floods, malformed input."""
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+
+import pytest
+
+from tests.fc_harness import FLYING_FS_TIMEOUT_S as FS_TIMEOUT_S
+from tests.fc_harness import mavlink as ML
+
+pytestmark = pytest.mark.hil
+
+
+def _drain(gcs):
+    while gcs.conn.recv_match(blocking=False) is not None:
+        pass
+
+
+def test_data_loss_gives_failsafe_then_recovery(flying):
+    fc, gcs, loop = flying
+    loop.run(299)
+    t_stop = time.monotonic()          # the fc's last valid frame is not earlier than this
+    loop.run(1)
+    assert loop.outputs[-1] != (1500, 1500, 1500), "the law should be flying"
+    _drain(gcs)
+    text = gcs.wait("STATUSTEXT", 5, lambda m: "FAILSAFE" in m.text)
+    t_fs = time.monotonic()
+    assert text is not None, "no FAILSAFE STATUSTEXT after plant data stopped"
+    assert t_fs - t_stop >= FS_TIMEOUT_S                 # never before the configured time
+    print(f"failsafe reported {t_fs - t_stop:.3f} s after the last frame "
+          f"(FS_TIMEOUT_S {FS_TIMEOUT_S})")
+    hb = gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 3)
+    assert hb is not None and hb.system_status == ML.MAV_STATE_CRITICAL
+    st = gcs.wait("SYS_STATUS", 3, lambda m: not m.onboard_control_sensors_health
+                  & ML.MAV_SYS_STATUS_AHRS)
+    assert st is not None, "SYS_STATUS must report the sensor link unhealthy"
+    # a mode change is refused while the data is lost
+    assert gcs.command(ML.MAV_CMD_DO_SET_MODE, 1, 1).result == ML.MAV_RESULT_DENIED
+
+    # data returns: surfaces at trim until FS_RECOVER_S of good data, then the law again
+    loop.outputs.clear()
+    loop.run(3)
+    assert loop.outputs == [(1500, 1500, 1500)] * 3
+    recovered = []
+
+    def _watch():
+        m = gcs.conn.recv_match(type="STATUSTEXT", blocking=False)
+        if m is not None and "data back" in m.text:
+            recovered.append(m.text)
+        return bool(recovered)
+
+    deadline = time.monotonic() + 10
+    while not recovered and time.monotonic() < deadline:
+        loop.run(50, on_frame=_watch)
+    assert recovered and "COORDINATED" in recovered[0]
+    loop.run(20)
+    assert loop.outputs[-1] != (1500, 1500, 1500)
+    assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 1) is not None
+
+
+def test_gcs_flood_and_garbage_do_not_stop_the_loop(flying):
+    fc, gcs, loop = flying
+    target = ("127.0.0.1", fc.gcs_bind_port)
+    junk_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    req = gcs.conn.mav.param_request_list_encode(1, 1).pack(gcs.conn.mav)
+    stop = threading.Event()
+    sent = [0]
+
+    def _flood():
+        while not stop.is_set() and sent[0] < 20000:
+            junk_sock.sendto(b"\xfd\x09\x00\x00garbage-garbage" if sent[0] % 2 else req, target)
+            sent[0] += 1
+
+    th = threading.Thread(target=_flood, daemon=True)
+    th.start()
+    try:
+        loop.run(1000)                # every frame answered within the exchange timeout
+    finally:
+        stop.set()
+        th.join(10)
+        junk_sock.close()
+    assert len(loop.outputs) == 1000 and sent[0] > 1000
+    # malformed plant input: answered frames keep coming, the rejection is counted
+    loop.plant.send_raw(b"\x00\x01\x02not mavlink")
+    loop.plant.send_raw(b"\xfd" * 64)
+    loop.run(50)
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_PLANT" and m.value >= 2)
+    assert rej is not None
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_GCS" and m.value > 0)
+    assert rej is not None
+
+
+def test_gcs_going_away_never_affects_control(flying):
+    fc, gcs, loop = flying
+    loop.run(100)
+    gcs.close()                        # the ground station disappears (port closed)
+    loop.run(1500)                     # 3 s of flight: answered, law still active
+    assert len(loop.outputs) == 1600 and loop.outputs[-1] != (1500, 1500, 1500)
+    assert abs(loop.truth("alpha_rad") * 57.29578 - 3.0) < 1.0
+    assert fc.stop() == 0
+    with open(os.path.join(fc.out, "fc.log")) as f:
+        assert "FAILSAFE" not in f.read()

@@ -1,0 +1,186 @@
+"""The import direction of docs/architecture.md, enforced by walking every module's imports.
+
+GIVEN every ``.py`` file of our packages (parsed with ``ast``, nothing is imported)
+WHEN its ``import`` / ``from ... import`` statements are resolved to our modules
+THEN no edge breaks a rule of ``ALLOWED`` and the module-level imports form no cycle.
+
+The rules are data: ``ALLOWED`` maps a package to the packages of ours it may import (the
+longest matching prefix wins); ``SHARED`` lists packages every one of ours may import and that
+import nothing of ours but themselves (the wire contract: adding it is one line, e.g.
+``SHARED = ("hyfc_wire",)``).
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: packages anyone may import; they may import only themselves
+SHARED: tuple[str, ...] = ()
+
+#: package -> packages of ours it may import (itself always; SHARED always)
+ALLOWED: dict[str, tuple[str, ...]] = {
+    "fc.control": (),                      # the pure law: nothing of ours outside it
+    "fc.guidance": ("fc.control",),        # the pure outer loop: itself and the law's layout
+    "fc": (),                              # never plant_sim, tools or tests
+    "plant_sim": (),                       # never fc, tools or tests
+    "tools.sitl": ("fc", "plant_sim", "tools.linkimpair"),   # the harness: no command line
+    "tools": ("fc", "plant_sim"),          # never tests
+    "tests": ("fc", "plant_sim", "tools"),
+}
+
+
+def our_packages() -> list[str]:
+    """Top-level packages of the repository (directories with an ``__init__.py``)."""
+    return sorted(p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file())
+
+
+def module_files() -> dict[str, Path]:
+    """Dotted module name -> file, for every module of our packages."""
+    out = {}
+    for pkg in our_packages():
+        for f in sorted((ROOT / pkg).rglob("*.py")):
+            parts = list(f.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts.pop()
+            out[".".join(parts)] = f
+    return out
+
+
+def _within(name: str, pkg: str) -> bool:
+    return name == pkg or name.startswith(pkg + ".")
+
+
+def imports_of(name: str, path: Path, modules: dict[str, Path]) -> list[tuple[str, int, bool]]:
+    """(imported module of ours, line, at module level) for each import in ``path``.
+
+    ``from pkg import x`` counts as an import of ``pkg.x`` when that is a module, else of
+    ``pkg``. Imports inside functions/classes are returned with ``at module level`` False.
+    """
+    tree = ast.parse(path.read_text(), filename=str(path))
+    is_pkg = path.name == "__init__.py"
+    here = name.split(".") if is_pkg else name.split(".")[:-1]
+    tops = set(our_packages())
+    found: list[tuple[str, int, bool]] = []
+
+    def visit(node: ast.AST, top: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            nested = isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda,
+                                        ast.ClassDef))
+            if isinstance(child, ast.Import):
+                for a in child.names:
+                    targets = [a.name]
+                    _add(targets, child.lineno, top)
+            elif isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = here[:len(here) - (child.level - 1)] if child.level > 1 else here
+                    mod = ".".join(base + ([child.module] if child.module else []))
+                else:
+                    mod = child.module or ""
+                targets = []
+                for a in child.names:
+                    sub = f"{mod}.{a.name}"
+                    targets.append(sub if sub in modules else mod)
+                _add(targets, child.lineno, top)
+            visit(child, top and not nested)
+
+    def _add(targets: list[str], line: int, top: bool) -> None:
+        for t in targets:
+            if t.split(".")[0] in tops:
+                while t not in modules and "." in t:      # attribute of a module
+                    t = t.rsplit(".", 1)[0]
+                found.append((t, line, top))
+
+    visit(tree, True)
+    return found
+
+
+def rule_for(name: str) -> tuple[str, tuple[str, ...]] | None:
+    """(package, allowed packages) of the longest matching ``ALLOWED``/``SHARED`` key."""
+    for pkg in SHARED:
+        if _within(name, pkg):
+            return pkg, ()
+    keys = [k for k in ALLOWED if _within(name, k)]
+    if not keys:
+        return None
+    pkg = max(keys, key=len)
+    return pkg, ALLOWED[pkg] + SHARED
+
+
+def violations(modules: dict[str, Path]) -> list[str]:
+    bad = []
+    for name, path in modules.items():
+        rule = rule_for(name)
+        if rule is None:
+            bad.append(f"{name}: no rule in ALLOWED for this package (add one)")
+            continue
+        pkg, allowed = rule
+        for target, line, _top in imports_of(name, path, modules):
+            if not any(_within(target, ok) for ok in (pkg,) + allowed):
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {pkg} must not import {target}")
+    return bad
+
+
+def cycles(modules: dict[str, Path]) -> list[list[str]]:
+    """Strongly connected components (size > 1, or a self-import) of the module-level graph."""
+    graph = {n: sorted({t for t, _, top in imports_of(n, p, modules) if top and t != n})
+             for n, p in modules.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+
+    def strong(v: str) -> None:                   # Tarjan, recursive (the graph is small)
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            strong(v)
+    return out
+
+
+@pytest.fixture(scope="module")
+def modules() -> dict[str, Path]:
+    return module_files()
+
+
+def test_walk_sees_our_packages(modules):
+    """The walk itself works: it finds the packages and resolves a known import."""
+    assert {"fc", "plant_sim", "tools", "tests"} <= set(our_packages())
+    assert "fc.control.law" in modules and "plant_sim.sim" in modules
+    law = imports_of("fc.control.law", modules["fc.control.law"], modules)
+    assert any(t.startswith("fc.control.") for t, _, _ in law)
+
+
+def test_import_direction(modules):
+    bad = violations(modules)
+    assert not bad, "imports against docs/architecture.md's direction:\n" + "\n".join(bad)
+
+
+def test_no_import_cycles(modules):
+    found = cycles(modules)
+    assert not found, "module-level import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
