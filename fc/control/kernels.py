@@ -61,12 +61,6 @@ from fc.control.params import (
     P_SLW_TH_BND, P_SLW_CFB, P_FLT_RATE_HZ, P_FLT_ANG_HZ, P_CO_MAP, P_N,
 )
 
-from fc.control import layout as _layout, nominal as _nominal, params as _params
-from hyfc_wire.numba_cache import drop_stale
-
-# this module's kernels freeze the constants of layout/params and inline nominal's functions
-drop_stale(__file__, [_layout.__file__, _params.__file__, _nominal.__file__])
-
 PI = math.pi
 
 

@@ -36,10 +36,7 @@ from fc.control.layout import (
 )
 from fc.control.params import P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_MDL_MASS, P_MDL_XCG
 
-from fc.control import layout as _layout, params as _params
-from hyfc_wire.numba_cache import drop_stale
 
-drop_stale(__file__, [_layout.__file__, _params.__file__])
 
 # Reference geometry of the winged-cone (NASA TM-102610 Table I; docs/winged_cone.md s. 1):
 # the controller's own copy; tools/gen_nominal_model.py checks it against the plant's.
