@@ -1,7 +1,7 @@
 """The fc runs any law with the API of docs/architecture.md section 11 (``--law-module``).
 
 This module doubles as the injected law: ``python -m fc --law-module
-tests.test_fc_law_injection`` loads ``AttitudeLaw`` and ``LAW_PARAMS`` from here. The stand-in
+tests.hil.test_fc_law_injection`` loads ``AttitudeLaw`` and ``LAW_PARAMS`` from here. The stand-in
 law is a proportional alpha loop on both elevons, so the plumbing (parameters reach
 ``set_param``, the command reaches ``slow_step``, a law fault gives FAILSAFE) can be checked
 exactly.
@@ -66,7 +66,7 @@ def test_injected_law_plumbing_and_law_fault_failsafe(tmp_path):
     with open(os.path.join(tmp_path, "params.parm"), "w") as f:
         f.write("FS_TIMEOUT_S 30\nCMD_ALPHA_DEG 2\n")
     gcs_port = free_udp_port()
-    with FcProcess(str(tmp_path), "--law-module", "tests.test_fc_law_injection", "--arm",
+    with FcProcess(str(tmp_path), "--law-module", "tests.hil.test_fc_law_injection", "--arm",
                    "--flight-mode", "COORDINATED", gcs_ports=(gcs_port,)) as fc:
         gcs = GcsClient(gcs_port)
         plant = ScriptedPlant(fc.plant_port)
