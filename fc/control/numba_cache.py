@@ -50,3 +50,10 @@ def drop_stale(module_file: str | os.PathLike, deps) -> int:
 def package_files(*modules) -> list[str]:
     """Source files of the given imported modules (for ``deps``)."""
     return [m.__file__ for m in modules]
+
+
+def sibling_sources(module_file: str | os.PathLike) -> list[str]:
+    """Every other ``*.py`` beside ``module_file`` (for ``deps`` of a kernel module that calls
+    across its package: a change to any of them drops its cache; conservative)."""
+    me = Path(module_file).resolve()
+    return sorted(str(p) for p in me.parent.glob("*.py") if p != me)
