@@ -454,6 +454,40 @@ def test_stale_numba_cache_is_dropped(tmp_path):
     assert not any(f.exists() for f in files) and other.exists()
 
 
+def test_sibling_sources_lists_every_other_law_module():
+    from fc.control import kernels, numba_cache
+    deps = {Path(f).name for f in numba_cache.sibling_sources(kernels.__file__)}
+    # GIVEN the split law; THEN a kernel module's cache depends on every module beside it
+    assert {"slow_loop.py", "fast_loop.py", "factors.py", "allocation.py", "observer.py",
+            "kinematics.py", "filters.py", "linalg3.py", "options.py", "layout.py",
+            "params.py", "nominal.py"} <= deps
+    assert "kernels.py" not in deps
+
+
+@pytest.mark.parametrize("name, values", [
+    ("CO_FAC_EQ", ("FAC_EQ14", "FAC_EQ19")),
+    ("CO_NORM", ("NORM_RELATIVE", "NORM_COEFFICIENT", "NORM_LITERAL")),
+    ("CO_MAP", ("MAP_DIAGONAL", "MAP_PROSE")),
+    ("CO_SURF", ("SURF_OFF", "SURF_INTERCONNECT", "SURF_LITERAL")),
+    ("ALLOC_MODE", ("ALLOC_CLIP", "ALLOC_SCALE")),
+    ("DOB_ACHIEVED", ("DOB_MOMENT_MC", "DOB_MOMENT_GFD", "DOB_MOMENT_GCO")),
+])
+def test_named_options_are_the_values_the_table_accepts(name, values):
+    from fc.control import options
+    prm = LAW_PARAMS[PARAM_INDEX[name]]
+    named = [getattr(options, v) for v in values]
+    # GIVEN an integer option; THEN each named value is accepted by the table, they differ,
+    # and they span its range (no value the table accepts is left unnamed)
+    assert prm.integer and len(set(named)) == len(named)
+    for v in named:
+        assert check_value(name, v) == v
+    assert min(named) == prm.min and max(named) == prm.max
+    par = default_si_array()
+    for v in named:
+        par[PARAM_INDEX[name]] = float(v)
+        assert options.option(par, PARAM_INDEX[name]) == v
+
+
 def test_bad_input_holds_the_last_command():
     law = AttitudeLaw()
     est = paper_est()
