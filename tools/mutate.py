@@ -508,24 +508,13 @@ def main(argv=None) -> int:
     return 0
 
 
-_INT_OPTION = ("equivalent: an integer option, validated to a whole number (0 or 1 for a "
-               "switch): `v < 1.0` and `v < 0.5` give the same branch for v = 0 and 1, and "
-               "int(v) = int(v + 0.5) for a whole number v")
-_NO_RUDDER_PITCH = ("equivalent for this vehicle: g_f_delta[pitch, rudder] = 0 "
-                    "(dCm/d delta_r is 0 over the whole nominal table of the winged-cone data), "
-                    "and so is g_Gamma's (its rows are g_f_delta's scaled), so the term of "
-                    "matvec3's pitch row (the observer's and the unallocated moment) is "
-                    "identically 0")
-
 #: Survivors read and judged equivalent, keyed (source line, change), with the reason
 #: (docs/control_law.md section 12). Keyed on the text, not the line number, so it survives
-#: edits elsewhere in the module.
-EQUIVALENT: dict = {
-    ("a[o + 3] * v0 + a[o + 4] * v1 + a[o + 5] * v2,", "drop right term of '+'"):
-        _NO_RUDDER_PITCH,
-    ("a[o + 3] * v0 + a[o + 4] * v1 + a[o + 5] * v2,", "'+' -> '-'"): _NO_RUDDER_PITCH,
-    ("a[o + 3] * v0 + a[o + 4] * v1 + a[o + 5] * v2,", "'*' -> '/'"): _NO_RUDDER_PITCH,
-}
+#: edits elsewhere in the module. Empty since the split into modules: the integer options
+#: are read through options.option / switch_on (not mutated), and the observer's moment
+#: shares linalg3.matvec3 with the allocator's unallocated moment, whose tests use a dense
+#: matrix (docs/mutation_report.md: no survivor).
+EQUIVALENT: dict = {}
 
 if __name__ == "__main__":
     raise SystemExit(main())
