@@ -49,7 +49,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TARGETS = {
     "fc/control/kinematics.py": ("gs_inv", "gs", "gs_t"),
     "fc/control/slow_loop.py": ("reference_step", "tracking_error", "f1_gravity", "psi_theta",
-                                "omega_c_scale", "xi_step", "slow_kernel"),
+                                "xi_step", "slow_kernel"),
     "fc/control/factors.py": ("coordinated_factors", "coordinated_matrix"),
     "fc/control/allocation.py": ("allocate", "actuator_model_step"),
     "fc/control/observer.py": ("dob_gain", "dob_estimate", "dob_update"),

@@ -18,7 +18,7 @@ from fc.control.numba_cache import drop_stale, sibling_sources
 drop_stale(__file__, sibling_sources(__file__))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def gs_inv(alpha_rad, beta_rad, v0, v1, v2):
     """g_s^-1 v, with g_s^-1 = [[0, sin a, cos a cos b], [1, 0, sin b], [0, -cos a, sin a cos b]]."""
     sin_alpha = math.sin(alpha_rad)
@@ -30,7 +30,7 @@ def gs_inv(alpha_rad, beta_rad, v0, v1, v2):
             -cos_alpha * v1 + sin_alpha * cos_beta * v2)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def gs(alpha_rad, beta_rad, w0, w1, w2):
     """g_s w (Eq. 3)."""
     sin_alpha = math.sin(alpha_rad)
@@ -42,7 +42,7 @@ def gs(alpha_rad, beta_rad, w0, w1, w2):
             (cos_alpha * w0 + sin_alpha * w2) / cos_beta)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def gs_t(alpha_rad, beta_rad, s0, s1, s2):
     """g_s^T s (g_s of Eq. 3), the cross term of Eq. 35."""
     sin_alpha = math.sin(alpha_rad)

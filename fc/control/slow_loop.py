@@ -91,21 +91,6 @@ def psi_theta(nm, x):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def omega_c_scale(par, x, literal):
-    """(scale, limited): the factor that brings max |omega_c| down to SLW_OMC_MAX (deviation;
-    the vector keeps its direction), 1 if within it."""
-    limit_rad_s = par[P_SLW_OMC_MAX]
-    scale = 1.0
-    limited = 0.0
-    if limit_rad_s > 0.0 and not literal:
-        big = max(abs(x[X_OMC]), max(abs(x[X_OMC + 1]), abs(x[X_OMC + 2])))
-        if big > limit_rad_s:
-            scale = limit_rad_s / big
-            limited = 1.0
-    return scale, limited
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def xi_step(alpha_rad, beta_rad, scale, kappa1, dt, x):
     """Command-filtered backstepping compensation (deviation, SLW_CFB), one exact step of
     xi_dot = -kappa1 xi + g_s (omega_c_lim - omega_c) on x[X_XI:]."""
@@ -168,10 +153,21 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     v2 = -(kappa1 * sigma_mu + f1_mu + psi_mu - x[X_PF_DOT + 2] + k3 * e1_mu)
     x[X_OMC], x[X_OMC + 1], x[X_OMC + 2] = gs_inv(alpha_rad, beta_rad, v0, v1, v2)
 
-    # limit on omega_c and the command-filter compensation:
+    # limit on omega_c (deviation, SLW_OMC_MAX): scale the vector, keep its direction
+    # (written out per channel: with a helper returning (scale, limited) and a loop for the
+    # scaling, the in-numba slow step measured ~211 ns instead of ~199 ns, tools.bench_law)
+    limit_rad_s = par[P_SLW_OMC_MAX]
+    limited = 0.0
+    scale = 1.0
+    if limit_rad_s > 0.0 and not literal:
+        big = max(abs(x[X_OMC]), max(abs(x[X_OMC + 1]), abs(x[X_OMC + 2])))
+        if big > limit_rad_s:
+            scale = limit_rad_s / big
+            limited = 1.0
+    # command-filtered backstepping compensation (deviation, SLW_CFB):
     # sigma_bar = sigma - xi, xi_dot = -kappa1 xi + g_s (omega_c_lim - omega_c)
-    scale, limited = omega_c_scale(par, x, literal)
-    if switch_on(par, P_SLW_CFB) and not literal:
+    cfb = switch_on(par, P_SLW_CFB) and not literal
+    if cfb:
         sigma_bar_alpha = sigma_alpha - x[X_XI]
         sigma_bar_beta = sigma_beta - x[X_XI + 1]
         sigma_bar_mu = sigma_mu - x[X_XI + 2]
@@ -183,8 +179,9 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
         for i in range(3):
             x[X_XI + i] = 0.0
     if limited > 0.5:
-        for i in range(3):
-            x[X_OMC + i] *= scale
+        x[X_OMC] *= scale
+        x[X_OMC + 1] *= scale
+        x[X_OMC + 2] *= scale
     x[X_LIM] = limited
     x[X_SIGMA] = sigma_bar_alpha
     x[X_SIGMA + 1] = sigma_bar_beta
