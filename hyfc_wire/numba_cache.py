@@ -55,3 +55,4 @@ def drop_stale(module_file: str | os.PathLike, deps) -> int:
 def package_files(*modules) -> list[str]:
     """Source files of the given imported modules (for ``deps``)."""
     return [m.__file__ for m in modules]
+

@@ -1,11 +1,12 @@
 """Mutation testing of the control law: does a wrong law fail the law's tests?
 
-    python -m tools.mutate                       # kernels.py, fast unit tests, report
+    python -m tools.mutate                       # the law's modules, fast unit tests, report
     python -m tools.mutate --list                # the mutants only, no test run
     python -m tools.mutate --jit-tests tests/test_closed_loop.py::test_coordination_pins
 
-Each mutant is ONE change to the source of a law module (default fc/control/kernels.py),
-inside the functions that carry the paper's equations (``FUNCTIONS``):
+Each mutant is ONE change to the source of a law module (default: every module of
+``TARGETS``, fc/control/slow_loop.py, fast_loop.py, factors.py, ...), inside the functions
+that carry the paper's equations (``TARGETS[module]``):
 
     sign      a binary + becomes - and vice versa (also += / -=); a unary minus removed
     drop      one term of a sum or difference removed (a + b -> a, a + b -> b, a - b -> -b)
@@ -42,11 +43,21 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: The kernels' functions that carry the paper's equations (and their helpers). solve3 and
-#: det3 (3x3 algebra, checked against numpy) are available with --functions.
-FUNCTIONS = ("gs_inv_apply", "gs_apply", "gs_t_apply", "slow_kernel",
-             "coordinated_factors", "coordinated_matrix", "allocate", "actuator_model_step",
-             "dob_gain", "dob_estimate", "dob_update", "fast_kernel")
+#: The law's modules and, in each, the functions that carry the paper's equations (and their
+#: helpers). solve3 and det3 (3x3 algebra, checked against numpy) are available with
+#: --files fc/control/linalg3.py --functions solve3 det3.
+TARGETS = {
+    "fc/control/kinematics.py": ("gs_inv", "gs", "gs_t"),
+    "fc/control/slow_loop.py": ("reference_step", "tracking_error", "f1_gravity", "psi_theta",
+                                "xi_step", "slow_kernel"),
+    "fc/control/factors.py": ("coordinated_factors", "coordinated_matrix"),
+    "fc/control/allocation.py": ("allocate", "actuator_model_step"),
+    "fc/control/observer.py": ("dob_gain", "dob_estimate", "dob_update"),
+    "fc/control/fast_loop.py": ("input_filters", "xi_theta", "observer_moment", "fast_kernel"),
+    "fc/control/linalg3.py": ("matvec3",),
+}
+#: every function of TARGETS (the default of find_mutants)
+FUNCTIONS = tuple(f for fns in TARGETS.values() for f in fns)
 KINDS = ("sign", "drop", "muldiv", "const")
 
 #: Stage 1: unit tests of each equation, fast without JIT.
@@ -66,7 +77,7 @@ COPY_DIRS = ("fc", "plant_sim", "tools", "tests")
 
 @dataclass
 class Mutant:
-    """One change: ``ident`` is the position of the node in the module's ast.walk order."""
+    """One change: ``index`` is the position of the candidate in the module's walk order."""
     index: int
     line: int
     function: str
@@ -77,6 +88,7 @@ class Mutant:
     verdict: str = ""
     stage: str = ""
     seconds: float = 0.0
+    file: str = ""
 
 
 # -------------------------------------------------------------------------------------------
@@ -195,13 +207,18 @@ def find_mutants(path: Path, functions=FUNCTIONS, kinds=KINDS):
     tree = ast.parse(text)
     out = []
     base = ast.unparse(tree)
+    path = Path(path)
+    try:
+        rel = path.resolve().relative_to(ROOT).as_posix()
+    except ValueError:
+        rel = path.name
     for i, (node, kind, change, ln, fn, eq) in enumerate(_candidates(tree, lines, functions)):
         if kind not in kinds:
             continue
         src = _mutated_source(tree, node, kind, change)
         if src == base:
             continue
-        out.append((Mutant(i, ln, fn, eq, kind, change, lines[ln - 1].strip()), src))
+        out.append((Mutant(i, ln, fn, eq, kind, change, lines[ln - 1].strip(), file=rel), src))
     return out
 
 
@@ -244,11 +261,38 @@ def _run_tests(work: Path, rel: str, src: str, tests, jit: bool, timeout_s: floa
     return killed, time.perf_counter() - t0, tail[0]
 
 
+PROJECT_MODULES = ("fc.", "tools.", "tests.", "test_")
+
+
+def exec_into(mod, src: str, prefixes=PROJECT_MODULES) -> int:
+    """Execute ``src`` into the imported module ``mod``, then give every module whose name
+    starts with one of ``prefixes`` the new function wherever it held one of ``mod``'s old
+    functions (``from fc.control.factors import allocate``, fc.control.kernels' re-exports,
+    fc.control.law's aliases). With NUMBA_DISABLE_JIT=1 the kernels are plain functions.
+    Returns the number of names rebound outside ``mod``."""
+    old = {k: v for k, v in vars(mod).items()
+           if callable(v) and getattr(v, "__module__", None) == mod.__name__}
+    exec(compile(src, mod.__file__, "exec"), mod.__dict__)
+    swap = {id(v): mod.__dict__[k] for k, v in old.items() if mod.__dict__.get(k) is not v}
+    n = 0
+    for name, other in list(sys.modules.items()):
+        if other is None or other is mod or not name.startswith(prefixes):
+            continue
+        d = vars(other)
+        for k, v in list(d.items()):
+            new = swap.get(id(v))
+            if new is not None:
+                d[k] = new
+                n += 1
+    return n
+
+
 def _worker(job_file: str) -> int:
     """Stage 1 in one long-lived process (NUMBA_DISABLE_JIT=1, PYTHONPATH = the copy): for
-    each mutant of ``job_file`` (JSON: module, tests, timeout, mutants [[index, source]]),
-    execute the mutated source into the imported module's namespace, rebind the aliases
-    other modules keep (fc.control.law's entry points), run pytest in process, restore.
+    each mutant of ``job_file`` (JSON: tests, timeout, mutants [[key, module, source]]),
+    execute the mutated source into the imported module's namespace, rebind the names other
+    modules imported from it (``from fc.control.factors import allocate``, the re-exports of
+    fc.control.kernels, fc.control.law's entry points), run pytest in process, restore.
     Prints one JSON line per mutant. Saves the interpreter, numpy and pytest start-up that
     dominate a subprocess per mutant."""
     import importlib
@@ -258,15 +302,8 @@ def _worker(job_file: str) -> int:
     import pytest
 
     job = json.loads(Path(job_file).read_text())
-    mod = importlib.import_module(job["module"])
-    original = Path(mod.__file__).read_text()
-
-    def load(src):
-        exec(compile(src, mod.__file__, "exec"), mod.__dict__)
-        law = sys.modules.get("fc.control.law")
-        if law is not None and mod.__name__ == "fc.control.kernels":
-            law._slow_entry, law._fast_entry = mod.slow_entry, mod.fast_entry
-            law._cycle_entry = mod.cycle_entry
+    originals = {}
+    load = exec_into
 
     def alarm(_sig, _frm):
         raise TimeoutError("mutant timed out")
@@ -277,10 +314,13 @@ def _worker(job_file: str) -> int:
     if pytest.main(args) != 0:               # the unmutated module must pass in process
         print("BASELINE FAILED", flush=True)
         return 2
-    for index, src in job["mutants"]:
+    for key, module, src in job["mutants"]:
+        mod = importlib.import_module(module)
+        if module not in originals:
+            originals[module] = Path(mod.__file__).read_text()
         t0 = time.perf_counter()
         try:
-            load(src)
+            load(mod, src)
             signal.alarm(int(job["timeout"]))
             rc = pytest.main(args)
             killed = rc != 0
@@ -289,23 +329,27 @@ def _worker(job_file: str) -> int:
             killed, why = True, type(exc).__name__
         finally:
             signal.alarm(0)
-            load(original)
-        print("MUTANT " + json.dumps({"index": index, "killed": killed,
+            load(mod, originals[module])
+        print("MUTANT " + json.dumps({"key": key, "killed": killed,
                                       "seconds": time.perf_counter() - t0, "why": why}),
               flush=True)
     return 0
 
 
-def _run_worker(work: Path, rel: str, tests, items, timeout_s: float, on_result):
+def _key(m: Mutant) -> str:
+    return f"{m.file}#{m.index}"
+
+
+def _run_worker(work: Path, tests, items, timeout_s: float, on_result):
     """Run one stage-1 worker process over ``items`` [(Mutant, source)] in the copy ``work``."""
     import json
     job = work / "mutate_job.json"
-    module = rel[:-3].replace("/", ".")
-    job.write_text(json.dumps({"module": module, "tests": list(tests), "timeout": timeout_s,
-                               "mutants": [[m.index, src] for m, src in items]}))
+    job.write_text(json.dumps({"tests": list(tests), "timeout": timeout_s,
+                               "mutants": [[_key(m), m.file[:-3].replace("/", "."), src]
+                                           for m, src in items]}))
     env = dict(os.environ, PYTHONPATH=str(work), PYTHONDONTWRITEBYTECODE="1",
                NUMBA_DISABLE_JIT="1")
-    by_index = {m.index: m for m, _ in items}
+    by_key = {_key(m): m for m, _ in items}
     proc = subprocess.Popen([sys.executable, "-m", "tools.mutate", "--worker", str(job)],
                             cwd=work, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True)
@@ -315,7 +359,7 @@ def _run_worker(work: Path, rel: str, tests, items, timeout_s: float, on_result)
             raise SystemExit(f"the tests fail on the unmutated code in the worker ({work})")
         if line.startswith("MUTANT "):
             r = json.loads(line[7:])
-            m = by_index[r["index"]]
+            m = by_key[r["key"]]
             m.verdict = "killed" if r["killed"] else "survived"
             m.stage, m.seconds = "unit", r["seconds"]
             on_result(m, r["why"])
@@ -326,10 +370,11 @@ def _run_worker(work: Path, rel: str, tests, items, timeout_s: float, on_result)
             on_result(m, "worker died")
 
 
-def run(rel: str, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs: int,
-        only=None, progress=True, functions=FUNCTIONS, kinds=KINDS):
-    """Mutate ``rel`` and run the tests; returns the list of Mutants with verdicts."""
-    found = find_mutants(ROOT / rel, functions, kinds)
+def run(targets: dict, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs: int,
+        only=None, progress=True, kinds=KINDS):
+    """Mutate each module of ``targets`` {rel path: functions} and run the tests; returns the
+    list of Mutants with verdicts (``only``: the source lines to keep, in any module)."""
+    found = [f for rel, fns in targets.items() for f in find_mutants(ROOT / rel, fns, kinds)]
     if only:
         found = [(m, s) for m, s in found if m.line in only]
     with tempfile.TemporaryDirectory(prefix="hyfc-mutate-") as tmp:
@@ -345,34 +390,34 @@ def run(rel: str, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs
         def report_one(m, why):
             done[0] += 1
             if progress:
-                print(f"[{done[0]}/{len(found)}] {rel}:{m.line} {m.change:28s} {m.verdict:8s} "
+                print(f"[{done[0]}/{len(found)}] {m.file}:{m.line} {m.change:28s} {m.verdict:8s} "
                       f"{m.seconds:5.2f}s {why}", flush=True)
 
         # one long-lived worker per copy, the mutants dealt out round-robin
         buckets = [[f for k, f in enumerate(found) if k % len(works) == j]
                    for j in range(len(works))]
         with ThreadPoolExecutor(len(works)) as ex:
-            list(ex.map(lambda jb: _run_worker(works[jb[0]], rel, tests, jb[1], timeout_s,
+            list(ex.map(lambda jb: _run_worker(works[jb[0]], tests, jb[1], timeout_s,
                                                report_one), enumerate(buckets)))
         if jit_tests:
             for m, src in found:
                 if m.verdict != "survived":
                     continue
-                killed, dt, tail = _run_tests(works[0], rel, src, jit_tests, True,
+                killed, dt, tail = _run_tests(works[0], m.file, src, jit_tests, True,
                                               jit_timeout_s)
                 m.stage, m.seconds = "jit", m.seconds + dt
                 m.verdict = "killed" if killed else "survived"
                 if progress:
-                    print(f"[jit] {rel}:{m.line} {m.change:28s} {m.verdict} {dt:.1f}s {tail[:60]}",
-                          flush=True)
+                    print(f"[jit] {m.file}:{m.line} {m.change:28s} {m.verdict} {dt:.1f}s "
+                          f"{tail[:60]}", flush=True)
     return [m for m, _ in found]
 
 
 # -------------------------------------------------------------------------------------------
 # Report
 # -------------------------------------------------------------------------------------------
-def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
-           functions=FUNCTIONS, kinds=KINDS) -> str:
+def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
+           kinds=KINDS) -> str:
     n = len(mutants)
     killed = [m for m in mutants if m.verdict == "killed"]
     surv = [m for m in mutants if m.verdict == "survived"]
@@ -381,10 +426,12 @@ def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
         k = by_kind.setdefault(m.kind, [0, 0])
         k[0] += 1
         k[1] += m.verdict == "killed"
-    out = [f"# Mutation report: `{rel}`", "",
+    mutated = "; ".join(f"`{rel}`: " + ", ".join(f"`{f}`" for f in fns)
+                        for rel, fns in targets.items())
+    out = ["# Mutation report: the control law's kernels", "",
            f"Generated by `python -m tools.mutate` on "
            f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')} "
-           f"({wall_s / 60:.1f} min). Functions mutated: {', '.join(f'`{f}`' for f in functions)}; "
+           f"({wall_s / 60:.1f} min). Functions mutated: {mutated}; "
            f"kinds: {', '.join(kinds)}.",
            "", "Stage 1 tests (NUMBA_DISABLE_JIT=1): " + ", ".join(f"`{t}`" for t in tests) + ".",
            "", ("Stage 2 tests (compiled, survivors of stage 1 only): "
@@ -404,20 +451,20 @@ def report(rel: str, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
                 "|---|---|---|---|---|---|"]
         for m in surv:
             why = equivalent.get((m.source, m.change), "not judged: a test is missing")
-            out.append(f"| {rel}:{m.line} | `{m.function}` | {m.equation} | {m.change} | "
+            out.append(f"| {m.file}:{m.line} | `{m.function}` | {m.equation} | {m.change} | "
                        f"`{m.source[:70]}` | {why} |")
     out += ["", "## Every mutant", "", "| line | function | equation | change | verdict | stage |",
             "|---|---|---|---|---|---|"]
     for m in mutants:
-        out.append(f"| {m.line} | `{m.function}` | {m.equation} | {m.change} | {m.verdict} | "
+        out.append(f"| {m.file}:{m.line} | `{m.function}` | {m.equation} | {m.change} | {m.verdict} | "
                    f"{m.stage} |")
     return "\n".join(out) + "\n"
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.mutate", description=__doc__.split("\n")[0])
-    ap.add_argument("--file", default="fc/control/kernels.py",
-                    help="module to mutate, relative to the project root")
+    ap.add_argument("--files", nargs="+", default=list(TARGETS),
+                    help="modules to mutate, relative to the project root (default: TARGETS)")
     ap.add_argument("--tests", nargs="+", default=list(DEFAULT_TESTS),
                     help="stage 1 pytest node ids (run with NUMBA_DISABLE_JIT=1)")
     ap.add_argument("--jit-tests", nargs="*", default=[],
@@ -427,8 +474,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (stage 1)")
     ap.add_argument("--lines", type=int, nargs="*", default=None,
                     help="only mutants on these source lines")
-    ap.add_argument("--functions", nargs="+", default=list(FUNCTIONS),
-                    help="functions of the module to mutate")
+    ap.add_argument("--functions", nargs="+", default=None,
+                    help="functions to mutate in each of --files (default: TARGETS[file])")
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS,
                     help="mutation kinds")
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
@@ -438,15 +485,22 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.worker:
         return _worker(a.worker)
+    targets = {}
+    for rel in a.files:
+        fns = a.functions if a.functions else TARGETS.get(rel)
+        if not fns:
+            ap.error(f"{rel} is not in TARGETS: name its functions with --functions")
+        targets[rel] = tuple(fns)
     if a.list:
-        for m, _ in find_mutants(ROOT / a.file, a.functions, a.kinds):
-            print(f"{a.file}:{m.line} {m.function} [{m.equation}] {m.kind}: {m.change}")
+        for rel, fns in targets.items():
+            for m, _ in find_mutants(ROOT / rel, fns, a.kinds):
+                print(f"{rel}:{m.line} {m.function} [{m.equation}] {m.kind}: {m.change}")
         return 0
     t0 = time.perf_counter()
-    mutants = run(a.file, a.tests, a.jit_tests, a.timeout, a.jit_timeout, a.jobs, a.lines,
-                  functions=a.functions, kinds=a.kinds)
-    text = report(a.file, mutants, a.tests, a.jit_tests, EQUIVALENT, time.perf_counter() - t0,
-                  a.functions, a.kinds)
+    mutants = run(targets, a.tests, a.jit_tests, a.timeout, a.jit_timeout, a.jobs, a.lines,
+                  kinds=a.kinds)
+    text = report(targets, mutants, a.tests, a.jit_tests, EQUIVALENT, time.perf_counter() - t0,
+                  a.kinds)
     a.report.parent.mkdir(parents=True, exist_ok=True)
     a.report.write_text(text)
     n_s = sum(m.verdict == "survived" for m in mutants)
@@ -455,28 +509,13 @@ def main(argv=None) -> int:
     return 0
 
 
-_INT_OPTION = ("equivalent: an integer option, validated to a whole number (0 or 1 for a "
-               "switch): `v < 1.0` and `v < 0.5` give the same branch for v = 0 and 1, and "
-               "int(v) = int(v + 0.5) for a whole number v")
-_NO_RUDDER_PITCH = ("equivalent for this vehicle: g_f_delta[pitch, rudder] = 0 "
-                    "(dCm/d delta_r is 0 over the whole nominal table of the winged-cone data), "
-                    "so the term is identically 0")
-
 #: Survivors read and judged equivalent, keyed (source line, change), with the reason
 #: (docs/control_law.md section 12). Keyed on the text, not the line number, so it survives
-#: edits elsewhere in the module.
-EQUIVALENT: dict = {
-    ("if par[P_CO_ENABLE] < 0.5:", "0.5 -> 1.0 (col 26)"): _INT_OPTION,
-    ("if lmax > 0.0 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 45)"): _INT_OPTION,
-    ("norm = int(par[P_CO_NORM] + 0.5)", "drop right term of '+'"): _INT_OPTION,
-    ("mode = int(par[P_CO_SURF] + 0.5)", "drop right term of '+'"): _INT_OPTION,
-    ("if par[P_ALLOC_MODE] > 0.5 and par[P_PAPER_LITERAL] < 0.5:", "0.5 -> 1.0 (col 62)"):
-        _INT_OPTION,
-    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "drop right term of '+'"):
-        _NO_RUDDER_PITCH,
-    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'+' -> '-'"): _NO_RUDDER_PITCH,
-    ("m1 = nm[g + 3] * a0 + nm[g + 4] * a1 + nm[g + 5] * a2", "'*' -> '/'"): _NO_RUDDER_PITCH,
-}
+#: edits elsewhere in the module. Empty since the split into modules: the integer options
+#: are read through options.option / switch_on (not mutated), and the observer's moment
+#: shares linalg3.matvec3 with the allocator's unallocated moment, whose tests use a dense
+#: matrix (docs/mutation_report.md: no survivor).
+EQUIVALENT: dict = {}
 
 if __name__ == "__main__":
     raise SystemExit(main())

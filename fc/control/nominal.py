@@ -37,7 +37,6 @@ from fc.control.layout import (
 from fc.control.params import P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_MDL_MASS, P_MDL_XCG
 
 
-
 # Reference geometry of the winged-cone (NASA TM-102610 Table I; docs/winged_cone.md s. 1):
 # the controller's own copy; tools/gen_nominal_model.py checks it against the plant's.
 S_REF_M2 = 334.73

@@ -428,6 +428,44 @@ def test_attitude_law_api_contract():
     assert d["lambda_e"] == 0.0 and "M_c_m_Nm" in d
 
 
+def test_every_law_module_cache_depends_on_every_law_module(monkeypatch):
+    import fc
+    calls = {}
+    monkeypatch.setattr(fc, "_drop_stale", lambda f, deps: calls.setdefault(Path(f).name,
+                                                                             {Path(d).name for d in deps}))
+    fc._drop_stale_law_caches()
+    law = {p.name for p in (Path(fc.__file__).parent / "control").glob("*.py")}
+    # GIVEN the split law; THEN fc/__init__ checks each law module's numba cache against
+    # every law module (a kernel freezes its siblings' constants and inlines their functions)
+    assert {"kernels.py", "slow_loop.py", "fast_loop.py", "factors.py", "allocation.py",
+            "observer.py", "kinematics.py", "filters.py", "linalg3.py", "options.py"} <= law
+    assert set(calls) == law and all(deps == law for deps in calls.values())
+
+
+@pytest.mark.parametrize("name, values", [
+    ("CO_FAC_EQ", ("FAC_EQ14", "FAC_EQ19")),
+    ("CO_NORM", ("NORM_RELATIVE", "NORM_COEFFICIENT", "NORM_LITERAL")),
+    ("CO_MAP", ("MAP_DIAGONAL", "MAP_PROSE")),
+    ("CO_SURF", ("SURF_OFF", "SURF_INTERCONNECT", "SURF_LITERAL")),
+    ("ALLOC_MODE", ("ALLOC_CLIP", "ALLOC_SCALE")),
+    ("DOB_ACHIEVED", ("DOB_MOMENT_MC", "DOB_MOMENT_GFD", "DOB_MOMENT_GCO")),
+])
+def test_named_options_are_the_values_the_table_accepts(name, values):
+    from fc.control import options
+    prm = LAW_PARAMS[PARAM_INDEX[name]]
+    named = [getattr(options, v) for v in values]
+    # GIVEN an integer option; THEN each named value is accepted by the table, they differ,
+    # and they span its range (no value the table accepts is left unnamed)
+    assert prm.integer and len(set(named)) == len(named)
+    for v in named:
+        assert check_value(name, v) == v
+    assert min(named) == prm.min and max(named) == prm.max
+    par = default_si_array()
+    for v in named:
+        par[PARAM_INDEX[name]] = float(v)
+        assert options.option(par, PARAM_INDEX[name]) == v
+
+
 def test_bad_input_holds_the_last_command():
     law = AttitudeLaw()
     est = paper_est()

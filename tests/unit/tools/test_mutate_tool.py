@@ -44,3 +44,31 @@ def test_mutants_of_one_function(tmp_path):
     assert path.read_text() == SOURCE
     dropped = [src for m, src in found if m.change == "drop left term of '-'"][0]
     assert "y = -(b / 2.0)" in dropped
+
+
+def test_exec_into_rebinds_names_imported_elsewhere(tmp_path, monkeypatch):
+    """A mutant of one law module reaches the modules that imported its functions by name."""
+    import importlib
+    import sys
+
+    from tools.mutate import exec_into
+
+    # GIVEN module a with f, and module b that did `from a import f` and calls it
+    (tmp_path / "test_mut_a.py").write_text("def f(x):\n    return x + 1.0\n")
+    (tmp_path / "test_mut_b.py").write_text(
+        "from test_mut_a import f\n\n\ndef g(x):\n    return 2.0 * f(x)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        a = importlib.import_module("test_mut_a")
+        b = importlib.import_module("test_mut_b")
+        assert b.g(1.0) == 4.0
+        original = (tmp_path / "test_mut_a.py").read_text()
+        # WHEN a mutated source is executed into a
+        n = exec_into(a, original.replace("+", "-"), prefixes=("test_mut_",))
+        # THEN b's name f is the mutated function; restoring the source restores b
+        assert n == 1 and b.f is a.f and b.g(1.0) == 0.0
+        exec_into(a, original, prefixes=("test_mut_",))
+        assert b.g(1.0) == 4.0
+    finally:
+        sys.modules.pop("test_mut_a", None)
+        sys.modules.pop("test_mut_b", None)
