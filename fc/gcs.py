@@ -34,7 +34,8 @@ from collections import deque
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
                      G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
                      decode_datagram, mavlink, mavlink_dev, new_codec)
-from fc.modes import FlightMode, custom_mode_of, mode_from_custom
+from fc.mission import MSG_IDS as MISSION_MSGS, Mission, encode as mission_encode
+from fc.modes import RESERVED_MODES, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
 
@@ -61,6 +62,7 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
     ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
     ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,      # and on every change (fc/mission.py)
 }
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
@@ -68,7 +70,8 @@ DATA_STREAMS = {
     ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,
                                          MD.MAVLINK_MSG_ID_CURRENT_MODE,
                                          ML.MAVLINK_MSG_ID_GPS_RAW_INT,
-                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME),
+                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME,
+                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT),
     ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
@@ -142,6 +145,8 @@ class GcsLink:
         self.sim_time = sim_time
         self.epoch_us = int(time.time() * 1e6)    # .tlog stamp = epoch + time base
         self.home: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m MSL
+        #: the stored mission (fc/mission.py): the vehicle's if it has one (MISSION mode flies it)
+        self.mission = getattr(vehicle, "mission", None) or Mission()
         self.default = _Streams(self.mav, STREAM_DEFAULTS_S)
         self.intervals = self.default.intervals        # the default schedule (outputs)
         self.next_due = self.default.next_due
@@ -417,16 +422,9 @@ class GcsLink:
         elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
             if self._for_us(m):
                 self._data_stream(m)
-        elif t == ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST:
+        elif t in MISSION_MSGS:
             if self._for_us(m):
-                self.send(self.mav.mission_count_encode(
-                    m.get_srcSystem(), m.get_srcComponent(), 0, m.mission_type))
-        elif t in (ML.MAVLINK_MSG_ID_MISSION_COUNT, ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL):
-            if self._for_us(m):
-                result = (ML.MAV_MISSION_ACCEPTED if t == ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL
-                          or m.count == 0 else ML.MAV_MISSION_UNSUPPORTED)
-                self.send(self.mav.mission_ack_encode(
-                    m.get_srcSystem(), m.get_srcComponent(), result, m.mission_type))
+                self.mission_send(self.mission.handle(m, now_s))
 
     # ------------------------------------------------------------------ parameters
     def _param_index(self, param_id, index: int) -> int | None:
@@ -565,6 +563,11 @@ class GcsLink:
         if c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self.oneshot.append(self._autopilot_version())
             return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_DO_SET_MISSION_CURRENT:
+            seq = self._whole(m.param1)
+            ok, out = self.mission.set_current(-1 if seq is None else seq)
+            self.mission_send(out)
+            return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
         if c == ML.MAV_CMD_PREFLIGHT_STORAGE:
             # parameters are saved on every accepted set: "write" is already done
             return ML.MAV_RESULT_ACCEPTED if m.param1 == 1 else ML.MAV_RESULT_UNSUPPORTED
@@ -612,6 +615,20 @@ class GcsLink:
                 link.intervals[msg_id] = max(1.0 / m.req_message_rate, 0.01)
             link.next_due[msg_id] = 0.0
 
+    # ------------------------------------------------------------------ mission
+    def _mission_active(self) -> bool:
+        return int(self.v.modes.mode) == RESERVED_MODES["MISSION"][0]
+
+    def mission_send(self, outputs: list) -> None:
+        """Send the outputs of fc/mission.py ``Mission`` (protocol replies, MISSION_CURRENT,
+        MISSION_ITEM_REACHED, texts) at the next ``service``."""
+        active = self._mission_active()
+        for out in outputs:
+            if out[0] == "text":
+                self.statustext(out[1], out[2])
+            else:
+                self.oneshot.append(mission_encode(self.mav, self.mission, out, active))
+
     # ------------------------------------------------------------------ transmit
     def _heartbeat(self):
         modes = self.v.modes
@@ -646,7 +663,8 @@ class GcsLink:
     def _autopilot_version(self):
         # integer parameters: bytewise in the float (the spec's default, PX4, MAVSDK, QGC)
         caps = (ML.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | ML.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                | ML.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
+                | ML.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                | ML.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
         version = (0 << 24) | (1 << 16) | (0 << 8) | 0xFF   # 0.1.0 release
         return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
                                                  [0] * 8, [0] * 8, 0, 0, 0)
@@ -678,6 +696,8 @@ class GcsLink:
         v = self.v
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
+        if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
+            return mission_encode(self.mav, self.mission, ("current",), self._mission_active())
         us = self.time_us()
         ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
@@ -795,6 +815,7 @@ class GcsLink:
         if self.home is None and self.v.plant.gps_samples:
             self._gnss()                   # home = the first fix, taken when it arrives
         self._service_log()
+        self.mission_send(self.mission.tick(now_s))
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
