@@ -17,6 +17,9 @@ from tools.hil.procs import Child, free_udp_port
 
 FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}
 CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
+#: --flight-mode choices beyond the variant's attitude mode: the guidance modes (fc/modes.py),
+#: whose inner loop (GUID_INNER_CO) follows the variant
+GUIDANCE_FLIGHT_MODES = {"CRUISE": 4, "GUIDED": 5}
 #: first start of numba-compiled processes on a loaded 2-core machine can be slow
 READY_TIMEOUT_S = 180.0
 #: the controller's data-loss failsafe timeout in lockstep runs (s; see write_params)
@@ -32,6 +35,7 @@ class RunConfig:
     duration_s: float | None = None      # None: the scenario's; 0: until Ctrl-C (realtime)
     seed: int = 0
     command_shaping: str = "steps"
+    flight_mode: str = ""                # "" the variant's attitude mode, or CRUISE / GUIDED
     params_file: Path | None = None      # extra controller parameters (MAVProxy format)
     gcs_out: tuple = ()                  # extra ground-station addresses (realtime)
     progress_every_s: float = 1.0
@@ -86,9 +90,19 @@ def controller_params(cfg: RunConfig) -> dict[str, float]:
     return values
 
 
-def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
+def flight_mode_of(cfg: RunConfig, variant: str) -> tuple[str, int]:
+    """(name, number) of the flight mode a variant flies: the variant's attitude mode, or the
+    guidance mode ``cfg.flight_mode`` (its inner loop set by GUID_INNER_CO)."""
+    if cfg.flight_mode:
+        return cfg.flight_mode, GUIDANCE_FLIGHT_MODES[cfg.flight_mode]
+    return FLIGHT_MODE[variant], CUSTOM_MODE[variant]
+
+
+def write_params(path: Path, cfg: RunConfig, variant: str | None = None) -> dict[str, float]:
     """The controller's parameter file of a variant (MAVProxy format)."""
     values = controller_params(cfg)
+    if cfg.flight_mode and variant is not None:
+        values["GUID_INNER_CO"] = 1.0 if variant == "coordinated" else 0.0
     lines = ["# hyfc controller parameters written by tools.hil"]
     if cfg.params_file is not None:
         lines.append(f"# includes {cfg.params_file}")
@@ -140,7 +154,7 @@ class Progress:
             print(file=sys.stderr)
 
 
-def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Event,
+def _drive_realtime(gcs, commands: list[dict], mode_number: int, stop: threading.Event,
                     errors: queue.Queue) -> None:
     """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
     from tools.hil.gcs import GcsError
@@ -154,7 +168,7 @@ def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Eve
         while pending and pending[0]["t_s"] <= 0.0:
             first.update({k: v for k, v in pending.pop(0).items() if k != "t_s"})
         gcs.set_command_deg(first["alpha_deg"], first["beta_deg"], first["mu_deg"])
-        gcs.set_mode(CUSTOM_MODE[variant])
+        gcs.set_mode(mode_number)
         gcs.arm()
         while pending and not stop.is_set():
             c = pending[0]
@@ -192,7 +206,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     rundata.write_timeline(vdir / rundata.TIMELINE_FILE, commands,
                            header=f"attitude-command timeline of scenario {scenario_ref}")
     params_path = vdir / "params_in.parm"
-    write_params(params_path, cfg)
+    write_params(params_path, cfg, variant)
     plant_port = free_udp_port()
     gcs_bind_port = free_udp_port()
     gcs = None
@@ -217,7 +231,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
             fc_argv += ["--gcs", addr]
         if not realtime:
             fc_argv += ["--timeline", str(vdir / rundata.TIMELINE_FILE), "--arm",
-                        "--flight-mode", FLIGHT_MODE[variant]]
+                        "--flight-mode", flight_mode_of(cfg, variant)[0]]
         fc = Child("fc", fc_argv, vdir / "fc.console.log")
         _say(cfg, f"tools.hil: [{variant}] fc pid {fc.pid}")
         fc.wait_for_line("READY", READY_TIMEOUT_S, stop=stop)
@@ -233,7 +247,8 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
         _say(cfg, f"tools.hil: [{variant}] plant pid {plant.pid}")
         if realtime:
             driver = threading.Thread(target=_drive_realtime, name="gcs-driver", daemon=True,
-                                      args=(gcs, commands, variant, driver_stop, errors))
+                                      args=(gcs, commands, flight_mode_of(cfg, variant)[1],
+                                            driver_stop, errors))
             driver.start()
         # ---- watch ----
         while True:
