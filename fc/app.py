@@ -24,6 +24,8 @@ from fc.guidance.layout import GS_GAM_C
 from fc.gcs import GcsLink
 from fc.guided import GUIDANCE_NAMES, GuidanceRunner
 from fc.internals_log import InternalsLog
+from fc.mission import Mission
+from fc.mission_mode import MissionFlight
 from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
@@ -122,6 +124,9 @@ class FlightController:
         # the guidance (outer loop) of CRUISE/GUIDED (fc/guided.py), stepped from the fast tick
         self.guid = GuidanceRunner(self.params, cfg.fast_hz)
         self.guid.warm_up()
+        # the stored mission (fc/mission.py, its protocol in fc/gcs.py) and MISSION mode
+        self.mission = Mission()
+        self.mission_flight = MissionFlight(self.mission)
 
         # --- state
         self.meas = np.zeros(M_N)
@@ -262,6 +267,10 @@ class FlightController:
 
     # ------------------------------------------------------------------ modes
     def request_mode(self, mode: int) -> tuple[bool, str]:
+        if mode == FlightMode.MISSION and self.modes.mode != FlightMode.MISSION:
+            reason = self.mission_flight.entry_refusal(self)
+            if reason is not None:
+                return False, reason
         ok, text = self.modes.request_mode(mode)
         self._sync_mode()
         return ok, text
@@ -363,7 +372,9 @@ class FlightController:
         elif self.modes.law_active and not self.law_reset_pending:
             try:
                 if self.guid.engaged:
-                    self.guid.tick(self.est.est, self.meas)
+                    if (self.guid.tick(self.est.est, self.meas)
+                            and self.modes.mode == FlightMode.MISSION):
+                        self.gcs.mission_send(self.mission_flight.tick(self))
                     self.cmd_active = self.guid.cmd_rad
                 else:
                     self.cmd_active = self.cmd_rad

@@ -35,7 +35,7 @@ from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S,
                      G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
                      decode_datagram, mavlink, mavlink_dev, new_codec)
 from fc.mission import MSG_IDS as MISSION_MSGS, Mission, encode as mission_encode
-from fc.modes import RESERVED_MODES, STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
+from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
 
@@ -674,7 +674,7 @@ class GcsLink:
 
     # ------------------------------------------------------------------ mission
     def _mission_active(self) -> bool:
-        return int(self.v.modes.mode) == RESERVED_MODES["MISSION"][0]
+        return self.v.modes.mode == FlightMode.MISSION
 
     def mission_send(self, outputs: list) -> None:
         """Send the outputs of fc/mission.py ``Mission`` (protocol replies, MISSION_CURRENT,

@@ -15,6 +15,9 @@ AVAILABLE_MODES, MAVProxy through tools/mavproxy_hyfc.py) read ours:
   law tracks its alpha/beta/mu commands (inner variant: parameter GUID_INNER_CO).
 - GUIDED (5): the guidance flies targets from the ground station (GUIDED_CHANGE_*,
   DO_CHANGE_ALTITUDE/SPEED); entered holding the current altitude, course and speed.
+- MISSION (6): the guidance flies the stored mission (fc/mission.py, fc/mission_mode.py);
+  refused with no mission or no GNSS fix. Its custom_mode (PX4 AUTO.MISSION) is above 2^24,
+  so DO_SET_MODE sets it by the plain number 6 (float param2).
 
 The law runs only when armed and in COORDINATED/UNCOORDINATED or a guidance mode
 (:data:`GUIDANCE_MODES`); disarmed = surfaces at trim.
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 __all__ = ["FlightMode", "ModeManager", "FS_NONE", "FS_DATA", "FS_REQUESTED", "MODE_WIRE",
-           "RESERVED_MODES", "GUIDANCE_MODES", "STANDARD_MODE", "custom_mode_of",
+           "GUIDANCE_MODES", "STANDARD_MODE", "custom_mode_of",
            "mode_from_custom"]
 
 
@@ -38,6 +41,7 @@ class FlightMode(IntEnum):
     FAILSAFE = 3
     CRUISE = 4
     GUIDED = 5
+    MISSION = 6
 
 
 # PX4 custom main modes and AUTO sub modes (PX4 px4_custom_mode.h; pymavlink and MAVSDK decode them)
@@ -60,17 +64,13 @@ MODE_WIRE: dict[FlightMode, int] = {
     FlightMode.FAILSAFE: _px4(PX4_MANUAL, 0, FlightMode.FAILSAFE),
     FlightMode.CRUISE: _px4(PX4_POSCTL, 0, FlightMode.CRUISE),      # hold altitude, course, speed
     FlightMode.GUIDED: _px4(PX4_OFFBOARD, 0, FlightMode.GUIDED),    # targets from the GCS
+    # a stored mission (fc/mission_mode.py); above 2^24: DO_SET_MODE sets it by the number 6
+    FlightMode.MISSION: _px4(PX4_AUTO, PX4_AUTO_MISSION, FlightMode.MISSION),
 }
 
 #: MAV_STANDARD_MODE a mode advertises in AVAILABLE_MODES/CURRENT_MODE (0: none).
-STANDARD_MODE: dict[FlightMode, int] = {FlightMode.CRUISE: 3}    # MAV_STANDARD_MODE_CRUISE
-
-#: Numbers and wire values reserved for the mission mode of issue 14 (not implemented here: a
-#: request for one is refused as an unknown mode). name -> (number, custom_mode, standard mode)
-#: with the MAVLink standard mode (MAV_STANDARD_MODE) each will advertise in AVAILABLE_MODES.
-RESERVED_MODES: dict[str, tuple[int, int, int]] = {
-    "MISSION": (6, _px4(PX4_AUTO, PX4_AUTO_MISSION, 6), 6),      # a stored mission
-}
+STANDARD_MODE: dict[FlightMode, int] = {FlightMode.CRUISE: 3,     # MAV_STANDARD_MODE_CRUISE
+                                        FlightMode.MISSION: 6}    # MAV_STANDARD_MODE_MISSION
 
 _WIRE_TO_MODE = {v: k for k, v in MODE_WIRE.items()}
 
@@ -83,7 +83,7 @@ def custom_mode_of(mode: FlightMode) -> int:
 def mode_from_custom(value: float) -> int | None:
     """The hyfc mode number a requested custom mode means, or None if it means none.
 
-    Accepted: the hyfc number itself (0..5, as ``long DO_SET_MODE 1 1``) or the exact
+    Accepted: the hyfc number itself (0..6, as ``long DO_SET_MODE 1 1``) or the exact
     ``custom_mode`` of a mode as sent in HEARTBEAT/AVAILABLE_MODES (QGroundControl's SET_MODE,
     tools/mavproxy_hyfc.py). NaN, fractions and anything else: None.
     """
@@ -98,7 +98,7 @@ def mode_from_custom(value: float) -> int | None:
 
 
 #: Modes in which the guidance (outer loop) runs and commands the law.
-GUIDANCE_MODES = (FlightMode.CRUISE, FlightMode.GUIDED)
+GUIDANCE_MODES = (FlightMode.CRUISE, FlightMode.GUIDED, FlightMode.MISSION)
 #: Modes in which the law runs (when armed).
 LAW_MODES = (FlightMode.COORDINATED, FlightMode.UNCOORDINATED) + GUIDANCE_MODES
 FS_NONE = 0       # not in failsafe

@@ -26,9 +26,10 @@ pytestmark = pytest.mark.hil
 
 # the wire contract (docs/fc.md sections 5 and 7), literal on purpose
 MODES = {"MANUAL": 0x00010000, "COORDINATED": 0x00070001, "UNCOORDINATED": 0x00070002,
-         "FAILSAFE": 0x00010003, "CRUISE": 0x00030004, "GUIDED": 0x00060005}
+         "FAILSAFE": 0x00010003, "CRUISE": 0x00030004, "GUIDED": 0x00060005,
+         "MISSION": 0x04040006}
 #: MAV_STANDARD_MODE advertised per mode (0: none)
-STANDARD = {"CRUISE": 3}
+STANDARD = {"CRUISE": 3, "MISSION": 6}
 
 
 class _Null:

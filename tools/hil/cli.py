@@ -46,11 +46,17 @@ def _parser() -> argparse.ArgumentParser:
                    help="sim time to fly, s (default: the scenario's); 0 with --mode realtime: "
                         "until Ctrl-C")
     r.add_argument("--seed", type=int, default=0, help="random seed of the plant (default 0)")
-    r.add_argument("--flight-mode", choices=("attitude", "CRUISE", "GUIDED"), default=None,
+    r.add_argument("--flight-mode", choices=("attitude", "CRUISE", "GUIDED", "MISSION"),
+                   default=None,
                    help="attitude: the variant's COORDINATED/UNCOORDINATED mode flying the "
                         "scenario's [[command]] timeline; CRUISE/GUIDED: the guidance holds the "
                         "altitude, course and speed at engagement, the variant selects its inner "
-                        "loop (GUID_INNER_CO). Default: the scenario's flight_mode, else attitude")
+                        "loop (GUID_INNER_CO); MISSION: the ground station uploads --mission and "
+                        "the guidance flies it (CRUISE until then). Default: the scenario's "
+                        "flight_mode, else attitude")
+    r.add_argument("--mission", type=Path, default=None, metavar="FILE",
+                   help="mission (QGC WPL 110, as MAVProxy 'wp load') flown in MISSION "
+                        "(default: the scenario's NAME.waypoints next to its .toml)")
     r.add_argument("--command-shaping", choices=("steps", "prefilter"), default=None,
                    help="steps: the paper's step commands (REF_PF_EN 0, default in the attitude "
                         "modes); prefilter: the controller's reference prefilter (REF_PF_EN 1, "
@@ -239,8 +245,15 @@ def cmd_run(args) -> int:
         flight_mode = ""
     if args.command_shaping is None:
         args.command_shaping = "prefilter" if flight_mode else "steps"
+    mission_file = None
+    if flight_mode == "MISSION":
+        mission_file = args.mission or scen_path.with_suffix(".waypoints")
+        if not mission_file.is_file():
+            print(f"tools.hil: no mission file {mission_file} (give --mission FILE)",
+                  file=sys.stderr)
+            return EXIT_USAGE
     cfg = RunConfig(scenario=args.scenario, mode=args.mode, variants=variants,
-                    flight_mode=flight_mode,
+                    flight_mode=flight_mode, mission_file=mission_file,
                     out_dir=run_dir, duration_s=args.duration, seed=args.seed,
                     command_shaping=args.command_shaping, params_file=args.params,
                     gcs_out=gcs_out, progress_every_s=args.progress_every, quiet=args.quiet,
@@ -254,6 +267,7 @@ def cmd_run(args) -> int:
             "expected_sim_time_s": expected_s,
             "variants": list(variants), "command_shaping": args.command_shaping,
             "flight_mode": flight_mode or "attitude",
+            "mission_file": None if mission_file is None else str(mission_file),
             "duration_s": args.duration, "scenario_file": str(scen_path),
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "versions": _versions(), "gcs_out": list(gcs_out),
