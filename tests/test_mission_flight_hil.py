@@ -17,6 +17,7 @@ import pytest
 
 from fc.app import FcConfig, FlightController
 from fc.modes import FlightMode
+from fc.params import build_table
 from fc.link import new_codec
 from tests.fc_harness import free_udp_port, level_meas
 from tests.test_hil_main import _hil
@@ -82,9 +83,11 @@ def test_mission_waypoints_reached_where_the_law_says(mission_run):
     # longer than this 40 s mission: a few hundred metres remain)
     _, e, to_go, _ = leg_geometry(ne[2], ne[3], at[3])
     assert -300.0 < to_go <= 2000.0 + 300.0 and abs(e) < 1500.0
-    # wp 0 (1.9 deg turn after it): switched at the turn-anticipation distance (~18 km) ahead
+    # wp 0 (1.9 deg turn after it): switched at the turn-anticipation distance (~15 km at the
+    # bank limit GE_MU_MAX) ahead
     chi1 = math.atan2(ne[2][1] - ne[0][1], ne[2][0] - ne[0][0])
-    d = switch_distance_m(2250.0, math.radians(25.0), chi1, 2000.0)
+    mu_max = math.radians(build_table().get("GE_MU_MAX"))
+    d = switch_distance_m(2250.0, mu_max, chi1, 2000.0)
     _, _, to_go0, _ = leg_geometry((0.0, 0.0), ne[0], at[0])
     assert abs(to_go0 - d) < 1000.0
 
