@@ -449,6 +449,7 @@ class FlightController:
             r[k + 8:k + 8 + ns] = self.law.status[:ns]
         r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
         r[k + 9 + ns] = float(self.guid.limits)
+        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
 
     def _columns(self) -> list[str]:
         cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
@@ -457,7 +458,8 @@ class FlightController:
         cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
                  "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
         cols += ["law_" + n for n in self.status_names]
-        cols += ["guid_throttle", "guid_limits"]
+        cols += ["guid_throttle", "guid_limits", "guid_tgt_h_m", "guid_tgt_chi_rad",
+                 "guid_tgt_V_m_s"]
         return cols
 
     # ------------------------------------------------------------------ housekeeping

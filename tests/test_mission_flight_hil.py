@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -127,3 +128,14 @@ def test_mission_mode_refused_without_mission_or_fix(tmp_path):
         assert not ok and "no GNSS fix" in text and fc.modes.mode == FlightMode.CRUISE
     finally:
         fc.close()
+
+
+def test_mission_report_figures_and_plot(mission_run, tmp_path):
+    from tools.mission_report import analyse, plot
+    res = analyse(mission_run, Path(SHORT), (34.9054, -117.8839))
+    assert res["reached"] == res["items"] == 4
+    assert [r["seq"] for r in res["waypoints"]] == [0, 1, 2, 3]
+    assert res["errors"]["beta_deg"]["max_abs"] < 0.5 and not res["surface_at_limit"]
+    png = plot(mission_run, Path(SHORT), (34.9054, -117.8839),
+               tmp_path / "m.png", "test")
+    assert png.stat().st_size > 10_000
