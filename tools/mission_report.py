@@ -8,6 +8,8 @@ along-track distance still to go and the cross-track error of the leg, from the 
 position), and the tracking errors of the flight in MISSION: altitude, course and speed
 against the guidance's targets, alpha/beta/mu against the law's commands. ``--plot PNG``
 draws altitude, course, speed, the ground track and alpha/beta/mu against their commands.
+The errors cover the fc's internals rows in MISSION while armed. The times of the .tlog are the
+fc's time base: sim time in lockstep, the fc's uptime in real time.
 
     python -m tools.mission_report runs/X/coordinated --mission plant_sim/scenarios/mission.waypoints \
         --plot docs/img/mission_flight.png
@@ -66,7 +68,7 @@ def analyse(vdir: Path, mission_file: Path, home: tuple[float, float]) -> dict:
                      "to_go_km": round(to_go / 1000, 2), "xtrack_m": round(e, 0),
                      "dist_km": round(dist / 1000, 2)})
         prev = ne[seq]
-    in_mission = il["mode"] == int(FlightMode.MISSION)
+    in_mission = (il["mode"] == int(FlightMode.MISSION)) & (il["armed"] > 0.5)
     t = il["t_s"][in_mission]
     out = {"waypoints": rows, "items": len(items), "reached": len(ev),
            "mission_s": [float(t[0]), float(t[-1])] if t.size else None}
