@@ -15,9 +15,10 @@ no sockets, clocks or logging. The fc calls
 
 On entry (any mode change seen through ``ModeManager.changes``) the first leg starts at the
 current position, the targets start at the current altitude, course and speed, and a finished
-mission starts over from item 0. The navigator's acceptance radius is ``NavParams.accept_m``
-(2 km; an item's param2 overrides it); the bank used for turn anticipation is the guidance's
-GE_MU_MAX.
+mission starts over from item 0. The navigator's parameters are the fc's (:data:`MISSION_PARAMS`,
+appended to the fc's table, read at every navigator step): WP_ACCEPT_M (an item's param2
+overrides it), WP_XT_LEN_M, WP_XT_ANG_DEG; the bank used for turn anticipation is the
+guidance's GE_MU_MAX.
 """
 from __future__ import annotations
 
@@ -27,11 +28,24 @@ from fc.control.layout import E_H, E_V
 from fc.guidance.waypoints import NavParams, WaypointNavigator, leg_geometry, local_ne
 from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
 from fc.link import mavlink as ML
+from fc.params import ParamDef
 
-__all__ = ["MissionFlight", "NAV_DIV", "GNSS_MAX_AGE_S"]
+__all__ = ["MissionFlight", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
 
 NAV_DIV = 5                 # navigator steps every NAV_DIV guidance steps
 GNSS_MAX_AGE_S = 1.0        # a GNSS sample older than this (plant time) is not a fix
+
+#: The navigator's parameters (fc/guidance/waypoints.py NavParams), appended to the fc's table.
+MISSION_PARAMS: tuple[ParamDef, ...] = (
+    ParamDef("WP_ACCEPT_M", 2000.0, 100.0, 100000.0, "m", "mission",
+             "Least acceptance radius of a waypoint, measured along the leg; an item's param2 "
+             "> 0 overrides it. A turn is anticipated further out (docs/guidance.md 2a)."),
+    ParamDef("WP_XT_LEN_M", 50000.0, 1000.0, 1000000.0, "m", "mission",
+             "Cross-track length scale L_xt: the course target turns toward the leg by "
+             "WP_XT_ANG_DEG (2/pi) atan(e / L_xt)."),
+    ParamDef("WP_XT_ANG_DEG", 20.0, 1.0, 60.0, "deg", "mission",
+             "Intercept angle toward the leg far from it (cross-track law)."),
+)
 
 
 class MissionFlight:
@@ -58,12 +72,20 @@ class MissionFlight:
             return "MISSION refused: no GNSS fix"
         return None
 
+    def _params(self, fc) -> None:
+        """The navigator's parameters from the fc's table (SI)."""
+        p, par = self.nav.p, fc.params
+        if "WP_ACCEPT_M" in par:
+            p.accept_m = par.get("WP_ACCEPT_M")
+            p.xt_len_m = par.get("WP_XT_LEN_M")
+            p.chi_int_rad = math.radians(par.get("WP_XT_ANG_DEG"))
+        if "GE_MU_MAX" in par:
+            p.mu_max_rad = math.radians(par.get("GE_MU_MAX"))
+
     def _start(self, fc) -> list:
         out = self.mission.restart() if self.mission.finished else []
         g = fc.plant.gps
-        mu_max = fc.params.get("GE_MU_MAX") if "GE_MU_MAX" in fc.params else None
-        if mu_max is not None:
-            self.nav.p.mu_max_rad = math.radians(mu_max)
+        self._params(fc)
         _, chi, _ = fc.guidance_targets()
         self.nav.start(self.mission, fc.gcs.home, (float(g[G_LAT_DEG]), float(g[G_LON_DEG])),
                        float(fc.est.est[E_H]), chi, float(fc.est.est[E_V]))
@@ -81,6 +103,7 @@ class MissionFlight:
         self._count = (self._count + 1) % NAV_DIV
         if not due or not self._fix(fc):
             return out           # without a fresh fix the last targets are held
+        self._params(fc)
         g = fc.plant.gps
         lat, lon = float(g[G_LAT_DEG]), float(g[G_LON_DEG])
         h_t, chi_t, v_t, msgs = self.nav.step(self.mission, lat, lon, float(fc.est.est[E_V]))

@@ -298,13 +298,14 @@ def set_aside(path: str) -> str:
 
 def build_table(law_params: Iterable | None = None) -> ParamTable:
     """The full table: law parameters (default: ``fc.control.params.LAW_PARAMS``) + process
-    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``)."""
+    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``) + mission (``fc.mission_mode``)."""
     from fc.guidance.params import GUIDANCE_PARAMS
+    from fc.mission_mode import MISSION_PARAMS
     if law_params is None:
         from fc.control.params import LAW_PARAMS
         law_params = LAW_PARAMS
     return ParamTable(law_param_defs(law_params) + list(PROCESS_PARAMS)
-                      + law_param_defs(GUIDANCE_PARAMS))
+                      + law_param_defs(GUIDANCE_PARAMS) + list(MISSION_PARAMS))
 
 
 def render_markdown(table: ParamTable) -> str:

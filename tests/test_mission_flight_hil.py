@@ -126,6 +126,13 @@ def test_mission_mode_refused_without_mission_or_fix(tmp_path):
         assert fc.mission.count == 1
         ok, text = fc.request_mode(FlightMode.MISSION)
         assert not ok and "no GNSS fix" in text and fc.modes.mode == FlightMode.CRUISE
+        # the navigator takes its parameters from the fc's table (PARAM_SET while flying)
+        fc.set_param("WP_ACCEPT_M", 5000.0)
+        fc.set_param("WP_XT_ANG_DEG", 10.0)
+        fc.mission_flight._params(fc)
+        p = fc.mission_flight.nav.p
+        assert p.accept_m == 5000.0 and p.chi_int_rad == pytest.approx(math.radians(10.0))
+        assert p.mu_max_rad == pytest.approx(math.radians(build_table().get("GE_MU_MAX")))
     finally:
         fc.close()
 
