@@ -62,6 +62,9 @@ def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
     tracking error e1 (deg); time with a surface within 0.05 deg of its limit (s); the range of
     the adaptive estimates in the first and second half; limits seen."""
     sel = truth["t_s"] >= t_from_s
+    if np.count_nonzero(sel) < 2 or np.count_nonzero(fc["t_s"] >= t_from_s) < 2:
+        raise ValueError(f"no samples after t = {t_from_s} s (the run ends at "
+                         f"{truth['t_s'][-1]:.1f} s)")
     tg = _targets_at(truth, fc)[sel]
     out = {"t_from_s": t_from_s, "t_to_s": float(truth["t_s"][-1])}
     out["alt_err_max_m"] = float(np.max(np.abs(truth["h_m"][sel] - tg[:, 0])))
