@@ -210,16 +210,18 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     f = sub.add_parser("figures", help="hold figures of a variant directory")
-    f.add_argument("vdir", type=Path)
+    f.add_argument("vdir", type=Path, help="a variant directory of a tools.hil run "
+                   "(RUN_DIR/coordinated) flown in a guidance mode")
     f.add_argument("--from", dest="t_from", type=float, default=300.0,
                    help="figures from this sim time on (s, default 300: after the transient)")
     s = sub.add_parser("steps", help="guided steps from a ground station, lockstep over UDP")
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--out", type=Path, required=True, help="run directory to write (tools.hil)")
     s.add_argument("--at", type=float, nargs=3, default=[100.0, 600.0, 1100.0],
                    help="sim times of the altitude, heading and speed steps (s)")
-    s.add_argument("--duration", type=float, default=1600.0)
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--variant", choices=("coordinated", "uncoordinated"), default="coordinated")
+    s.add_argument("--duration", type=float, default=1600.0, help="sim time to fly, s (1600)")
+    s.add_argument("--seed", type=int, default=0, help="random seed of the plant (0)")
+    s.add_argument("--variant", choices=("coordinated", "uncoordinated"), default="coordinated",
+                   help="the inner law (GUID_INNER_CO), default coordinated")
     a = ap.parse_args(argv)
     if a.cmd == "figures":
         truth, fc = load_run(a.vdir)
