@@ -60,8 +60,9 @@ class GuidanceRunner:
         self.cmd_rad = self.g.out[0:3]  # a view: the kernel writes ``out`` in place
         self.limits = 0
         self._atm = np.zeros(ATM_N)
-        #: (bearing to the waypoint rad, distance m) for NAV_CONTROLLER_OUTPUT, set by a mission
-        self.nav_wp: tuple[float, float] | None = None
+        #: (bearing to the waypoint rad, distance m, cross-track error m, + right of the leg)
+        #: for NAV_CONTROLLER_OUTPUT, set by a mission (fc/mission_mode.py)
+        self.nav_wp: tuple[float, float, float] | None = None
 
     # ------------------------------------------------------------------ parameters
     def set_param(self, name: str, value: float) -> None:
@@ -189,7 +190,7 @@ class GuidanceRunner:
         (gamma_c + alpha_c: the pitch of the commanded flight path, wings level), nav_bearing
         deg (the course target), target_bearing deg (to the waypoint, else the course target),
         wp_dist m (0 without a waypoint), alt_error m (target - altitude), aspd_error m/s
-        (speed reference - airspeed), xtrack_error m (0)."""
+        (speed reference - airspeed), xtrack_error m (the mission leg's, else 0)."""
         st = self.g.status
         h_t, chi_t, _ = self.targets()
         nav_bearing = int(round(math.degrees(chi_t))) % 360
@@ -201,4 +202,4 @@ class GuidanceRunner:
         return (math.degrees(st[G.GS_MU_C]), math.degrees(st[G.GS_GAM_C] + st[G.GS_ALPHA_C]),
                 nav_bearing if nav_bearing < 180 else nav_bearing - 360,
                 tb if tb < 180 else tb - 360, dist, h_t - float(est[E_H]),
-                float(st[G.GS_V_ERR]), 0.0)
+                float(st[G.GS_V_ERR]), 0.0 if self.nav_wp is None else float(self.nav_wp[2]))

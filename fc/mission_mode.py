@@ -121,5 +121,5 @@ class MissionFlight:
             w = local_ne(it["x"] * 1e-7, it["y"] * 1e-7, home[0], home[1])
             x = local_ne(lat, lon, home[0], home[1])
             _, _, _, dist = leg_geometry(x, w, x)
-            fc.guid.nav_wp = (math.atan2(w[1] - x[1], w[0] - x[0]), dist)
+            fc.guid.nav_wp = (math.atan2(w[1] - x[1], w[0] - x[0]), dist, self.nav.xt_m)
         return out

@@ -146,3 +146,21 @@ def test_mission_report_figures_and_plot(mission_run, tmp_path):
     png = plot(mission_run, Path(SHORT), (34.9054, -117.8839),
                tmp_path / "m.png", "test")
     assert png.stat().st_size > 10_000
+
+
+def test_nav_controller_output_reports_the_waypoint(mission_run):
+    """In MISSION, NAV_CONTROLLER_OUTPUT (the sim-paced .tlog) carries the distance and bearing
+    to the active waypoint and the leg's cross-track error."""
+    from pymavlink import mavutil
+    conn = mavutil.mavlink_connection(str(mission_run / "fc.tlog"), dialect="ardupilotmega")
+    rows = []
+    while True:
+        m = conn.recv_match(type="NAV_CONTROLLER_OUTPUT")
+        if m is None:
+            break
+        rows.append((m.wp_dist, m.target_bearing, m.xtrack_error))
+    with_wp = [r for r in rows if 0 < r[0] < 65535]
+    assert len(with_wp) > 10
+    # the waypoints lie ~north (close to one, its bearing turns with the cross-track offset)
+    assert all(abs(b) <= 8 for d, b, _ in with_wp if d > 10000)
+    assert any(x != 0.0 for _, _, x in with_wp) and all(abs(x) < 5000 for _, _, x in with_wp)
