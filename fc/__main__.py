@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="TOML [[command]] timeline {t_s, alpha_deg, beta_deg, mu_deg} by sensor time")
     ap.add_argument("--out", metavar="DIR", help="run directory (default runs/fc-<UTC time>)")
     ap.add_argument("--arm", action="store_true", help="start armed")
-    ap.add_argument("--flight-mode", choices=("MANUAL", "COORDINATED", "UNCOORDINATED"),
+    ap.add_argument("--flight-mode", choices=("MANUAL", "COORDINATED", "UNCOORDINATED", "CRUISE", "GUIDED"),
                     default="MANUAL", help="mode at start (default MANUAL)")
     ap.add_argument("--sysid", type=int, default=1, help="our MAVLink system id (default 1)")
     ap.add_argument("--signing-key-file", metavar="FILE",

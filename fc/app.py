@@ -20,12 +20,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fc.estimator import E_N, Estimator
+from fc.guidance.layout import GS_GAM_C
 from fc.gcs import GcsLink
+from fc.guided import GUIDANCE_NAMES, GuidanceRunner
 from fc.internals_log import InternalsLog
+from fc.mission import Mission
+from fc.mission_mode import MissionFlight
 from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
-from fc.modes import FlightMode, ModeManager
+from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
 from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
 from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
                           hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
@@ -117,6 +121,12 @@ class FlightController:
         self.law = law_cls(overrides)
         self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
         self._warm_up_law(law_cls, overrides)
+        # the guidance (outer loop) of CRUISE/GUIDED (fc/guided.py), stepped from the fast tick
+        self.guid = GuidanceRunner(self.params, cfg.fast_hz)
+        self.guid.warm_up()
+        # the stored mission (fc/mission.py, its protocol in fc/gcs.py) and MISSION mode
+        self.mission = Mission()
+        self.mission_flight = MissionFlight(self.mission)
 
         # --- state
         self.meas = np.zeros(M_N)
@@ -127,7 +137,10 @@ class FlightController:
         self.cmd_rad = np.zeros(3)
         self.trim_rad = np.zeros(3)
         self.delta_rad = np.zeros(3)
-        self.pwm_us = [1500, 1500, 1500]
+        self.pwm_us = [1500, 1500, 1500, 0]     # servo4: throttle, 0 = no output
+        self.cmd_active = self.cmd_rad          # the law's command: CMD_* or the guidance's
+        self._law_engaged = False               # the law runs from an engagement (no reset
+                                                # on a switch between law modes, same CO)
         self._apply_process_params()
         self.modes = ModeManager()
         self.seen_data = False
@@ -213,8 +226,13 @@ class FlightController:
             except (KeyError, ValueError) as exc:
                 self.params.force(name, old)
                 return f"{name}: {exc}"
+            self.guid.set_param(name, new)       # the nominal model's MDL_MASS / MDL_XCG
+        elif name in GUIDANCE_NAMES:
+            self.guid.set_param(name, new)
         else:
             self._apply_process_params()
+            if name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
+                self.law_changes_seen = -1       # re-sync CO_ENABLE (and reset the law)
         if self.params.defn(name).group != "command":
             self.params_dirty = True
         self.log.info("param %s = %g (was %g)", name, new, old)
@@ -249,6 +267,10 @@ class FlightController:
 
     # ------------------------------------------------------------------ modes
     def request_mode(self, mode: int) -> tuple[bool, str]:
+        if mode == FlightMode.MISSION and self.modes.mode != FlightMode.MISSION:
+            reason = self.mission_flight.entry_refusal(self)
+            if reason is not None:
+                return False, reason
         ok, text = self.modes.request_mode(mode)
         self._sync_mode()
         return ok, text
@@ -264,26 +286,72 @@ class FlightController:
         if self.modes.changes == self.law_changes_seen:
             return
         self.law_changes_seen = self.modes.changes
+        co_changed = False
         if self.modes.mode in (FlightMode.COORDINATED, FlightMode.UNCOORDINATED):
             co = self.modes.co_enable
-            if "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
-                self.law.set_param("CO_ENABLE", co)
-                self.params.force("CO_ENABLE", co)
-                if hasattr(self, "gcs"):
-                    self.gcs.announce_param("CO_ENABLE")
+        elif self.modes.mode in GUIDANCE_MODES:
+            co = 1.0 if self.params.get("GUID_INNER_CO") > 0.5 else 0.0
+        else:
+            co = None
+        if co is not None and "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
+            self.law.set_param("CO_ENABLE", co)
+            self.params.force("CO_ENABLE", co)
+            co_changed = True
+            if hasattr(self, "gcs"):
+                self.gcs.announce_param("CO_ENABLE")
         if self.modes.law_active:
-            if self.est.healthy:
+            if self._law_engaged and not co_changed and not self.law_reset_pending:
+                pass        # a switch between law modes with the same law: it runs on, bumpless
+            elif self.est.healthy:
                 self._engage_law()
             else:
                 self.law_reset_pending = True   # engaged before data: reset on first healthy frame
+        else:
+            self._law_engaged = False
+        self._sync_guidance()
         self.log.info("mode %s, %s", self.modes.mode.name,
                       "armed" if self.modes.armed else "disarmed")
 
     def _engage_law(self) -> None:
-        """Start the law from the current (healthy) estimate."""
+        """Start the law from the current (healthy) estimate (and the guidance, in its modes)."""
         self.law.reset(self.est.est)
         self.law_reset_pending = False
+        self._law_engaged = True
         self.planner.ticks = 0      # slow loop runs on the first tick after engagement
+        if self.modes.guidance_active:
+            self.guid.engage(self.est.est, self.meas, self.modes.mode)
+
+    def _sync_guidance(self) -> None:
+        """Guidance engagement after a mode change: engaged from the current state on entry
+        into a guidance mode (with the law, once the estimate is healthy), re-targeted to the
+        current altitude, course and speed on a switch between guidance modes."""
+        if not self.modes.guidance_active:
+            if self.guid.engaged:
+                self.guid.disengage()
+            return
+        if self.law_reset_pending:
+            return                  # engaged with the law on the first healthy frame
+        if not self.guid.engaged:
+            self.guid.engage(self.est.est, self.meas, self.modes.mode)
+        elif self.guid.mode != self.modes.mode:
+            self.guid.hold_current(self.est.est, self.meas, self.modes.mode)
+
+    def set_guidance_targets(self, h_m: float | None = None, chi_rad: float | None = None,
+                             V_m_s: float | None = None) -> str | None:
+        """Targets of the guidance (altitude m AMSL, course rad, airspeed m/s; None keeps one),
+        validated against the envelope (GT_ALT_*, GT_SPD_*, GE_QBAR_*); the guidance clips
+        what it flies by its own envelope limits. None on success, else the reason. GUIDED's
+        ground-station commands and the mission manager call it."""
+        reason = self.guid.set_targets(h_m, chi_rad, V_m_s)
+        if reason is None:
+            self.log.info("guidance targets: %.0f m, %.2f deg, %.1f m/s",
+                          self.guid.targets()[0], math.degrees(self.guid.targets()[1]),
+                          self.guid.targets()[2])
+        return reason
+
+    def guidance_targets(self) -> tuple[float, float, float]:
+        """(altitude m, course rad, speed m/s) the guidance flies (or last flew)."""
+        return self.guid.targets()
 
     def _warm_up_law(self, law_cls, overrides: dict) -> None:
         """Run a throw-away law once so its kernels are loaded before the first real tick."""
@@ -303,8 +371,15 @@ class FlightController:
             pass                        # hold the last command: no new data to act on
         elif self.modes.law_active and not self.law_reset_pending:
             try:
+                if self.guid.engaged:
+                    if (self.guid.tick(self.est.est, self.meas)
+                            and self.modes.mode == FlightMode.MISSION):
+                        self.gcs.mission_send(self.mission_flight.tick(self))
+                    self.cmd_active = self.guid.cmd_rad
+                else:
+                    self.cmd_active = self.cmd_rad
                 if slow:
-                    self.law.slow_step(self.est.est, self.cmd_rad, self.planner.slow_dt_s)
+                    self.law.slow_step(self.est.est, self.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
                 self.delta_rad[:] = self.law.delta_cmd_rad
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
@@ -320,6 +395,9 @@ class FlightController:
         self.pwm_us[0] = deflection_to_pwm(d[0])
         self.pwm_us[1] = deflection_to_pwm(d[1])
         self.pwm_us[2] = deflection_to_pwm(d[2])
+        # throttle only while the guidance flies (its last command held with the law); 0 = no
+        # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
+        self.pwm_us[3] = self.guid.throttle_pwm() if self.modes.guidance_active else 0
 
     def _new_frame(self, now_s: float) -> None:
         """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
@@ -362,13 +440,16 @@ class FlightController:
         r[7] = float(self.est.masks[1])
         r[8:8 + E_N] = self.est.est
         k = 8 + E_N
-        r[k:k + 3] = self.cmd_rad
+        r[k:k + 3] = self.cmd_active
         r[k + 3:k + 6] = self.delta_rad
         r[k + 6] = lateness_ns * 1e-3
         r[k + 7] = exec_ns * 1e-3
         ns = len(self.status_names)
         if ns:
             r[k + 8:k + 8 + ns] = self.law.status[:ns]
+        r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
+        r[k + 9 + ns] = float(self.guid.limits)
+        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
 
     def _columns(self) -> list[str]:
         cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
@@ -377,6 +458,8 @@ class FlightController:
         cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
                  "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
         cols += ["law_" + n for n in self.status_names]
+        cols += ["guid_throttle", "guid_limits", "guid_tgt_h_m", "guid_tgt_chi_rad",
+                 "guid_tgt_V_m_s"]
         return cols
 
     # ------------------------------------------------------------------ housekeeping
@@ -476,11 +559,28 @@ class FlightController:
         """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
         cache: in lockstep the flight log takes them at 10 Hz of sim time)."""
         e = self.est.est
-        return [
-            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_rad)),
+        vec = [
+            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_active)),
             (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
             (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
         ]
+        if self.modes.guidance_active:
+            # x: the envelope limit bitfield in force (fc/guidance/layout.py LIM_*), y: the
+            # throttle command (0..1), z: the flight-path angle command (deg)
+            vec.append((b"GUID", (float(self.guid.limits), self.guid.throttle(),
+                                  math.degrees(self.guid.g.status[GS_GAM_C]))))
+        return vec
+
+    def throttle_percent(self) -> int:
+        """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
+        return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
+
+    def nav_controller_output(self):
+        """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
+        guidance modes."""
+        if not (self.modes.guidance_active and self.guid.engaged):
+            return None
+        return self.guid.nav_output(self.est.est)
 
     def _refresh_telemetry_cache(self) -> None:
         e = self.est.est
@@ -558,6 +658,8 @@ class FlightController:
             self.est.reset()
             self.planner.next_ns = None
             self.law_changes_seen = -1      # re-engages the law (reset at the new state)
+            self._law_engaged = False
+            self.guid.disengage()
             if self.timeline is not None:
                 self.timeline.next = 0      # the command timeline starts over with sim time
         self.last_stamp_us = stamp

@@ -34,7 +34,8 @@ from collections import deque
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
                      G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
                      decode_datagram, mavlink, mavlink_dev, new_codec)
-from fc.modes import FlightMode, custom_mode_of, mode_from_custom
+from fc.mission import MSG_IDS as MISSION_MSGS, Mission, encode as mission_encode
+from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
 
@@ -61,6 +62,16 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
     ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
     ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: 0.25,  # in the guidance modes only
+    ML.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,      # and on every change (fc/mission.py)
+}
+#: GUIDED's target commands (``_guided_command``) -> the name in STATUSTEXT.
+GUIDED_COMMANDS = {
+    ML.MAV_CMD_GUIDED_CHANGE_SPEED: "GUIDED_CHANGE_SPEED",
+    ML.MAV_CMD_GUIDED_CHANGE_ALTITUDE: "GUIDED_CHANGE_ALTITUDE",
+    ML.MAV_CMD_GUIDED_CHANGE_HEADING: "GUIDED_CHANGE_HEADING",
+    ML.MAV_CMD_DO_CHANGE_ALTITUDE: "DO_CHANGE_ALTITUDE",
+    ML.MAV_CMD_DO_CHANGE_SPEED: "DO_CHANGE_SPEED",
 }
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
@@ -68,8 +79,10 @@ DATA_STREAMS = {
     ML.MAV_DATA_STREAM_EXTENDED_STATUS: (ML.MAVLINK_MSG_ID_SYS_STATUS,
                                          MD.MAVLINK_MSG_ID_CURRENT_MODE,
                                          ML.MAVLINK_MSG_ID_GPS_RAW_INT,
-                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME),
-    ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
+                                         ML.MAVLINK_MSG_ID_SYSTEM_TIME,
+                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT),
+    ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                                  ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
     ML.MAV_DATA_STREAM_EXTRA2: (ML.MAVLINK_MSG_ID_VFR_HUD,),
@@ -80,6 +93,8 @@ DATA_STREAMS = {
 UNSIGNED_ALLOWED = frozenset({
     ML.MAVLINK_MSG_ID_HEARTBEAT, ML.MAVLINK_MSG_ID_PARAM_REQUEST_LIST,
     ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ, ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST,
+    ML.MAVLINK_MSG_ID_MISSION_REQUEST_INT, ML.MAVLINK_MSG_ID_MISSION_REQUEST,
+    ML.MAVLINK_MSG_ID_MISSION_ACK,      # a mission download (the vehicle only answers)
     ML.MAVLINK_MSG_ID_TIMESYNC, ML.MAVLINK_MSG_ID_SYSTEM_TIME,
 })
 #: The .tlog's own streams (docs/fc.md "Flight log"): the default rates plus the heartbeat.
@@ -142,6 +157,8 @@ class GcsLink:
         self.sim_time = sim_time
         self.epoch_us = int(time.time() * 1e6)    # .tlog stamp = epoch + time base
         self.home: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m MSL
+        #: the stored mission (fc/mission.py): the vehicle's if it has one (MISSION mode flies it)
+        self.mission = getattr(vehicle, "mission", None) or Mission()
         self.default = _Streams(self.mav, STREAM_DEFAULTS_S)
         self.intervals = self.default.intervals        # the default schedule (outputs)
         self.next_due = self.default.next_due
@@ -417,16 +434,9 @@ class GcsLink:
         elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
             if self._for_us(m):
                 self._data_stream(m)
-        elif t == ML.MAVLINK_MSG_ID_MISSION_REQUEST_LIST:
+        elif t in MISSION_MSGS:
             if self._for_us(m):
-                self.send(self.mav.mission_count_encode(
-                    m.get_srcSystem(), m.get_srcComponent(), 0, m.mission_type))
-        elif t in (ML.MAVLINK_MSG_ID_MISSION_COUNT, ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL):
-            if self._for_us(m):
-                result = (ML.MAV_MISSION_ACCEPTED if t == ML.MAVLINK_MSG_ID_MISSION_CLEAR_ALL
-                          or m.count == 0 else ML.MAV_MISSION_UNSUPPORTED)
-                self.send(self.mav.mission_ack_encode(
-                    m.get_srcSystem(), m.get_srcComponent(), result, m.mission_type))
+                self.mission_send(self.mission.handle(m, now_s))
 
     # ------------------------------------------------------------------ parameters
     def _param_index(self, param_id, index: int) -> int | None:
@@ -520,6 +530,8 @@ class GcsLink:
                 self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
                 return ML.MAV_RESULT_DENIED
             return ML.MAV_RESULT_ACCEPTED
+        if c in GUIDED_COMMANDS:
+            return self._guided_command(m)
         if c == ML.MAV_CMD_SET_MESSAGE_INTERVAL:
             msg_id = self._whole(m.param1)
             if msg_id not in self.intervals:
@@ -565,10 +577,60 @@ class GcsLink:
         if c == ML.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self.oneshot.append(self._autopilot_version())
             return ML.MAV_RESULT_ACCEPTED
+        if c == ML.MAV_CMD_DO_SET_MISSION_CURRENT:
+            seq = self._whole(m.param1)
+            ok, out = self.mission.set_current(-1 if seq is None else seq)
+            self.mission_send(out)
+            return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
         if c == ML.MAV_CMD_PREFLIGHT_STORAGE:
             # parameters are saved on every accepted set: "write" is already done
             return ML.MAV_RESULT_ACCEPTED if m.param1 == 1 else ML.MAV_RESULT_UNSUPPORTED
         return ML.MAV_RESULT_UNSUPPORTED
+
+    def _guided_command(self, m) -> int:
+        """GUIDED's target commands (docs/fc.md section 5): accepted in GUIDED only, each
+        target validated by ``set_guidance_targets`` (DENIED with a STATUSTEXT otherwise).
+
+        GUIDED_CHANGE_SPEED (43000): param1 speed type (0 airspeed; 1 ground speed, the same
+        here: no wind), param2 speed m/s. GUIDED_CHANGE_ALTITUDE (43001): param1 altitude m
+        AMSL. GUIDED_CHANGE_HEADING (43002): param1 heading type (0 course over ground, 1
+        heading: the course is flown either way), param2 deg from north. DO_CHANGE_ALTITUDE
+        (186): param1 altitude m, param2 frame (MAV_FRAME_GLOBAL, 0, only). DO_CHANGE_SPEED
+        (178): param1 speed type (0/1 air/ground speed; 2, 3 climb/descent refused), param2
+        speed m/s (-1 or NaN: no change), param3 throttle (ignored: the speed loop owns it).
+        The commands' rate/acceleration limits are ignored: the guidance's own (GA_HDOT_MAX,
+        GH_CHIDOT_MAX, GS_ACC_MAX) apply."""
+        c = m.command
+        name = GUIDED_COMMANDS[c]
+        if self.v.modes.mode != FlightMode.GUIDED:
+            self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: only in GUIDED")
+            return ML.MAV_RESULT_DENIED
+        h = chi = spd = None
+        bad = None
+        if c == ML.MAV_CMD_GUIDED_CHANGE_ALTITUDE:
+            h = m.param1
+        elif c == ML.MAV_CMD_DO_CHANGE_ALTITUDE:
+            h = m.param1
+            if m.param2 not in (0, ML.MAV_FRAME_GLOBAL):
+                bad = "frame must be MAV_FRAME_GLOBAL (AMSL)"
+        elif c == ML.MAV_CMD_GUIDED_CHANGE_HEADING:
+            if m.param1 not in (0, 1):
+                bad = "param1 heading type must be 0 or 1"
+            chi = math.radians(m.param2) if math.isfinite(m.param2) else math.nan
+        elif c == ML.MAV_CMD_GUIDED_CHANGE_SPEED:
+            if m.param1 not in (0, 1):
+                bad = "param1 speed type must be 0 or 1"
+            spd = m.param2
+        else:                                  # DO_CHANGE_SPEED
+            if m.param1 not in (0, 1):
+                bad = "speed type must be 0 or 1 (air/ground speed)"
+            if not (m.param2 == -1 or math.isnan(m.param2)):
+                spd = m.param2
+        reason = bad or self.v.set_guidance_targets(h_m=h, chi_rad=chi, V_m_s=spd)
+        if reason is not None:
+            self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: {reason}")
+            return ML.MAV_RESULT_DENIED
+        return ML.MAV_RESULT_ACCEPTED
 
     def _request_mode(self, value: float) -> tuple[bool, str]:
         """DO_SET_MODE param2 / SET_MODE custom_mode: a hyfc mode number or a wire value."""
@@ -612,6 +674,20 @@ class GcsLink:
                 link.intervals[msg_id] = max(1.0 / m.req_message_rate, 0.01)
             link.next_due[msg_id] = 0.0
 
+    # ------------------------------------------------------------------ mission
+    def _mission_active(self) -> bool:
+        return self.v.modes.mode == FlightMode.MISSION
+
+    def mission_send(self, outputs: list) -> None:
+        """Send the outputs of fc/mission.py ``Mission`` (protocol replies, MISSION_CURRENT,
+        MISSION_ITEM_REACHED, texts) at the next ``service``."""
+        active = self._mission_active()
+        for out in outputs:
+            if out[0] == "text":
+                self.statustext(out[1], out[2])
+            else:
+                self.oneshot.append(mission_encode(self.mav, self.mission, out, active))
+
     # ------------------------------------------------------------------ transmit
     def _heartbeat(self):
         modes = self.v.modes
@@ -630,9 +706,11 @@ class GcsLink:
                                          base, custom_mode_of(modes.mode), status)
 
     def _current_mode(self):
-        """CURRENT_MODE (standard modes): no standard mode; custom = intended = the mode."""
-        cm = custom_mode_of(self.v.modes.mode)
-        return MD.MAVLink_current_mode_message(0, cm, cm)
+        """CURRENT_MODE (standard modes): the mode's standard mode (CRUISE: MAV_STANDARD_MODE
+        CRUISE, the rest none); custom = intended = the mode."""
+        mode = self.v.modes.mode
+        cm = custom_mode_of(mode)
+        return MD.MAVLink_current_mode_message(STANDARD_MODE.get(mode, 0), cm, cm)
 
     def _available_modes(self, index: int | None) -> list:
         """AVAILABLE_MODES for every mode (``index`` 0) or the one at ``index`` (1-based)."""
@@ -640,13 +718,15 @@ class GcsLink:
         picked = (range(1, len(modes) + 1) if index == 0
                   else [index] if index is not None and 1 <= index <= len(modes) else [])
         return [MD.MAVLink_available_modes_message(
-                    len(modes), i, 0, custom_mode_of(modes[i - 1]), 0,
+                    len(modes), i, STANDARD_MODE.get(modes[i - 1], 0),
+                    custom_mode_of(modes[i - 1]), 0,
                     modes[i - 1].name.encode("ascii")) for i in picked]
 
     def _autopilot_version(self):
         # integer parameters: bytewise in the float (the spec's default, PX4, MAVSDK, QGC)
         caps = (ML.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | ML.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                | ML.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
+                | ML.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                | ML.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
         version = (0 << 24) | (1 << 16) | (0 << 8) | 0xFF   # 0.1.0 release
         return self.mav.autopilot_version_encode(caps, version, 0, 0, 0, b"hyfc\0\0\0\0",
                                                  [0] * 8, [0] * 8, 0, 0, 0)
@@ -678,6 +758,8 @@ class GcsLink:
         v = self.v
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
+        if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
+            return mission_encode(self.mav, self.mission, ("current",), self._mission_active())
         us = self.time_us()
         ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
@@ -706,11 +788,11 @@ class GcsLink:
             return self.mav.aoa_ssa_encode(us, math.degrees(m[7]), math.degrees(m[8]))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
             hdg = int(round(math.degrees(m[13]))) % 360 if math.isfinite(m[13]) else 0
-            return self.mav.vfr_hud_encode(m[9], m[12], hdg, 0, m[10], m[11])
+            return self.mav.vfr_hud_encode(m[9], m[12], hdg, v.throttle_percent(), m[10], m[11])
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
             p = v.pwm_us
             return self.mav.servo_output_raw_encode(us & 0xFFFFFFFF, 0,
-                                                    p[0], p[1], p[2], 0, 0, 0, 0, 0)
+                                                    p[0], p[1], p[2], p[3], 0, 0, 0, 0)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             vectors = self._debug_vectors()
             name, xyz = vectors[cursor % len(vectors)]
@@ -742,6 +824,9 @@ class GcsLink:
                 ms, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
                 int(round(g[G_ALT_M] * 1000.0)), int(round((g[G_ALT_M] - self.home[2]) * 1000.0)),
                 _i16(g[G_VN] * 100.0), _i16(g[G_VE] * 100.0), _i16(g[G_VD] * 100.0), hdg)
+        if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
+            nav = v.nav_controller_output()
+            return None if nav is None else self.mav.nav_controller_output_encode(*nav)
         if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION:
             self._gnss()
             if self.home is None:
@@ -795,6 +880,7 @@ class GcsLink:
         if self.home is None and self.v.plant.gps_samples:
             self._gnss()                   # home = the first fix, taken when it arrives
         self._service_log()
+        self.mission_send(self.mission.tick(now_s))
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)

@@ -11,8 +11,16 @@ AVAILABLE_MODES, MAVProxy through tools/mavproxy_hyfc.py) read ours:
 - COORDINATED (1): the law with CO_ENABLE = 1.
 - UNCOORDINATED (2): the law with CO_ENABLE = 0.
 - FAILSAFE (3): surfaces at trim. Entered on plant-data loss (automatic) or on request.
+- CRUISE (4): the guidance (fc/guidance) holds the altitude, course and speed at entry; the
+  law tracks its alpha/beta/mu commands (inner variant: parameter GUID_INNER_CO).
+- GUIDED (5): the guidance flies targets from the ground station (GUIDED_CHANGE_*,
+  DO_CHANGE_ALTITUDE/SPEED); entered holding the current altitude, course and speed.
+- MISSION (6): the guidance flies the stored mission (fc/mission.py, fc/mission_mode.py);
+  refused with no mission or no GNSS fix. Its custom_mode (PX4 AUTO.MISSION) is above 2^24,
+  so DO_SET_MODE sets it by the plain number 6 (float param2).
 
-The law runs only when armed and in COORDINATED/UNCOORDINATED; disarmed = surfaces at trim.
+The law runs only when armed and in COORDINATED/UNCOORDINATED or a guidance mode
+(:data:`GUIDANCE_MODES`); disarmed = surfaces at trim.
 This module holds no clock: the caller passes wall times in seconds.
 """
 from __future__ import annotations
@@ -22,7 +30,8 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 __all__ = ["FlightMode", "ModeManager", "FS_NONE", "FS_DATA", "FS_REQUESTED", "MODE_WIRE",
-           "RESERVED_MODES", "custom_mode_of", "mode_from_custom"]
+           "GUIDANCE_MODES", "STANDARD_MODE", "custom_mode_of",
+           "mode_from_custom"]
 
 
 class FlightMode(IntEnum):
@@ -30,6 +39,9 @@ class FlightMode(IntEnum):
     COORDINATED = 1
     UNCOORDINATED = 2
     FAILSAFE = 3
+    CRUISE = 4
+    GUIDED = 5
+    MISSION = 6
 
 
 # PX4 custom main modes and AUTO sub modes (PX4 px4_custom_mode.h; pymavlink and MAVSDK decode them)
@@ -50,16 +62,15 @@ MODE_WIRE: dict[FlightMode, int] = {
     FlightMode.COORDINATED: _px4(PX4_STABILIZED, 0, FlightMode.COORDINATED),
     FlightMode.UNCOORDINATED: _px4(PX4_STABILIZED, 0, FlightMode.UNCOORDINATED),
     FlightMode.FAILSAFE: _px4(PX4_MANUAL, 0, FlightMode.FAILSAFE),
+    FlightMode.CRUISE: _px4(PX4_POSCTL, 0, FlightMode.CRUISE),      # hold altitude, course, speed
+    FlightMode.GUIDED: _px4(PX4_OFFBOARD, 0, FlightMode.GUIDED),    # targets from the GCS
+    # a stored mission (fc/mission_mode.py); above 2^24: DO_SET_MODE sets it by the number 6
+    FlightMode.MISSION: _px4(PX4_AUTO, PX4_AUTO_MISSION, FlightMode.MISSION),
 }
 
-#: Numbers and wire values reserved for the guidance modes of issue 14 (not implemented: a
-#: request for one is refused as an unknown mode). name -> (number, custom_mode, standard mode)
-#: with the MAVLink standard mode (MAV_STANDARD_MODE) each will advertise in AVAILABLE_MODES.
-RESERVED_MODES: dict[str, tuple[int, int, int]] = {
-    "CRUISE": (4, _px4(PX4_POSCTL, 0, 4), 3),                    # hold altitude, heading, speed
-    "GUIDED": (5, _px4(PX4_OFFBOARD, 0, 5), 0),                  # targets from the GCS
-    "MISSION": (6, _px4(PX4_AUTO, PX4_AUTO_MISSION, 6), 6),      # a stored mission
-}
+#: MAV_STANDARD_MODE a mode advertises in AVAILABLE_MODES/CURRENT_MODE (0: none).
+STANDARD_MODE: dict[FlightMode, int] = {FlightMode.CRUISE: 3,     # MAV_STANDARD_MODE_CRUISE
+                                        FlightMode.MISSION: 6}    # MAV_STANDARD_MODE_MISSION
 
 _WIRE_TO_MODE = {v: k for k, v in MODE_WIRE.items()}
 
@@ -72,7 +83,7 @@ def custom_mode_of(mode: FlightMode) -> int:
 def mode_from_custom(value: float) -> int | None:
     """The hyfc mode number a requested custom mode means, or None if it means none.
 
-    Accepted: the hyfc number itself (0..3, as ``long DO_SET_MODE 1 1``) or the exact
+    Accepted: the hyfc number itself (0..6, as ``long DO_SET_MODE 1 1``) or the exact
     ``custom_mode`` of a mode as sent in HEARTBEAT/AVAILABLE_MODES (QGroundControl's SET_MODE,
     tools/mavproxy_hyfc.py). NaN, fractions and anything else: None.
     """
@@ -86,7 +97,10 @@ def mode_from_custom(value: float) -> int | None:
     return None
 
 
-LAW_MODES = (FlightMode.COORDINATED, FlightMode.UNCOORDINATED)
+#: Modes in which the guidance (outer loop) runs and commands the law.
+GUIDANCE_MODES = (FlightMode.CRUISE, FlightMode.GUIDED, FlightMode.MISSION)
+#: Modes in which the law runs (when armed).
+LAW_MODES = (FlightMode.COORDINATED, FlightMode.UNCOORDINATED) + GUIDANCE_MODES
 FS_NONE = 0       # not in failsafe
 FS_DATA = 1       # entered because plant data was lost
 FS_REQUESTED = 2  # entered on request from the ground station
@@ -107,6 +121,10 @@ class ModeManager:
     @property
     def law_active(self) -> bool:
         return self.armed and self.mode in LAW_MODES
+
+    @property
+    def guidance_active(self) -> bool:
+        return self.armed and self.mode in GUIDANCE_MODES
 
     @property
     def co_enable(self) -> float:

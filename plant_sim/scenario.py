@@ -41,6 +41,10 @@ INF = math.inf
 SCHEMA: dict[str, Any] = {
     "name": Key("str", "", doc="scenario name"),
     "description": Key("str", "", doc="one-line description"),
+    "flight_mode": Key("str", "attitude", choices=("attitude", "CRUISE", "GUIDED"),
+                       doc="the controller's flight mode tools.hil flies it in by default: "
+                           "attitude (COORDINATED/UNCOORDINATED), CRUISE or GUIDED; the plant "
+                           "ignores it"),
     "seed": Key("int", 1, 0, 2**63 - 1, doc="seed of the sensor-noise generator"),
     "duration_s": Key("float", 20.0, 0.001, 1e6, doc="run length (sim time)"),
     "timing": {

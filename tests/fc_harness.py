@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from fc.params import wire_number
+from hyfc_wire.pwm import throttle_from_pwm
 from tools.sitl.procs import Child, free_udp_port  # noqa: F401  (tests import it from here)
 
 os.environ["MAVLINK20"] = "1"
@@ -237,6 +238,7 @@ class ClosedLoop:
         self.cmd = np.zeros(3)
         self.plant = ScriptedPlant(plant_port)
         self.outputs: list[tuple[int, int, int]] = []
+        self.servo4 = 0
 
     def truth(self, name: str) -> float:
         return float(self.row[self.col[name]])
@@ -250,6 +252,9 @@ class ClosedLoop:
             for i in range(3):
                 self.cmd[i] = pwm_to_rad(pwm[i])
             self.sim.command(self.cmd)
+            self.servo4 = ans.servo4_raw
+            if ans.servo4_raw:          # the throttle channel (0: none, the plant keeps its own)
+                self.sim.throttle(throttle_from_pwm(ans.servo4_raw))
             self.sim.truth_row(self.row)
             self.sim.advance()
             if on_frame is not None and on_frame():

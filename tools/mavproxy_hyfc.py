@@ -6,9 +6,10 @@ modes as ``custom_mode`` values MAVProxy cannot name and its integer parameters 
 the MAVLink spec, PX4, MAVSDK and QGroundControl expect (docs/fc.md section 7). Loaded, this
 module gives MAVProxy both:
 
-- the mode names: the prompt and "Mode ..." announcements show MANUAL, COORDINATED,
-  UNCOORDINATED, FAILSAFE; ``mode`` lists them and ``mode COORDINATED`` (or just
-  ``COORDINATED``) sets one, sending MAV_CMD_DO_SET_MODE with the hyfc mode number;
+- the mode names: the prompt and "Mode ..." announcements show the hyfc names (MANUAL,
+  COORDINATED, UNCOORDINATED, FAILSAFE, CRUISE, GUIDED, MISSION); ``mode`` lists them and
+  ``mode COORDINATED`` (or just ``COORDINATED``) sets one, sending MAV_CMD_DO_SET_MODE with the
+  hyfc mode number (so MISSION, whose custom_mode is above 2^24, travels exactly as 6);
 - the parameter encoding: MAVProxy's param module decodes and sends INT32 parameters bytewise
   for a hyfc vehicle (what it does for PX4), so ``param show/set`` print and set whole numbers.
 

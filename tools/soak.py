@@ -1,11 +1,14 @@
 """``python -m tools.soak``: the real-time soak, and ``python -m tools.soak flood`` (the
 ground-station flood process the rig's ``Flood`` starts).
 
-Soak: flies the paper scenario in real time for ``--duration`` wall seconds with the plant link
-impaired (default: 5 % loss, 0-5 ms jitter, 1 % duplicates, 1 % reordering, both directions)
-and, optionally, a ground-station flood, then prints the figures of docs/reliability.md:
-tracking error after settling, late ticks per 1000, rejected input counters, relay counters,
-failsafe entries, process exit codes. The rig it stands on is ``tools.sitl.rig``.
+Soak: flies the cruise scenario in CRUISE (the guidance holds altitude, course and speed;
+``--scenario paper --flight-mode COORDINATED`` for the paper's step) in real time for
+``--duration`` wall seconds with the plant link impaired (default: 5 % loss, 0-5 ms jitter,
+1 % duplicates, 1 % reordering, both directions) and, optionally, a ground-station flood, then
+prints the figures of docs/reliability.md: tracking error after settling (in CRUISE the hold
+figures of tools/guided_hil.py: altitude, course, speed against the targets, the inner loop),
+late ticks per 1000, rejected input counters, relay counters, failsafe entries, process exit
+codes. The rig it stands on is ``tools.sitl.rig``.
 
     python -m tools.soak --duration 60 --flood-rate 2000 --seed 1 [--out DIR]
 """
@@ -110,9 +113,12 @@ def soak(args) -> int:
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-soak-"))
     imp = Impairment(loss=args.loss, jitter_s=args.jitter_ms * 1e-3, dup=args.dup,
                      reorder=args.reorder)
+    guided = args.flight_mode != "COORDINATED"
     cfg = RigConfig(out=out, duration_s=args.duration, seed=args.seed, impair_up=imp,
-                    impair_down=imp)
+                    impair_down=imp, scenario=args.scenario, flight_mode=args.flight_mode,
+                    params={"REF_PF_EN": 1.0} if guided else {})
     fig: dict = {"duration_s": args.duration, "seed": args.seed, "impairment": imp.__dict__,
+                 "scenario": args.scenario, "flight_mode": args.flight_mode,
                  "flood_rate_hz": args.flood_rate, "out": str(out)}
     say = _Say(args.progress_every)
     say(f"soak: {args.duration:g} s in real time, seed {args.seed}, run directory {out}")
@@ -132,7 +138,12 @@ def soak(args) -> int:
             fig["flood_sent"] = flood.wait(30)
         truth, internals = rig.truth(), rig.internals()
         fig["exit_codes"] = rcs
-        fig["tracking_error_deg_after_3s"] = tracking_error_deg(truth, 3.0)
+        if guided:
+            from tools.guided_hil import hold_figures
+            # after the engagement transient (10 s, or half of a shorter run)
+            fig["hold_figures"] = hold_figures(truth, internals, min(10.0, 0.5 * args.duration))
+        else:
+            fig["tracking_error_deg_after_3s"] = tracking_error_deg(truth, 3.0)
         late, ticks = late_ticks(internals, t_from_s=1.0)
         fig["late_ticks"] = late
         fig["ticks"] = ticks
@@ -153,7 +164,7 @@ def soak(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.soak",
-                                 description="Real-time soak: paper scenario with an impaired "
+                                 description="Real-time soak: cruise scenario with an impaired "
                                              "plant link and a ground-station flood; prints the "
                                              "figures of docs/reliability.md as JSON.")
     sub = ap.add_subparsers(dest="cmd")
@@ -168,6 +179,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="MAVLink system id the flood sends as (251)")
     for p in (ap,):
         p.add_argument("--duration", type=float, default=60.0, help="wall/sim seconds (60)")
+        p.add_argument("--scenario", default="cruise", help="plant scenario (cruise)")
+        p.add_argument("--flight-mode", choices=("CRUISE", "COORDINATED"), default="CRUISE",
+                       help="CRUISE: the guidance holds the state at arming (default); "
+                            "COORDINATED: the paper's attitude step (with --scenario paper)")
         p.add_argument("--seed", type=int, default=1,
                        help="seed of the plant and of the link impairment (1)")
         p.add_argument("--loss", type=float, default=0.05,

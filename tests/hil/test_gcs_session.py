@@ -26,7 +26,10 @@ pytestmark = pytest.mark.hil
 
 # the wire contract (docs/fc.md sections 5 and 7), literal on purpose
 MODES = {"MANUAL": 0x00010000, "COORDINATED": 0x00070001, "UNCOORDINATED": 0x00070002,
-         "FAILSAFE": 0x00010003}
+         "FAILSAFE": 0x00010003, "CRUISE": 0x00030004, "GUIDED": 0x00060005,
+         "MISSION": 0x04040006}
+#: MAV_STANDARD_MODE advertised per mode (0: none)
+STANDARD = {"CRUISE": 3, "MISSION": 6}
 
 
 class _Null:
@@ -123,14 +126,15 @@ def test_modes_are_named_by_available_modes_and_current_mode(fc):
         assert ack.result == MD.MAV_RESULT_ACCEPTED
         got = {}
         deadline = time.monotonic() + 3.0
-        while len(got) < 4 and time.monotonic() < deadline:
+        while len(got) < len(MODES) and time.monotonic() < deadline:
             gcs.pump(0.05)
             for _, m in gcs.log[gcs.mark:]:
                 if m.get_type() == "AVAILABLE_MODES":
-                    assert m.number_modes == 4 and m.standard_mode == 0
+                    assert m.number_modes == len(MODES)
+                    assert m.standard_mode == STANDARD.get(m.mode_name, 0), m
                     got[m.mode_index] = (m.mode_name, m.custom_mode)
         assert {name: cm for name, cm in got.values()} == MODES
-        assert sorted(got) == [1, 2, 3, 4]
+        assert sorted(got) == list(range(1, len(MODES) + 1))
         # one mode by index (a GCS re-requests what it missed)
         gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AVAILABLE_MODES, 3)
         m = gcs.wait("AVAILABLE_MODES", 3)

@@ -80,3 +80,26 @@ def test_key_file_readable_by_others_is_refused(tmp_path):
                          cwd=REPO, capture_output=True, text=True, timeout=60)
     assert res.returncode != 0 and "READY" not in res.stdout
     assert "chmod 600" in res.stderr
+
+
+def test_signed_mission_upload_unsigned_download(signed_fc):
+    """With signing on, an unsigned MISSION_COUNT is rejected (no upload starts); a signed
+    upload is stored; an unsigned download (REQUEST_LIST, REQUEST_INT) reads it back."""
+    _, gcs = signed_fc
+    item = ML.MAVLink_mission_item_int_message(1, 1, 0, ML.MAV_FRAME_GLOBAL,
+                                               ML.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
+                                               352000000, -1178839000, 28000.0, 0)
+    gcs.conn.mav.mission_count_send(1, 1, 1, 0)
+    assert gcs.wait(["MISSION_REQUEST_INT", "MISSION_ACK"], 1.5) is None
+    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
+    gcs.conn.mav.mission_count_send(1, 1, 1, 0)
+    assert gcs.wait("MISSION_REQUEST_INT", 5).seq == 0
+    gcs.conn.mav.send(item)
+    assert gcs.wait("MISSION_ACK", 5).type == ML.MAV_MISSION_ACCEPTED
+    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=False)
+    gcs.conn.mav.signing.sign_outgoing = False
+    gcs.conn.mav.mission_request_list_send(1, 1, 0)
+    assert gcs.wait("MISSION_COUNT", 5).count == 1
+    gcs.conn.mav.mission_request_int_send(1, 1, 0, 0)
+    got = gcs.wait("MISSION_ITEM_INT", 5)
+    assert got is not None and got.x == 352000000 and got.z == 28000.0

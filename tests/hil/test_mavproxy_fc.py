@@ -90,15 +90,17 @@ def test_mavproxy_shows_and_sets_every_mode_by_name_with_the_hyfc_module(tmp_pat
         try:
             con.expect("Loaded module tools.mavproxy_hyfc")
             con.expect("Mode MANUAL")
-            con.expect("Received 62 parameters")
+            con.expect(f"Received {len(build_table())} parameters")
             con.send("param show CO_FAC_EQ")                # INT32 from the download, bytewise
             con.expect("CO_FAC_EQ        19")
             con.send("mode")
             con.expect("Available modes:")
-            for name in ("COORDINATED", "UNCOORDINATED", "FAILSAFE", "MANUAL"):
+            for name in ("COORDINATED", "UNCOORDINATED", "FAILSAFE", "CRUISE", "GUIDED", "MANUAL"):
                 con.send(f"mode {name}")
                 con.expect(f"AP: mode {name}")            # the fc's STATUSTEXT: it was set
                 con.expect(f"Mode {name}")                # MAVProxy names the HEARTBEAT's mode
+            con.send("mode MISSION")                      # sent as the number 6: refused, why
+            con.expect("AP: MISSION refused: no mission stored")
             con.send("param set CO_FAC_EQ 19")
             for _ in range(10):                           # the set is queued in MAVProxy
                 con.send("param fetch CO_FAC_EQ")
@@ -113,7 +115,8 @@ def test_mavproxy_shows_and_sets_every_mode_by_name_with_the_hyfc_module(tmp_pat
         assert fc.stop() == 0
     out = "\n".join(con.out)
     print(out)
-    assert "Available modes:  MANUAL, COORDINATED, UNCOORDINATED, FAILSAFE" in out
+    assert ("Available modes:  MANUAL, COORDINATED, UNCOORDINATED, FAILSAFE, CRUISE, GUIDED, "
+            "MISSION") in out
     assert "Unknown mode" not in out and "CIRCLE" not in out and "STABILIZE" not in out
     assert "FS_RECOVER       1" in out
     with open(os.path.join(fc.out, "fc.log")) as f:

@@ -46,9 +46,22 @@ def _parser() -> argparse.ArgumentParser:
                    help="sim time to fly, s (default: the scenario's); 0 with --mode realtime: "
                         "until Ctrl-C")
     r.add_argument("--seed", type=int, default=0, help="random seed of the plant (default 0)")
-    r.add_argument("--command-shaping", choices=("steps", "prefilter"), default="steps",
-                   help="steps: the paper's step commands (REF_PF_EN 0, default); "
-                        "prefilter: the controller's reference prefilter (REF_PF_EN 1)")
+    r.add_argument("--flight-mode", choices=("attitude", "CRUISE", "GUIDED", "MISSION"),
+                   default=None,
+                   help="attitude: the variant's COORDINATED/UNCOORDINATED mode flying the "
+                        "scenario's [[command]] timeline; CRUISE/GUIDED: the guidance holds the "
+                        "altitude, course and speed at engagement, the variant selects its inner "
+                        "loop (GUID_INNER_CO); MISSION: the ground station uploads --mission and "
+                        "the guidance flies it (CRUISE until then). Default: the scenario's "
+                        "flight_mode, else attitude")
+    r.add_argument("--mission", type=Path, default=None, metavar="FILE",
+                   help="mission (QGC WPL 110, as MAVProxy 'wp load') flown in MISSION "
+                        "(default: the scenario's NAME.waypoints next to its .toml)")
+    r.add_argument("--command-shaping", choices=("steps", "prefilter"), default=None,
+                   help="steps: the paper's step commands (REF_PF_EN 0, default in the attitude "
+                        "modes); prefilter: the controller's reference prefilter (REF_PF_EN 1, "
+                        "default in the guidance modes: the guidance's 50 Hz commands are not "
+                        "steps to track)")
     r.add_argument("--params", type=Path, default=None, metavar="FILE",
                    help="extra controller parameters (MAVProxy 'NAME VALUE' file); the "
                         "command shaping is applied on top")
@@ -85,6 +98,16 @@ def _scenario_file(ref: str) -> Path:
         names = sorted(x.stem for x in cand.parent.glob("*.toml"))
         raise FileNotFoundError(f"unknown scenario {ref!r}; known: {', '.join(names) or 'none'}")
     return cand
+
+
+def _scenario_flight_mode(path: Path) -> str:
+    """The scenario's own ``flight_mode`` (top level: attitude, CRUISE or GUIDED), if any."""
+    import tomllib
+    try:
+        with open(path, "rb") as f:
+            return str(tomllib.load(f).get("flight_mode", "attitude"))
+    except (OSError, ValueError):
+        return "attitude"
 
 
 def _scenario_duration(path: Path) -> float | None:
@@ -217,7 +240,20 @@ def cmd_run(args) -> int:
     variants = VARIANTS if args.variant == "both" else (args.variant,)
     gcs_out = tuple(args.gcs_out) if args.gcs_out else (
         ("127.0.0.1:14550",) if args.mode == "realtime" else ())
+    flight_mode = args.flight_mode or _scenario_flight_mode(scen_path)
+    if flight_mode == "attitude":
+        flight_mode = ""
+    if args.command_shaping is None:
+        args.command_shaping = "prefilter" if flight_mode else "steps"
+    mission_file = None
+    if flight_mode == "MISSION":
+        mission_file = args.mission or scen_path.with_suffix(".waypoints")
+        if not mission_file.is_file():
+            print(f"tools.hil: no mission file {mission_file} (give --mission FILE)",
+                  file=sys.stderr)
+            return EXIT_USAGE
     cfg = RunConfig(scenario=args.scenario, mode=args.mode, variants=variants,
+                    flight_mode=flight_mode, mission_file=mission_file,
                     out_dir=run_dir, duration_s=args.duration, seed=args.seed,
                     command_shaping=args.command_shaping, params_file=args.params,
                     gcs_out=gcs_out, progress_every_s=args.progress_every, quiet=args.quiet,
@@ -230,6 +266,8 @@ def cmd_run(args) -> int:
     meta = {"scenario": args.scenario, "mode": args.mode, "seed": args.seed,
             "expected_sim_time_s": expected_s,
             "variants": list(variants), "command_shaping": args.command_shaping,
+            "flight_mode": flight_mode or "attitude",
+            "mission_file": None if mission_file is None else str(mission_file),
             "duration_s": args.duration, "scenario_file": str(scen_path),
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "versions": _versions(), "gcs_out": list(gcs_out),

@@ -17,6 +17,14 @@ from tools.sitl.procs import Child, free_udp_port
 
 FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}
 CUSTOM_MODE = {"coordinated": 1, "uncoordinated": 2}   # fc/modes.py FlightMode
+#: --flight-mode choices beyond the variant's attitude mode: the guidance modes (fc/modes.py),
+#: whose inner loop (GUID_INNER_CO) follows the variant
+GUIDANCE_FLIGHT_MODES = {"CRUISE": 4, "GUIDED": 5, "MISSION": 6}
+#: MISSION needs a mission and a GNSS fix, so the lockstep controller starts in CRUISE and the
+#: scripted ground station uploads the mission and selects MISSION (``_drive_mission``)
+START_MODE = {"MISSION": "CRUISE"}
+#: the ground station's record of the mission's progress (sim times as it heard them)
+MISSION_PROGRESS_FILE = "mission_progress.json"
 #: first start of numba-compiled processes on a loaded 2-core machine can be slow
 READY_TIMEOUT_S = 180.0
 #: the controller's data-loss failsafe timeout in lockstep runs (s; see write_params)
@@ -32,6 +40,8 @@ class RunConfig:
     duration_s: float | None = None      # None: the scenario's; 0: until Ctrl-C (realtime)
     seed: int = 0
     command_shaping: str = "steps"
+    flight_mode: str = ""                # "" the variant's attitude mode, or CRUISE / GUIDED / MISSION
+    mission_file: Path | None = None     # QGC WPL 110 file uploaded in MISSION
     params_file: Path | None = None      # extra controller parameters (MAVProxy format)
     gcs_out: tuple = ()                  # extra ground-station addresses (realtime)
     progress_every_s: float = 1.0
@@ -86,9 +96,19 @@ def controller_params(cfg: RunConfig) -> dict[str, float]:
     return values
 
 
-def write_params(path: Path, cfg: RunConfig) -> dict[str, float]:
+def flight_mode_of(cfg: RunConfig, variant: str) -> tuple[str, int]:
+    """(name, number) of the flight mode a variant flies: the variant's attitude mode, or the
+    guidance mode ``cfg.flight_mode`` (its inner loop set by GUID_INNER_CO)."""
+    if cfg.flight_mode:
+        return cfg.flight_mode, GUIDANCE_FLIGHT_MODES[cfg.flight_mode]
+    return FLIGHT_MODE[variant], CUSTOM_MODE[variant]
+
+
+def write_params(path: Path, cfg: RunConfig, variant: str | None = None) -> dict[str, float]:
     """The controller's parameter file of a variant (MAVProxy format)."""
     values = controller_params(cfg)
+    if cfg.flight_mode and variant is not None:
+        values["GUID_INNER_CO"] = 1.0 if variant == "coordinated" else 0.0
     lines = ["# hyfc controller parameters written by tools.hil"]
     if cfg.params_file is not None:
         lines.append(f"# includes {cfg.params_file}")
@@ -140,9 +160,28 @@ class Progress:
             print(file=sys.stderr)
 
 
-def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Event,
-                    errors: queue.Queue) -> None:
-    """The scripted operator: commands as parameters, mode, arm, then the timeline by sim time."""
+def _upload_when_home(gcs, items: list[dict]) -> None:
+    """Wait for the vehicle's home (its first GNSS fix), then upload the mission."""
+    gcs.wait_for(lambda tel: tel.heartbeats > 0 and tel.home is not None, 60.0,
+                 "the controller's HEARTBEAT and HOME_POSITION (a GNSS fix)")
+    gcs.upload_mission(items)
+
+
+def _drive_mission(gcs, items: list[dict], stop: threading.Event, errors: queue.Queue) -> None:
+    """Lockstep MISSION: the controller flies CRUISE from the start; the ground station
+    uploads the mission once the vehicle has a fix, then selects MISSION (fc/modes.py 6)."""
+    try:
+        _upload_when_home(gcs, items)
+        gcs.set_mode(GUIDANCE_FLIGHT_MODES["MISSION"])
+    except Exception as exc:  # reported by the runner, which stops the run
+        if not stop.is_set():
+            errors.put(f"ground station: {exc}")
+
+
+def _drive_realtime(gcs, commands: list[dict], mode_number: int, stop: threading.Event,
+                    errors: queue.Queue, mission: list[dict] | None = None) -> None:
+    """The scripted operator: commands as parameters, the mission (MISSION), mode, arm, then
+    the timeline by sim time."""
     from tools.sitl.gcs import GcsError
     try:
         # AOA_SSA stamp 0: the controller has no plant frame yet
@@ -154,7 +193,9 @@ def _drive_realtime(gcs, commands: list[dict], variant: str, stop: threading.Eve
         while pending and pending[0]["t_s"] <= 0.0:
             first.update({k: v for k, v in pending.pop(0).items() if k != "t_s"})
         gcs.set_command_deg(first["alpha_deg"], first["beta_deg"], first["mu_deg"])
-        gcs.set_mode(CUSTOM_MODE[variant])
+        if mission:
+            _upload_when_home(gcs, mission)
+        gcs.set_mode(mode_number)
         gcs.arm()
         while pending and not stop.is_set():
             c = pending[0]
@@ -192,7 +233,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     rundata.write_timeline(vdir / rundata.TIMELINE_FILE, commands,
                            header=f"attitude-command timeline of scenario {scenario_ref}")
     params_path = vdir / "params_in.parm"
-    write_params(params_path, cfg)
+    write_params(params_path, cfg, variant)
     plant_port = free_udp_port()
     gcs_bind_port = free_udp_port()
     gcs = None
@@ -215,9 +256,14 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
                    "--params", str(params_path), "--out", str(vdir)]
         for addr in cfg.gcs_out:
             fc_argv += ["--gcs", addr]
+        mode_name, mode_number = flight_mode_of(cfg, variant)
+        mission = None
+        if mode_name == "MISSION":
+            from tools.sitl.gcs import read_wpl
+            mission = read_wpl(cfg.mission_file)
         if not realtime:
             fc_argv += ["--timeline", str(vdir / rundata.TIMELINE_FILE), "--arm",
-                        "--flight-mode", FLIGHT_MODE[variant]]
+                        "--flight-mode", START_MODE.get(mode_name, mode_name)]
         fc = Child("fc", fc_argv, vdir / "fc.console.log")
         _say(cfg, f"tools.hil: [{variant}] fc pid {fc.pid}")
         fc.wait_for_line("READY", READY_TIMEOUT_S, stop=stop)
@@ -233,7 +279,12 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
         _say(cfg, f"tools.hil: [{variant}] plant pid {plant.pid}")
         if realtime:
             driver = threading.Thread(target=_drive_realtime, name="gcs-driver", daemon=True,
-                                      args=(gcs, commands, variant, driver_stop, errors))
+                                      args=(gcs, commands, mode_number, driver_stop, errors,
+                                            mission))
+            driver.start()
+        elif mission is not None:
+            driver = threading.Thread(target=_drive_mission, name="gcs-mission", daemon=True,
+                                      args=(gcs, mission, driver_stop, errors))
             driver.start()
         # ---- watch ----
         while True:
@@ -341,3 +392,11 @@ def _save_gcs(gcs, vdir: Path) -> None:
     import numpy as np
     tel = gcs.telemetry_arrays()
     np.savez(vdir / "gcs_telemetry.npz", **tel)
+    if gcs.tel.mission_acks or gcs.tel.mission_current:
+        import json
+        t = gcs.tel
+        with open(vdir / MISSION_PROGRESS_FILE, "w") as f:
+            json.dump({"acks": t.mission_acks, "requests": t.mission_requests,
+                       "current": [list(r) for r in t.mission_current],
+                       "reached": [list(r) for r in t.mission_reached],
+                       "sent": [list(r) for r in gcs.sent]}, f, indent=1)

@@ -12,7 +12,9 @@ message of the vehicle carries one time base (``time_boot_ms`` / ``time_usec``):
 lockstep, the controller's time since boot in real time; the ``DEBUG_VECT`` named ``SIM_T``
 (x = sim time of the vehicle's newest plant frame, s) maps that base to sim time (docs/fc.md).
 In lockstep runs it only listens (the controller is armed and fed its timeline on its command
-line, docs/hil.md). Every message it sends carries the next sequence number of its one codec
+line, docs/hil.md), except with ``--flight-mode MISSION``: it uploads the mission (a QGC WPL 110
+file, :func:`read_wpl`, :meth:`ScriptedGcs.upload_mission`) and selects MISSION, as an
+operator would, and records the mission's progress (MISSION_CURRENT, MISSION_ITEM_REACHED). Every message it sends carries the next sequence number of its one codec
 (heartbeat thread and commands share it under a lock).
 
 It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
@@ -98,6 +100,12 @@ class Telemetry:
     statustext: deque = field(default_factory=lambda: deque(maxlen=1000))
     param_values: dict = field(default_factory=dict)  # name -> last PARAM_VALUE value
     acks: list = field(default_factory=list)          # (command, result)
+    home: tuple | None = None                         # HOME_POSITION lat, lon deg, alt m
+    mission_requests: list = field(default_factory=list)   # MISSION_REQUEST(_INT) seq
+    mission_acks: list = field(default_factory=list)       # MISSION_ACK type
+    #: MISSION_CURRENT changes: (sim time s, seq, total, mission_state)
+    mission_current: list = field(default_factory=list)
+    mission_reached: list = field(default_factory=list)    # (sim time s, seq)
     bad_datagrams: int = 0
 
     def sim_time_s(self) -> float | None:
@@ -241,6 +249,18 @@ class ScriptedGcs:
             tel.acks.append((m.command, m.result))
         elif t == "STATUSTEXT":
             tel.statustext.append(m.text)
+        elif t == "HOME_POSITION":
+            tel.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude * 1e-3)
+        elif t in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
+            tel.mission_requests.append(m.seq)
+        elif t == "MISSION_ACK":
+            tel.mission_acks.append(m.type)
+        elif t == "MISSION_CURRENT":
+            row = (m.seq, m.total, m.mission_state)
+            if not tel.mission_current or tel.mission_current[-1][1:] != row:
+                tel.mission_current.append((_nan_if_none(tel.sim_t_s), *row))
+        elif t == "MISSION_ITEM_REACHED":
+            tel.mission_reached.append((_nan_if_none(tel.sim_t_s), m.seq))
 
     def wait_for(self, pred, timeout_s: float, what: str):
         """Wait (bounded) until ``pred(self.tel)`` is true; GcsError naming ``what`` otherwise."""
@@ -398,6 +418,49 @@ class ScriptedGcs:
             if math.isfinite(v):
                 self._record(what, v)
 
+    def upload_mission(self, items: list[dict], timeout_s: float = 20.0) -> None:
+        """Upload ``items`` (:func:`read_wpl`) with the mission protocol: MISSION_COUNT, then
+        each MISSION_REQUEST(_INT) answered with its MISSION_ITEM_INT, until MISSION_ACK. The
+        COUNT is sent again if no request comes within 2 s (3 tries). GcsError unless
+        ACCEPTED."""
+        deadline = time.monotonic() + timeout_s
+        for _ in range(3):
+            with self._cond:
+                n_req, n_ack = len(self.tel.mission_requests), len(self.tel.mission_acks)
+            self._send(mavlink.MAVLink_mission_count_message(
+                VEHICLE_SYSID, VEHICLE_COMPID, len(items), mavlink.MAV_MISSION_TYPE_MISSION))
+            try:
+                self.wait_for(lambda tel: len(tel.mission_requests) > n_req
+                              or len(tel.mission_acks) > n_ack, 2.0, "MISSION_REQUEST")
+                break
+            except GcsError:
+                continue
+        else:
+            raise GcsError("no MISSION_REQUEST after 3 MISSION_COUNTs")
+        while True:
+            with self._cond:
+                if len(self.tel.mission_acks) > n_ack:
+                    result = self.tel.mission_acks[n_ack]
+                    break
+                todo = self.tel.mission_requests[n_req:]
+                n_req = len(self.tel.mission_requests)
+            for seq in todo:
+                if 0 <= seq < len(items):
+                    it = items[seq]
+                    self._send(mavlink.MAVLink_mission_item_int_message(
+                        VEHICLE_SYSID, VEHICLE_COMPID, seq, it["frame"], it["command"], 0,
+                        it["autocontinue"], it["param1"], it["param2"], it["param3"],
+                        it["param4"], it["x"], it["y"], it["z"],
+                        mavlink.MAV_MISSION_TYPE_MISSION))
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise GcsError("mission upload: no MISSION_ACK")
+            self.wait_for(lambda tel: len(tel.mission_requests) > n_req
+                          or len(tel.mission_acks) > n_ack, left, "MISSION_REQUEST or MISSION_ACK")
+        if result != mavlink.MAV_MISSION_ACCEPTED:
+            raise GcsError(f"mission refused (MAV_MISSION_RESULT {result})")
+        self._record("mission_items", len(items))
+
     # ---- records ---------------------------------------------------------------------------
     def telemetry_arrays(self) -> dict:
         """ATTITUDE (stamped with the newest AOA_SSA sim time) and AOA_SSA records (the newest
@@ -415,3 +478,28 @@ class ScriptedGcs:
         if self._hb_thread is not None:
             self._hb_thread.join(timeout=2.0)
         self.sock.close()
+
+
+def _nan_if_none(x):
+    return math.nan if x is None else x
+
+
+def read_wpl(path) -> list[dict]:
+    """The items of a QGC WPL 110 file (MAVProxy ``wp save``/``wp load``, QGroundControl's
+    plain-text missions): one tab-separated line per item, ``seq current frame command p1 p2
+    p3 p4 lat lon alt autocontinue``. Returns MISSION_ITEM_INT fields (x, y in degE7).
+    ValueError on a malformed file."""
+    with open(path) as f:
+        lines = [ln.strip() for ln in f if ln.strip() and not ln.startswith("#")]
+    if not lines or not lines[0].startswith("QGC WPL 110"):
+        raise ValueError(f"{path}: not a QGC WPL 110 file")
+    items = []
+    for k, ln in enumerate(lines[1:]):
+        a = ln.split()
+        if len(a) != 12 or int(a[0]) != k:
+            raise ValueError(f"{path}: item line {k + 1}: expected 12 fields, seq {k}")
+        items.append({"frame": int(a[2]), "command": int(a[3]), "param1": float(a[4]),
+                      "param2": float(a[5]), "param3": float(a[6]), "param4": float(a[7]),
+                      "x": int(round(float(a[8]) * 1e7)), "y": int(round(float(a[9]) * 1e7)),
+                      "z": float(a[10]), "autocontinue": int(a[11])})
+    return items

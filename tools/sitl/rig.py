@@ -76,6 +76,7 @@ class RigConfig:
     arm: str = "gcs"    # "gcs": armed by the ground station once plant data is valid;
                         # "start": --arm on the command line; "no": stays disarmed
     gcs_sysid: int = 250
+    flight_mode: str = "COORDINATED"   # the mode it is armed in (CRUISE: the guidance)
 
 
 class Rig:
@@ -115,7 +116,7 @@ class Rig:
                 "--params", str(self.params_path), "--out", str(self.out / "fc"),
                 "--timeline", str(self.out / "timeline.toml")]
         if c.arm in ("start", "gcs"):
-            argv += ["--flight-mode", "COORDINATED"]
+            argv += ["--flight-mode", c.flight_mode]
         if c.arm == "start":
             argv += ["--arm"]
         if c.signing_key_file:

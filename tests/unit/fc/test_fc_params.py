@@ -27,9 +27,12 @@ def test_names_are_mavlink_ids_and_unique(table):
         assert d.unit and d.description, d.name
 
 
-def test_table_is_law_params_then_process_params(table):
+def test_table_is_law_params_then_process_params_then_guidance_then_mission(table):
     from fc.control.params import LAW_PARAMS
-    expected = [p.name for p in LAW_PARAMS] + [p.name for p in PROCESS_PARAMS]
+    from fc.guidance.params import GUIDANCE_PARAMS
+    from fc.mission_mode import MISSION_PARAMS
+    expected = ([p.name for p in LAW_PARAMS] + [p.name for p in PROCESS_PARAMS]
+                + [p.name for p in GUIDANCE_PARAMS] + [p.name for p in MISSION_PARAMS])
     assert table.names == expected
 
 

@@ -32,7 +32,7 @@ class _Vehicle:
         self.modes = ModeManager()
         self.meas = np.zeros(14)
         self.meas_stamp_us = 0
-        self.pwm_us = [1500, 1500, 1500]
+        self.pwm_us = [1500, 1500, 1500, 0]
         self.plant = SimpleNamespace(gps_samples=0, gps=np.zeros(G_N), counters=LinkCounters())
 
     def set_param(self, name, value):
@@ -55,6 +55,12 @@ class _Vehicle:
 
     def load_permille(self):
         return 0
+
+    def throttle_percent(self):
+        return 0
+
+    def nav_controller_output(self):
+        return None
 
 
 class _Null:

@@ -1,0 +1,205 @@
+"""fc/guidance/waypoints.py - waypoint navigation: position and mission -> guidance targets.
+
+Pure (no I/O, no clock): the caller passes the GNSS position and speed and gets the altitude,
+course and speed targets the guidance (fc/guidance/guidance.py) flies.
+
+Geometry: flat earth about home (lat0, lon0), WGS-84 radii of curvature at lat0, the same
+mapping as the plant's GNSS (plant_sim/gnss.py), so north/east offsets in metres:
+
+    north = (lat - lat0) R_N,   east = (lon - lon0) R_E cos(lat0)
+
+Over the 1000-3000 km of a hypersonic mission this is a map, not the Earth's surface; the
+plant uses the same map, so the vehicle and its waypoints agree.
+
+Course law: the leg runs from the previous point P (the previous waypoint, or the position
+where the leg was started) to the active waypoint W; its course is chi_leg = atan2(dE, dN).
+e is the cross-track error (m, + right of the leg). The course target turns toward the leg:
+
+    chi_t = chi_leg - chi_int (2 / pi) atan(e / L_xt)
+
+with chi_int the intercept angle (rad) reached far from the leg and L_xt the cross-track
+length scale (m). The course loop's time constant is about 20 s at 2250 m/s (12 deg of bank
+per degree of course error, docs/guidance.md), so L_xt = 50 km, chi_int = 20 deg gives a
+cross-track time constant of L_xt pi / (2 chi_int V) ~ 100 s: five times slower, no overshoot.
+
+Switching: a vehicle at V turning at the bank limit mu_max flies a radius R = V^2 / (g tan
+mu_max): at Mach 7 (2250 m/s) and 25 deg, R = 1100 km. To fly onto the next leg, W is
+accepted at the turn-anticipation distance d = R tan(|dchi| / 2) ahead of it (dchi the course
+change at W), or at the acceptance radius if larger, or when W is passed (the along-track
+distance to it <= 0): the test is along the leg, to_go <= d (d >= the acceptance radius,
+so a vehicle within it always switches). At a 30 deg turn that is 295 km ahead, at 2 deg 19 km.
+
+Altitude target: the active waypoint's altitude (MSL; a relative-altitude item adds home's).
+Speed target: the last DO_CHANGE_SPEED item passed (kept across waypoints). After the last
+item the targets are held: the last leg's course, the last altitude and speed (CRUISE-like).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["local_ne", "leg_geometry", "turn_radius_m", "switch_distance_m", "course_target",
+           "NavParams", "WaypointNavigator", "G0_M_S2"]
+
+G0_M_S2 = 9.80665
+WGS84_A_M = 6378137.0
+WGS84_E2 = 6.69437999014e-3
+CMD_WAYPOINT = 16
+CMD_CHANGE_SPEED = 178
+FRAMES_REL = (3, 6)          # GLOBAL_RELATIVE_ALT(_INT): altitude above home
+
+
+def _radii(lat0_deg: float) -> tuple[float, float]:
+    s = math.sin(math.radians(lat0_deg))
+    d = 1.0 - WGS84_E2 * s * s
+    return WGS84_A_M * (1.0 - WGS84_E2) / d ** 1.5, WGS84_A_M / math.sqrt(d)
+
+
+def local_ne(lat_deg: float, lon_deg: float, lat0_deg: float, lon0_deg: float) -> tuple[float, float]:
+    """(north m, east m) of (lat, lon) from (lat0, lon0), flat earth about (lat0, lon0)."""
+    rn, re = _radii(lat0_deg)
+    dlon = (lon_deg - lon0_deg + 180.0) % 360.0 - 180.0
+    return (math.radians(lat_deg - lat0_deg) * rn,
+            math.radians(dlon) * re * math.cos(math.radians(lat0_deg)))
+
+
+def _wrap(a: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def leg_geometry(p_ne: tuple, w_ne: tuple, x_ne: tuple) -> tuple[float, float, float, float]:
+    """Leg P -> W and position X (north, east in m).
+
+    Returns (chi_leg rad, cross-track e m (+ right of the leg), along-track distance to go to
+    W m (< 0 once passed), distance X -> W m). A leg shorter than 1 m has the course X -> W.
+    """
+    dn, de = w_ne[0] - p_ne[0], w_ne[1] - p_ne[1]
+    xn, xe = w_ne[0] - x_ne[0], w_ne[1] - x_ne[1]
+    dist = math.hypot(xn, xe)
+    length = math.hypot(dn, de)
+    if length < 1.0:
+        return math.atan2(xe, xn), 0.0, dist, dist
+    un, ue = dn / length, de / length
+    to_go = xn * un + xe * ue
+    e = xn * ue - xe * un             # the vehicle's offset across the leg, + right
+    return math.atan2(ue, un), e, to_go, dist
+
+
+def turn_radius_m(v_m_s: float, mu_max_rad: float) -> float:
+    """Radius (m) of a level coordinated turn at speed ``v_m_s`` and bank ``mu_max_rad``."""
+    return v_m_s * v_m_s / (G0_M_S2 * math.tan(mu_max_rad))
+
+
+def switch_distance_m(v_m_s: float, mu_max_rad: float, dchi_rad: float, accept_m: float) -> float:
+    """Distance before a waypoint (m) at which to switch to the next leg: the turn
+    anticipation R tan(|dchi|/2), at least ``accept_m``."""
+    d = turn_radius_m(v_m_s, mu_max_rad) * math.tan(min(abs(_wrap(dchi_rad)), 0.99 * math.pi) / 2)
+    return max(d, accept_m)
+
+
+def course_target(chi_leg_rad: float, e_m: float, xt_len_m: float, chi_int_rad: float) -> float:
+    """Course target (rad, [0, 2pi)) toward the leg: chi_leg - chi_int (2/pi) atan(e / L)."""
+    chi = chi_leg_rad - chi_int_rad * (2.0 / math.pi) * math.atan(e_m / xt_len_m)
+    return chi % (2.0 * math.pi)
+
+
+@dataclass(slots=True)
+class NavParams:
+    """Navigator parameters (SI)."""
+    accept_m: float = 2000.0            # least acceptance radius (m); an item's param2 > 0 overrides
+    xt_len_m: float = 50000.0           # cross-track length scale L_xt (m)
+    chi_int_rad: float = math.radians(20.0)   # intercept angle far from the leg (rad)
+    mu_max_rad: float = math.radians(25.0)    # bank used for turn anticipation (GE_MU_MAX)
+
+
+class WaypointNavigator:
+    """Flies a mission (fc/mission.py ``Mission``: ``count``, ``current``, ``finished``,
+    ``version``, ``item(seq)``, ``advance(seq)``) to guidance targets.
+
+        nav = WaypointNavigator(NavParams())
+        nav.start(mission, home, pos)           # on entering MISSION
+        every guidance period:
+            h_m, chi_rad, v_m_s, outputs = nav.step(mission, lat, lon, v_m_s)
+            (send ``outputs``: the mission's MISSION_ITEM_REACHED / MISSION_CURRENT)
+
+    ``home``: (lat deg, lon deg, alt m MSL); ``pos``: (lat deg, lon deg).
+    """
+
+    def __init__(self, params: NavParams | None = None) -> None:
+        self.p = params or NavParams()
+        self.home = (0.0, 0.0, 0.0)
+        self.prev_ne = (0.0, 0.0)        # start of the active leg (m from home)
+        self.h_t = math.nan              # the targets (m MSL, rad, m/s; NaN: none yet)
+        self.chi_t = math.nan
+        self.v_t = math.nan
+        self.chi_leg = 0.0
+        self.xt_m = 0.0                  # cross-track error (m, + right)
+        self.to_go_m = 0.0               # along-track distance to the active waypoint (m)
+        self.switch_m = 0.0              # switching distance in force (m)
+        self._version = -1
+        self._wp_seq = -1
+
+    def start(self, mission, home: tuple, pos: tuple, h_m: float, chi_rad: float,
+              v_m_s: float) -> None:
+        """Start (or restart) at position ``pos`` (lat, lon deg) with the current altitude
+        (m MSL), course (rad) and speed (m/s) as the initial targets; the first leg starts
+        here."""
+        self.home = tuple(float(v) for v in home)
+        self.prev_ne = local_ne(pos[0], pos[1], self.home[0], self.home[1])
+        self.h_t, self.chi_t, self.v_t = float(h_m), float(chi_rad), float(v_m_s)
+        self._version = mission.version
+        self._wp_seq = -1
+
+    def _wp(self, it: dict) -> tuple[tuple[float, float], float]:
+        """(north, east m) and altitude (m MSL) of a waypoint item."""
+        ne = local_ne(it["x"] * 1e-7, it["y"] * 1e-7, self.home[0], self.home[1])
+        alt = it["z"] + (self.home[2] if it["frame"] in FRAMES_REL else 0.0)
+        return ne, alt
+
+    def _next_wp(self, mission, seq: int):
+        """The first waypoint item after ``seq`` (dict) or None."""
+        for s in range(seq + 1, mission.count):
+            it = mission.item(s)
+            if it["command"] == CMD_WAYPOINT:
+                return it
+        return None
+
+    def step(self, mission, lat_deg: float, lon_deg: float, v_m_s: float) -> tuple:
+        """One navigation step at the GNSS position (deg) and speed (m/s). Returns
+        (h_t m MSL, chi_t rad, v_t m/s, outputs of the mission to send)."""
+        out: list = []
+        x_ne = local_ne(lat_deg, lon_deg, self.home[0], self.home[1])
+        if mission.version != self._version:          # new mission or set current: new leg
+            self._version = mission.version
+            self.prev_ne = x_ne
+        for _ in range(mission.count + 1):            # DO items apply at once, in order
+            if mission.finished or mission.count == 0:
+                return self.h_t, self.chi_t, self.v_t, out   # hold the last targets
+            seq = mission.current
+            it = mission.item(seq)
+            if it["command"] == CMD_CHANGE_SPEED:
+                if it["param2"] > 0.0:
+                    self.v_t = it["param2"]
+                out += mission.advance(seq)
+                continue
+            w_ne, alt = self._wp(it)
+            chi_leg, e, to_go, _ = leg_geometry(self.prev_ne, w_ne, x_ne)
+            nxt = self._next_wp(mission, seq)
+            dchi = 0.0
+            if nxt is not None:
+                n_ne, _ = self._wp(nxt)
+                dchi = math.atan2(n_ne[1] - w_ne[1], n_ne[0] - w_ne[0]) - chi_leg
+            accept = it["param2"] if it["param2"] > 0.0 else self.p.accept_m
+            self.switch_m = switch_distance_m(max(v_m_s, 1.0), self.p.mu_max_rad, dchi, accept)
+            self.chi_leg, self.xt_m, self.to_go_m = chi_leg, e, to_go
+            self.h_t = alt
+            self.chi_t = course_target(chi_leg, e, self.p.xt_len_m, self.p.chi_int_rad)
+            if to_go <= self.switch_m:        # within the switching distance, or passed
+                self.prev_ne = w_ne
+                if mission.current + 1 >= mission.count:   # the last: hold the leg's course
+                    self.chi_t = chi_leg % (2.0 * math.pi)
+                out += mission.advance(seq)
+                continue
+            break
+        return self.h_t, self.chi_t, self.v_t, out

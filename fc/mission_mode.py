@@ -1,0 +1,125 @@
+"""fc/mission_mode.py - MISSION mode: the stored mission (fc/mission.py) flown by the guidance.
+
+The glue between the pure waypoint navigator (fc/guidance/waypoints.py) and the fc (fc/app.py):
+no sockets, clocks or logging. The fc calls
+
+- :meth:`MissionFlight.entry_refusal` before entering MISSION: refused with no mission or
+  without a fresh 3D GNSS fix and home (the first fix, fc/gcs.py);
+- :meth:`MissionFlight.tick` after each guidance step in MISSION: every ``NAV_DIV``-th call
+  (10 Hz at the guidance's 50 Hz: 225 m of flight at Mach 7, against a 2 km acceptance radius)
+  it steps the navigator with the newest GNSS sample and sets the guidance's targets
+  (``set_guidance_targets``: validated against the envelope; a refused target is reported once
+  and the previous one kept) and NAV_CONTROLLER_OUTPUT's waypoint bearing and distance. It
+  returns the mission's outputs for ``GcsLink.mission_send`` (MISSION_ITEM_REACHED,
+  MISSION_CURRENT, texts).
+
+On entry (any mode change seen through ``ModeManager.changes``) the first leg starts at the
+current position, the targets start at the current altitude, course and speed, and a finished
+mission starts over from item 0. The navigator's parameters are the fc's (:data:`MISSION_PARAMS`,
+appended to the fc's table, read at every navigator step): WP_ACCEPT_M (an item's param2
+overrides it), WP_XT_LEN_M, WP_XT_ANG_DEG; the bank used for turn anticipation is the
+guidance's GE_MU_MAX.
+"""
+from __future__ import annotations
+
+import math
+
+from fc.control.layout import E_H, E_V
+from fc.guidance.waypoints import NavParams, WaypointNavigator, leg_geometry, local_ne
+from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
+from fc.link import mavlink as ML
+from fc.params import ParamDef
+
+__all__ = ["MissionFlight", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
+
+NAV_DIV = 5                 # navigator steps every NAV_DIV guidance steps
+GNSS_MAX_AGE_S = 1.0        # a GNSS sample older than this (plant time) is not a fix
+
+#: The navigator's parameters (fc/guidance/waypoints.py NavParams), appended to the fc's table.
+MISSION_PARAMS: tuple[ParamDef, ...] = (
+    ParamDef("WP_ACCEPT_M", 2000.0, 100.0, 100000.0, "m", "mission",
+             "Least acceptance radius of a waypoint, measured along the leg; an item's param2 "
+             "> 0 overrides it. A turn is anticipated further out (docs/guidance.md 2a)."),
+    ParamDef("WP_XT_LEN_M", 50000.0, 1000.0, 1000000.0, "m", "mission",
+             "Cross-track length scale L_xt: the course target turns toward the leg by "
+             "WP_XT_ANG_DEG (2/pi) atan(e / L_xt)."),
+    ParamDef("WP_XT_ANG_DEG", 20.0, 1.0, 60.0, "deg", "mission",
+             "Intercept angle toward the leg far from it (cross-track law)."),
+)
+
+
+class MissionFlight:
+    """MISSION mode over a :class:`fc.mission.Mission` (``mission``)."""
+
+    def __init__(self, mission, params: NavParams | None = None) -> None:
+        self.mission = mission
+        self.nav = WaypointNavigator(params)
+        self._changes_seen = -1
+        self._count = 0
+        self._refused: tuple | None = None     # the last refused targets (reported once)
+
+    @staticmethod
+    def _fix(fc) -> bool:
+        g = fc.plant.gps
+        return (int(g[G_FIX]) >= ML.GPS_FIX_TYPE_3D_FIX
+                and fc.meas_stamp_us * 1e-6 - g[G_T_S] <= GNSS_MAX_AGE_S)
+
+    def entry_refusal(self, fc) -> str | None:
+        """None if MISSION may be entered, else the reason."""
+        if self.mission.count == 0:
+            return "MISSION refused: no mission stored"
+        if not self._fix(fc) or getattr(fc.gcs, "home", None) is None:
+            return "MISSION refused: no GNSS fix"
+        return None
+
+    def _params(self, fc) -> None:
+        """The navigator's parameters from the fc's table (SI)."""
+        p, par = self.nav.p, fc.params
+        if "WP_ACCEPT_M" in par:
+            p.accept_m = par.get("WP_ACCEPT_M")
+            p.xt_len_m = par.get("WP_XT_LEN_M")
+            p.chi_int_rad = math.radians(par.get("WP_XT_ANG_DEG"))
+        if "GE_MU_MAX" in par:
+            p.mu_max_rad = math.radians(par.get("GE_MU_MAX"))
+
+    def _start(self, fc) -> list:
+        out = self.mission.restart() if self.mission.finished else []
+        g = fc.plant.gps
+        self._params(fc)
+        _, chi, _ = fc.guidance_targets()
+        self.nav.start(self.mission, fc.gcs.home, (float(g[G_LAT_DEG]), float(g[G_LON_DEG])),
+                       float(fc.est.est[E_H]), chi, float(fc.est.est[E_V]))
+        self._count = 0
+        self._refused = None
+        return out
+
+    def tick(self, fc) -> list:
+        """One call per guidance step in MISSION. Returns outputs for ``mission_send``."""
+        out = []
+        if fc.modes.changes != self._changes_seen:
+            self._changes_seen = fc.modes.changes
+            out += self._start(fc)
+        due = self._count == 0
+        self._count = (self._count + 1) % NAV_DIV
+        if not due or not self._fix(fc):
+            return out           # without a fresh fix the last targets are held
+        self._params(fc)
+        g = fc.plant.gps
+        lat, lon = float(g[G_LAT_DEG]), float(g[G_LON_DEG])
+        h_t, chi_t, v_t, msgs = self.nav.step(self.mission, lat, lon, float(fc.est.est[E_V]))
+        out += msgs
+        targets = (h_t, chi_t, v_t)
+        reason = fc.set_guidance_targets(h_m=h_t, chi_rad=chi_t, V_m_s=v_t)
+        if reason is not None and targets != self._refused:
+            self._refused = targets
+            out.append(("text", ML.MAV_SEVERITY_WARNING, f"mission target refused: {reason}"))
+        if self.mission.finished:
+            fc.guid.nav_wp = None
+        else:
+            it = self.mission.item(self.mission.current)
+            home = self.nav.home
+            w = local_ne(it["x"] * 1e-7, it["y"] * 1e-7, home[0], home[1])
+            x = local_ne(lat, lon, home[0], home[1])
+            _, _, _, dist = leg_geometry(x, w, x)
+            fc.guid.nav_wp = (math.atan2(w[1] - x[1], w[0] - x[0]), dist, self.nav.xt_m)
+        return out
