@@ -30,6 +30,8 @@ PREFIXES: tuple[tuple[str, str], ...] = (
     ("test_wire", "unit/wire"),
     ("test_law", "unit/control"),           # fc/control: the pure attitude law
     ("test_guidance", "unit/control"),      # fc/guidance: the pure outer loop
+    ("test_waypoints", "unit/control"),     # fc/guidance/waypoints.py: pure navigation
+    ("test_mission_", "unit/fc"),           # fc/mission.py: the mission protocol
     ("test_control", "unit/control"),
     ("test_fc_", "unit/fc"),                # the controller process's parts, in process
     ("test_frame_gate", "unit/fc"),

@@ -21,7 +21,7 @@ from fc.modes import FlightMode
 from fc.params import build_table
 from fc.link import new_codec
 from tests.fc_harness import free_udp_port, level_meas
-from tests.test_hil_main import _hil
+from tests.hil.test_hil_main import _hil
 from tools.sitl.gcs import read_wpl
 
 pytestmark = pytest.mark.hil

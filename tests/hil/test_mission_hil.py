@@ -13,7 +13,7 @@ import pytest
 from pymavlink import mavwp
 
 from tests.fc_harness import REPO, FcProcess, GcsClient, free_udp_port, mavlink as ML
-from tests.test_mavproxy_fc import _Console, _mavproxy
+from tests.hil.test_mavproxy_fc import _Console, _mavproxy
 
 pytestmark = pytest.mark.hil
 
