@@ -216,7 +216,7 @@ class FlightController:
         if name in PROCESS_DRIVEN:
             return PROCESS_DRIVEN[name]
         old = self.params.get(name) if name in self.params else None
-        reason = self.params.set(name, value, notify=False)
+        reason = self.params.set(name, value)
         if reason is not None:
             return reason      # the caller says why (STATUSTEXT, mirrored to fc.log, rate-limited)
         new = self.params.get(name)

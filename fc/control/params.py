@@ -44,6 +44,30 @@ class Param:
     integer: bool = False
 
 
+def checked_value(prm: Param, value: float) -> float:
+    """The one validation rule of every parameter (the law's, the guidance's and the fc's
+    table, fc/params.py): ``value`` in ``prm.unit`` as a float within [min, max].
+
+    A bound that travelled as float32 over MAVLink (1.01 -> 1.00999999) is the bound: the
+    float32 of each bound is accepted and the value clamped into [min, max]. Raises
+    ValueError with the reason (not a number, not finite, outside the range, fractional for
+    an integer option).
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{prm.name}: {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{prm.name}: non-finite value refused")
+    lo = min(prm.min, float(np.float32(prm.min)))
+    hi = max(prm.max, float(np.float32(prm.max)))
+    if v < lo or v > hi:
+        raise ValueError(f"{prm.name}={v:g} outside [{prm.min:g}, {prm.max:g}] {prm.unit}")
+    if prm.integer and v != round(v):
+        raise ValueError(f"{prm.name}={v:g} must be a whole number")
+    return min(max(v, prm.min), prm.max)
+
+
 def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
     return Param(name, float(default), float(lo), float(hi), unit, group, text,
                  si_scale, integer)
@@ -253,29 +277,12 @@ for _prm in LAW_PARAMS:
 def check_value(name: str, value: float) -> float:
     """Validate ``value`` (human units) for parameter ``name``; return it as a float.
 
-    Raises KeyError for an unknown name and ValueError for a value out of range, not finite,
-    or not a whole number for an integer option.
+    Raises KeyError for an unknown name, ValueError for a value :func:`checked_value`
+    refuses and for a CO_FAC_EQ other than 14 or 19.
     """
     if name not in PARAM_INDEX:
         raise KeyError(f"unknown control-law parameter {name!r}")
-    prm = LAW_PARAMS[PARAM_INDEX[name]]
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: value {value!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: value {v} is not finite")
-    # a bound sent as float32 over MAVLink (1.01 -> 1.00999999) is the bound
-    tol_lo = 1e-6 * max(1.0, abs(prm.min))
-    tol_hi = 1e-6 * max(1.0, abs(prm.max))
-    if prm.min - tol_lo <= v < prm.min:
-        v = prm.min
-    elif prm.max < v <= prm.max + tol_hi:
-        v = prm.max
-    if v < prm.min or v > prm.max:
-        raise ValueError(f"{name}: {v} outside [{prm.min}, {prm.max}] {prm.unit}")
-    if prm.integer and v != round(v):
-        raise ValueError(f"{name}: option value must be a whole number, got {v}")
+    v = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value)
     if name == "CO_FAC_EQ" and v not in (14.0, 19.0):
         raise ValueError(f"{name}: must be 14 or 19, got {v}")
     return v

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from fc.control.params import Param
+from fc.control.params import Param, checked_value
 
 DEG = math.pi / 180.0
 
@@ -165,15 +165,7 @@ def check_value(name: str, value: float) -> float:
     """Validate one value in table units; KeyError (unknown name) or ValueError (bad value)."""
     if name not in PARAM_INDEX:
         raise KeyError(f"unknown guidance parameter {name!r}")
-    p = GUIDANCE_PARAMS[PARAM_INDEX[name]]
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: value must be finite, got {value!r}")
-    if v < p.min or v > p.max:
-        raise ValueError(f"{name}: {v} outside [{p.min}, {p.max}] {p.unit}")
-    if p.integer and v != round(v):
-        raise ValueError(f"{name}: must be a whole number, got {v}")
-    return v
+    return checked_value(GUIDANCE_PARAMS[PARAM_INDEX[name]], value)
 
 
 def to_si(name: str, value: float) -> float:
