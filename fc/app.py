@@ -131,7 +131,6 @@ class FlightController:
         # --- state
         self.meas = np.zeros(M_N)
         self.meas_scratch = np.zeros(M_N)
-        self._rx_meas = np.zeros(M_N)
         self.meas_stamp_us = 0
         self.est = Estimator(self.params.get("EST_STALE_S"))
         self.cmd_rad = np.zeros(3)
@@ -146,7 +145,6 @@ class FlightController:
         self.seen_data = False
         self.last_good_wall_s = -1.0
         self.last_stamp_us = -1
-        self.answered_stamp_us = -1
         self.law_changes_seen = -1
         # True while the law is engaged but the estimate is not yet healthy: the law is reset
         # (integrators, observer, estimates start from the current state) on the first healthy frame.
@@ -249,8 +247,7 @@ class FlightController:
         self.fs_timeout_s = p.get("FS_TIMEOUT_S")
         self.fs_recover = p.get("FS_RECOVER") > 0.5
         self.fs_recover_s = p.get("FS_RECOVER_S")
-        if hasattr(self, "est"):
-            self.est.stale_s = p.get("EST_STALE_S")
+        self.est.stale_s = p.get("EST_STALE_S")
 
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
         """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
@@ -297,8 +294,7 @@ class FlightController:
             self.law.set_param("CO_ENABLE", co)
             self.params.force("CO_ENABLE", co)
             co_changed = True
-            if hasattr(self, "gcs"):
-                self.gcs.announce_param("CO_ENABLE")
+            self.gcs.announce_param("CO_ENABLE")
         if self.modes.law_active:
             if self._law_engaged and not co_changed and not self.law_reset_pending:
                 pass        # a switch between law modes with the same law: it runs on, bumpless
@@ -542,7 +538,7 @@ class FlightController:
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
-        return self.planner.skipped + (self.gate.skipped if hasattr(self, "gate") else 0)
+        return self.planner.skipped + self.gate.skipped
 
     def load_permille(self) -> int:
         return self._load_permille
@@ -584,20 +580,20 @@ class FlightController:
 
     def _refresh_telemetry_cache(self) -> None:
         e = self.est.est
-        c = self.plant.counters if hasattr(self, "plant") else None
+        c = self.plant.counters
         nv = [
             (b"GAMMA_DEG", math.degrees(e[8])),
             (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
             (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
             (b"SKIPPED", float(self.skipped_ticks())),
-            (b"TICK_FALLB", float(self.gate.fallback_ticks if hasattr(self, "gate") else 0)),
-            (b"GC_US", float(getattr(self, "gc_us", 0.0))),
-            (b"REJ_PLANT", float(c.rejected if c else 0)),
-            (b"REJ_GCS", float(self.gcs.rejected_bad if hasattr(self, "gcs") else 0)),
-            (b"REJ_SIGN", float(self.gcs.rejected_signing if hasattr(self, "gcs") else 0)),
+            (b"TICK_FALLB", float(self.gate.fallback_ticks)),
+            (b"GC_US", self.gc_us),
+            (b"REJ_PLANT", float(c.rejected)),
+            (b"REJ_GCS", float(self.gcs.rejected_bad)),
+            (b"REJ_SIGN", float(self.gcs.rejected_signing)),
             (b"EST_INVAL", float(self.est.invalid_frames)),
             (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
-            (b"FS_CAUSE", float(self.modes.fs_cause if hasattr(self, "modes") else 0)),
+            (b"FS_CAUSE", float(self.modes.fs_cause)),
             (b"DUP_FRAMES", float(self.duplicate_frames)),
         ]
         st = getattr(self.law, "status", None)
@@ -647,16 +643,35 @@ class FlightController:
             self._housekeeping(now_s)
 
     def _lockstep_frame(self, stamp: int, now_s: float) -> None:
-        if stamp == self.answered_stamp_us:
+        t_exec = time.perf_counter_ns()
+        if not self._take_frame(stamp, now_s):
             # the plant re-sent frame k (re-request): answer again with the same output
-            self.duplicate_frames += 1
             self.plant.send_servo(stamp, self.pwm_us)
             return
+        self._sync_mode()
+        n = self.planner.due(stamp * 1000)
+        for _ in range(n):
+            self._fast_tick(self.planner.slow_due())
+        self.plant.send_servo(stamp, self.pwm_us)
+        if n:
+            self._log_row(0, time.perf_counter_ns() - t_exec)
+
+    def _take_frame(self, stamp: int, now_s: float) -> bool:
+        """Frame intake, both timing modes: the frame in ``meas_scratch`` stamped ``stamp``
+        (plant time, us) arrived at ``now_s`` (wall clock). A repeat of the newest stamp is
+        counted and dropped (False: the caller answers it or not). Plant time going backwards
+        (a plant restarted, or a reordered frame) restarts the loops: estimator, tick planner,
+        law and guidance engagement (at the new state), command timeline. Then the estimator,
+        timeline and failsafe bookkeeping (:meth:`_new_frame`); True."""
+        if stamp == self.last_stamp_us:
+            self.duplicate_frames += 1
+            return False
         if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
             self.plant_resets += 1
             self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
             self.est.reset()
-            self.planner.next_ns = None
+            if self.cfg.mode == "lockstep":
+                self.planner.next_ns = None     # its deadlines are plant time (real time: wall)
             self.law_changes_seen = -1      # re-engages the law (reset at the new state)
             self._law_engaged = False
             self.guid.disengage()
@@ -664,16 +679,8 @@ class FlightController:
                 self.timeline.next = 0      # the command timeline starts over with sim time
         self.last_stamp_us = stamp
         self.meas_stamp_us = stamp
-        t_exec = time.perf_counter_ns()
         self._new_frame(now_s)
-        self._sync_mode()
-        n = self.planner.due(stamp * 1000)
-        for _ in range(n):
-            self._fast_tick(self.planner.slow_due())
-        self.plant.send_servo(stamp, self.pwm_us)
-        self.answered_stamp_us = stamp
-        if n:
-            self._log_row(0, time.perf_counter_ns() - t_exec)
+        return True
 
     def _run_realtime(self, stop) -> None:
         if self.cfg.sync == "frame":
@@ -745,27 +752,14 @@ class FlightController:
         n_new = 0
         first_rx_ns = 0
         for _ in range(64):   # bounded work per wake-up
-            stamp = self.plant.read_frame(self._rx_meas)
+            stamp = self.plant.read_frame(self.meas_scratch)
             if stamp < 0:
                 break
-            if stamp == self.last_stamp_us:
-                self.duplicate_frames += 1
+            if not self._take_frame(stamp, now_s):
                 continue
-            if stamp < self.last_stamp_us:
-                # plant restarted, or a reordered/hostile frame: the estimator starts over
-                # (it ignores stamps that do not advance); the law keeps running
-                self.plant_resets += 1
-                self.est.reset()
-                if self.last_stamp_us - stamp > 100_000:
-                    self._event("plant time went backwards: estimator restarted",
-                                ML.MAV_SEVERITY_WARNING)
             if n_new == 0:
                 first_rx_ns = self.plant.frame_rx_ns
             n_new += 1
-            self.meas_scratch[:] = self._rx_meas
-            self.last_stamp_us = stamp
-            self.meas_stamp_us = stamp
-            self._new_frame(now_s)
             self.last_frame_wall_s = now_s
             self.law_held = False
         return n_new, first_rx_ns

@@ -126,3 +126,13 @@ def test_targets_outside_the_envelope_are_refused_and_kept(tmp_path, kw, word):
         assert fc.guidance_targets()[0] == 30000.0 and fc.guidance_targets()[2] == 2350.0
     finally:
         fc.close()
+
+
+def test_the_flight_controller_is_the_vehicle_view_its_ground_station_link_reads(tmp_path):
+    from fc.vehicle_view import VehicleView
+    fc = _fc(tmp_path)
+    try:
+        assert isinstance(fc, VehicleView)
+        assert fc.gcs.mission is fc.mission
+    finally:
+        fc.close()
