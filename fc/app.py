@@ -22,7 +22,7 @@ import numpy as np
 from fc.estimator import E_N, Estimator
 from fc.guidance.layout import GS_GAM_C
 from fc.gcs import GcsLink
-from fc.guided import GUIDANCE_NAMES, GuidanceRunner
+from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
@@ -30,7 +30,8 @@ from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
-from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
+from fc.param_service import ParamService, load_param_file
+from fc.params import ParamTable, build_table
 from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
                           hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
                           try_realtime)
@@ -44,7 +45,6 @@ __all__ = ["FcConfig", "FlightController", "load_law_module"]
 HOLD_AFTER_S = 0.01
 
 ML = mavlink
-DEG = math.pi / 180.0
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
             "h_m", "gamma_rad")
 #: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
@@ -112,12 +112,10 @@ class FlightController:
         # --- parameters and law
         law_cls, law_params = load_law_module(cfg.law_module)
         self.params: ParamTable = build_table(law_params)
-        self.law_names = {p.name for p in law_params}
-        self.params_path = cfg.params or os.path.join(cfg.out, "params.parm")
-        self.params_dirty = False
-        self.startup_texts: list[tuple[int, str]] = []
-        self._load_params()
-        overrides = {n: self.params.get(n) for n in self.law_names}
+        law_names = {p.name for p in law_params}
+        params_path = cfg.params or os.path.join(cfg.out, "params.parm")
+        startup_texts = load_param_file(self.params, params_path, self.log)
+        overrides = {n: self.params.get(n) for n in law_names}
         self.law = law_cls(overrides)
         self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
         self._warm_up_law(law_cls, overrides)
@@ -133,14 +131,15 @@ class FlightController:
         self.meas_scratch = np.zeros(M_N)
         self.meas_stamp_us = 0
         self.est = Estimator(self.params.get("EST_STALE_S"))
-        self.cmd_rad = np.zeros(3)
-        self.trim_rad = np.zeros(3)
+        # parameter changes after start-up, the process's own parameters in SI
+        self.param_svc = ParamService(self.params, law_names, self.law, self.guid, self.est,
+                                      params_path, self.log)
+        self.settings = self.param_svc.settings
         self.delta_rad = np.zeros(3)
         self.pwm_us = [1500, 1500, 1500, 0]     # servo4: throttle, 0 = no output
-        self.cmd_active = self.cmd_rad          # the law's command: CMD_* or the guidance's
+        self.cmd_active = self.settings.cmd_rad  # the law's command: CMD_* or the guidance's
         self._law_engaged = False               # the law runs from an engagement (no reset
                                                 # on a switch between law modes, same CO)
-        self._apply_process_params()
         self.modes = ModeManager()
         self.seen_data = False
         self.last_good_wall_s = -1.0
@@ -178,7 +177,7 @@ class FlightController:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
         self.ilog = InternalsLog(cfg.out, self._columns())
-        for sev, text in self.startup_texts:
+        for sev, text in startup_texts:
             self.gcs.statustext(sev, text)
         if cfg.flight_mode:
             ok, text = self.modes.request_mode(FlightMode[cfg.flight_mode.upper()])
@@ -190,64 +189,12 @@ class FlightController:
         self._refresh_telemetry_cache()
 
     # ------------------------------------------------------------------ parameters
-    def _load_params(self) -> None:
-        path = self.params_path
-        if os.path.exists(path):
-            try:
-                applied, warnings = self.params.load(path)
-            except (ParamFileError, OSError) as exc:
-                aside = set_aside(path)
-                msg = (f"parameter file unreadable ({exc}); kept aside as {aside}; "
-                       "running on defaults")
-                self.log.error(msg)
-                self.startup_texts.append((ML.MAV_SEVERITY_CRITICAL,
-                                           "param file corrupt: kept aside, defaults used"))
-            else:
-                for w in warnings:
-                    self.log.warning(w)
-                self.log.info("loaded %d parameters from %s", len(applied), path)
-                return
-        self.params.save(path)
-
     def set_param(self, name: str, value: float) -> str | None:
         """Validate and apply one parameter (GCS, timeline). None on success, else the reason."""
-        if name in PROCESS_DRIVEN:
-            return PROCESS_DRIVEN[name]
-        old = self.params.get(name) if name in self.params else None
-        reason = self.params.set(name, value)
-        if reason is not None:
-            return reason      # the caller says why (STATUSTEXT, mirrored to fc.log, rate-limited)
-        new = self.params.get(name)
-        if name in self.law_names:
-            try:
-                self.law.set_param(name, new)
-            except (KeyError, ValueError) as exc:
-                self.params.force(name, old)
-                return f"{name}: {exc}"
-            self.guid.set_param(name, new)       # the nominal model's MDL_MASS / MDL_XCG
-        elif name in GUIDANCE_NAMES:
-            self.guid.set_param(name, new)
-        else:
-            self._apply_process_params()
-            if name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
-                self.law_changes_seen = -1       # re-sync CO_ENABLE (and reset the law)
-        if self.params.defn(name).group != "command":
-            self.params_dirty = True
-        self.log.info("param %s = %g (was %g)", name, new, old)
-        return None
-
-    def _apply_process_params(self) -> None:
-        p = self.params
-        self.cmd_rad[0] = p.get("CMD_ALPHA_DEG") * DEG
-        self.cmd_rad[1] = p.get("CMD_BETA_DEG") * DEG
-        self.cmd_rad[2] = p.get("CMD_MU_DEG") * DEG
-        self.trim_rad[0] = p.get("TRIM_ELEVL_DEG") * DEG
-        self.trim_rad[1] = p.get("TRIM_ELEVR_DEG") * DEG
-        self.trim_rad[2] = p.get("TRIM_RUD_DEG") * DEG
-        self.fs_timeout_s = p.get("FS_TIMEOUT_S")
-        self.fs_recover = p.get("FS_RECOVER") > 0.5
-        self.fs_recover_s = p.get("FS_RECOVER_S")
-        self.est.stale_s = p.get("EST_STALE_S")
+        reason = self.param_svc.set(name, value)
+        if reason is None and name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
+            self.law_changes_seen = -1       # re-sync CO_ENABLE (and reset the law)
+        return reason
 
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
         """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
@@ -373,7 +320,7 @@ class FlightController:
                         self.gcs.mission_send(self.mission_flight.tick(self))
                     self.cmd_active = self.guid.cmd_rad
                 else:
-                    self.cmd_active = self.cmd_rad
+                    self.cmd_active = self.settings.cmd_rad
                 if slow:
                     self.law.slow_step(self.est.est, self.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
@@ -384,9 +331,9 @@ class FlightController:
                 self.modes.request_mode(FlightMode.FAILSAFE)
                 self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, "law fault: FAILSAFE")
                 self._sync_mode()
-                self.delta_rad[:] = self.trim_rad
+                self.delta_rad[:] = self.settings.trim_rad
         else:
-            self.delta_rad[:] = self.trim_rad
+            self.delta_rad[:] = self.settings.trim_rad
         d = self.delta_rad
         self.pwm_us[0] = deflection_to_pwm(d[0])
         self.pwm_us[1] = deflection_to_pwm(d[1])
@@ -406,7 +353,8 @@ class FlightController:
             if self.law_reset_pending and self.modes.law_active:
                 self._engage_law()
             self.last_good_wall_s = now_s
-            text = self.modes.on_data_ok(now_s, self.fs_recover, self.fs_recover_s)
+            text = self.modes.on_data_ok(now_s, self.settings.fs_recover,
+                                          self.settings.fs_recover_s)
             if text is not None:
                 self._event(text)
                 self._sync_mode()
@@ -465,7 +413,7 @@ class FlightController:
         if self.plant.counters.goodbyes != self._goodbyes_seen:
             self._plant_said_goodbye()
         if (self.seen_data and not self.modes.data_lost and not self.plant.ended
-                and now_s - self.last_good_wall_s > self.fs_timeout_s):
+                and now_s - self.last_good_wall_s > self.settings.fs_timeout_s):
             text = self.modes.on_data_lost()
             self.plant.relock_allowed = True   # a restarted plant may come from a new port
             if text:
@@ -496,9 +444,9 @@ class FlightController:
                 self._refresh_telemetry_cache()
             else:
                 self.gcs.flush()
-                if self.params_dirty:
-                    self.params_dirty = False
-                    self.io.submit(self._save_params, self.params.values.copy())
+                values = self.param_svc.snapshot()
+                if values is not None:
+                    self.io.submit(self.param_svc.save, values)
             if stage == 3:
                 self._chore = 0
                 self._next_1hz = now_s + 1.0
@@ -515,18 +463,6 @@ class FlightController:
         text = f"plant ended its run at t={self.meas[0]:.3f} s"
         self.log.info(text)
         self.gcs.statustext(ML.MAV_SEVERITY_INFO, text)
-
-    def _save_params(self, values: np.ndarray | None = None) -> None:
-        """Write the parameter file (runs on the I/O thread; ``values`` is a snapshot)."""
-        try:
-            saved = ParamTable(self.params.defs)
-            saved.values[:] = self.params.values if values is None else values
-            for i, d in enumerate(saved.defs):     # commands are not settings: defaults on file
-                if d.group == "command":
-                    saved.values[i] = d.default
-            saved.save(self.params_path)
-        except OSError as exc:
-            self.log.error("cannot save parameters to %s: %s", self.params_path, exc)
 
     # telemetry sources for fc/gcs.py
     def health_failed_bits(self) -> int:
@@ -787,8 +723,8 @@ class FlightController:
     def close(self) -> None:
         """Flush and close logs and sockets (SIGINT/SIGTERM path)."""
         self.io.close()
-        if self.params_dirty:
-            self._save_params()
+        if self.param_svc.dirty:
+            self.param_svc.save()
         c = self.plant.counters
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
