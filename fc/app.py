@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fc.estimator import E_N, Estimator
-from fc.guidance.layout import GS_GAM_C
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
@@ -35,6 +34,7 @@ from fc.params import ParamTable, build_table
 from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
                           hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
                           try_realtime)
+from fc.telemetry import FcCounters, Telemetry, TickOutput
 from fc.timeline import Timeline, load_timeline
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
@@ -45,8 +45,6 @@ __all__ = ["FcConfig", "FlightController", "load_law_module"]
 HOLD_AFTER_S = 0.01
 
 ML = mavlink
-EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
-            "h_m", "gamma_rad")
 #: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
 DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
                   | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_AHRS
@@ -135,9 +133,9 @@ class FlightController:
         self.param_svc = ParamService(self.params, law_names, self.law, self.guid, self.est,
                                       params_path, self.log)
         self.settings = self.param_svc.settings
-        self.delta_rad = np.zeros(3)
-        self.pwm_us = [1500, 1500, 1500, 0]     # servo4: throttle, 0 = no output
-        self.cmd_active = self.settings.cmd_rad  # the law's command: CMD_* or the guidance's
+        self.out = TickOutput(self.settings.cmd_rad)
+        self.pwm_us = self.out.pwm_us           # VehicleView (the same list)
+        self.counters = FcCounters()
         self._law_engaged = False               # the law runs from an engagement (no reset
                                                 # on a switch between law modes, same CO)
         self.modes = ModeManager()
@@ -151,19 +149,10 @@ class FlightController:
         # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
         # stepped on the frozen estimate (it would wind up); the last command is held
         self.law_held = False
-        self.law_holds = 0
         self.last_frame_wall_s = -1.0
-        self.law_errors = 0
-        self.duplicate_frames = 0
-        self.plant_resets = 0
         self._goodbyes_seen = 0
         self.timeline = Timeline(commands) if commands is not None else None
-        self._exec_ns_sum = 0
-        self._exec_n = 0
-        self.gc_us = 0.0                # last 1 Hz garbage collection, us (NAMED_VALUE GC_US)
         self._chore = 0                 # which of the 1 Hz chores the next housekeeping does
-        self._load_permille = 0
-        self._named_cache: list = []
         self._relocks_seen = 0
 
         # --- links and logs (bind last: READY means everything is in place)
@@ -176,7 +165,10 @@ class FlightController:
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
-        self.ilog = InternalsLog(cfg.out, self._columns())
+        self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
+                                   self.gcs, self.stats, self.planner, self.gate, self.law,
+                                   self.status_names, self.guid)
+        self.ilog = InternalsLog(cfg.out, self.telemetry.columns())
         for sev, text in startup_texts:
             self.gcs.statustext(sev, text)
         if cfg.flight_mode:
@@ -186,7 +178,7 @@ class FlightController:
         if cfg.arm:
             self.modes.set_armed(True, data_ok=True)
         self._sync_mode()
-        self._refresh_telemetry_cache()
+        self.telemetry.refresh()
 
     # ------------------------------------------------------------------ parameters
     def set_param(self, name: str, value: float) -> str | None:
@@ -318,23 +310,23 @@ class FlightController:
                     if (self.guid.tick(self.est.est, self.meas)
                             and self.modes.mode == FlightMode.MISSION):
                         self.gcs.mission_send(self.mission_flight.tick(self))
-                    self.cmd_active = self.guid.cmd_rad
+                    self.out.cmd_active = self.guid.cmd_rad
                 else:
-                    self.cmd_active = self.settings.cmd_rad
+                    self.out.cmd_active = self.settings.cmd_rad
                 if slow:
-                    self.law.slow_step(self.est.est, self.cmd_active, self.planner.slow_dt_s)
+                    self.law.slow_step(self.est.est, self.out.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
-                self.delta_rad[:] = self.law.delta_cmd_rad
+                self.out.delta_rad[:] = self.law.delta_cmd_rad
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
-                self.law_errors += 1
+                self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
                 self.modes.request_mode(FlightMode.FAILSAFE)
                 self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, "law fault: FAILSAFE")
                 self._sync_mode()
-                self.delta_rad[:] = self.settings.trim_rad
+                self.out.delta_rad[:] = self.settings.trim_rad
         else:
-            self.delta_rad[:] = self.settings.trim_rad
-        d = self.delta_rad
+            self.out.delta_rad[:] = self.settings.trim_rad
+        d = self.out.delta_rad
         self.pwm_us[0] = deflection_to_pwm(d[0])
         self.pwm_us[1] = deflection_to_pwm(d[1])
         self.pwm_us[2] = deflection_to_pwm(d[2])
@@ -370,42 +362,6 @@ class FlightController:
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
 
-    def _log_row(self, lateness_ns: int, exec_ns: int) -> None:
-        r = self.ilog.row()
-        if r is None:
-            return
-        r[0] = self.meas[0]
-        r[1] = time.monotonic()
-        r[2] = float(self.meas_stamp_us)
-        r[3] = float(self.modes.mode)
-        r[4] = 1.0 if self.modes.armed else 0.0
-        r[5] = 1.0 if self.est.healthy else 0.0
-        r[6] = float(self.est.masks[0])
-        r[7] = float(self.est.masks[1])
-        r[8:8 + E_N] = self.est.est
-        k = 8 + E_N
-        r[k:k + 3] = self.cmd_active
-        r[k + 3:k + 6] = self.delta_rad
-        r[k + 6] = lateness_ns * 1e-3
-        r[k + 7] = exec_ns * 1e-3
-        ns = len(self.status_names)
-        if ns:
-            r[k + 8:k + 8 + ns] = self.law.status[:ns]
-        r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
-        r[k + 9 + ns] = float(self.guid.limits)
-        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
-
-    def _columns(self) -> list[str]:
-        cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
-                "est_stale_mask"]
-        cols += ["est_" + c for c in EST_COLS]
-        cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
-                 "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
-        cols += ["law_" + n for n in self.status_names]
-        cols += ["guid_throttle", "guid_limits", "guid_tgt_h_m", "guid_tgt_chi_rad",
-                 "guid_tgt_V_m_s"]
-        return cols
-
     # ------------------------------------------------------------------ housekeeping
     def _housekeeping(self, now_s: float) -> None:
         """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
@@ -432,16 +388,13 @@ class FlightController:
             stage = self._chore
             if stage == 0:
                 self.stats.roll()
-                if self._exec_n:
-                    self._load_permille = min(1000, int(1000 * self._exec_ns_sum / self._exec_n
-                                                        / self.planner.period_ns))
-                self._exec_ns_sum = self._exec_n = 0
+                self.counters.roll_load(self.planner.period_ns)
             elif stage == 1:
                 t_gc = time.perf_counter_ns()
                 collect_garbage()
-                self.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
+                self.counters.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
             elif stage == 2:
-                self._refresh_telemetry_cache()
+                self.telemetry.refresh()
             else:
                 self.gcs.flush()
                 values = self.param_svc.snapshot()
@@ -472,70 +425,23 @@ class FlightController:
             return ML.MAV_SYS_STATUS_AHRS
         return 0
 
-    def skipped_ticks(self) -> int:
-        """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
-        return self.planner.skipped + self.gate.skipped
-
     def load_permille(self) -> int:
-        return self._load_permille
+        return self.counters.load_permille
 
     def error_counts(self) -> tuple[int, int, int, int, int]:
-        return (self.gcs.rejected_bad + self.gcs.rejected_signing, self.plant.counters.rejected,
-                self.est.invalid_frames, self.stats.overruns + self.skipped_ticks(),
-                self.stats.late)
+        return self.telemetry.error_counts()
 
     def named_values(self) -> list:
-        return self._named_cache
+        return self.telemetry.named_values()
 
     def debug_vectors(self) -> list:
-        """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
-        cache: in lockstep the flight log takes them at 10 Hz of sim time)."""
-        e = self.est.est
-        vec = [
-            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_active)),
-            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
-            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
-        ]
-        if self.modes.guidance_active:
-            # x: the envelope limit bitfield in force (fc/guidance/layout.py LIM_*), y: the
-            # throttle command (0..1), z: the flight-path angle command (deg)
-            vec.append((b"GUID", (float(self.guid.limits), self.guid.throttle(),
-                                  math.degrees(self.guid.g.status[GS_GAM_C]))))
-        return vec
+        return self.telemetry.debug_vectors()
 
     def throttle_percent(self) -> int:
-        """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
-        return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
+        return self.telemetry.throttle_percent()
 
     def nav_controller_output(self):
-        """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
-        guidance modes."""
-        if not (self.modes.guidance_active and self.guid.engaged):
-            return None
-        return self.guid.nav_output(self.est.est)
-
-    def _refresh_telemetry_cache(self) -> None:
-        e = self.est.est
-        c = self.plant.counters
-        nv = [
-            (b"GAMMA_DEG", math.degrees(e[8])),
-            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
-            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
-            (b"SKIPPED", float(self.skipped_ticks())),
-            (b"TICK_FALLB", float(self.gate.fallback_ticks)),
-            (b"GC_US", self.gc_us),
-            (b"REJ_PLANT", float(c.rejected)),
-            (b"REJ_GCS", float(self.gcs.rejected_bad)),
-            (b"REJ_SIGN", float(self.gcs.rejected_signing)),
-            (b"EST_INVAL", float(self.est.invalid_frames)),
-            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
-            (b"FS_CAUSE", float(self.modes.fs_cause)),
-            (b"DUP_FRAMES", float(self.duplicate_frames)),
-        ]
-        st = getattr(self.law, "status", None)
-        for i, n in enumerate(self.status_names[:16]):
-            nv.append((n.upper()[:10].encode("ascii", "replace"), float(st[i])))
-        self._named_cache = nv
+        return self.telemetry.nav_controller_output()
 
     # ------------------------------------------------------------------ loops
     def run(self, stop) -> None:
@@ -574,8 +480,7 @@ class FlightController:
                     break
                 t0 = time.perf_counter_ns()
                 self._lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
-                self._exec_ns_sum += time.perf_counter_ns() - t0
-                self._exec_n += 1
+                self.counters.add_exec(time.perf_counter_ns() - t0)
             self._housekeeping(now_s)
 
     def _lockstep_frame(self, stamp: int, now_s: float) -> None:
@@ -590,7 +495,8 @@ class FlightController:
             self._fast_tick(self.planner.slow_due())
         self.plant.send_servo(stamp, self.pwm_us)
         if n:
-            self._log_row(0, time.perf_counter_ns() - t_exec)
+            self.telemetry.log_row(self.ilog, self.meas, self.meas_stamp_us, 0,
+                                   time.perf_counter_ns() - t_exec)
 
     def _take_frame(self, stamp: int, now_s: float) -> bool:
         """Frame intake, both timing modes: the frame in ``meas_scratch`` stamped ``stamp``
@@ -600,10 +506,10 @@ class FlightController:
         law and guidance engagement (at the new state), command timeline. Then the estimator,
         timeline and failsafe bookkeeping (:meth:`_new_frame`); True."""
         if stamp == self.last_stamp_us:
-            self.duplicate_frames += 1
+            self.counters.duplicate_frames += 1
             return False
         if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
-            self.plant_resets += 1
+            self.counters.plant_resets += 1
             self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
             self.est.reset()
             if self.cfg.mode == "lockstep":
@@ -707,16 +613,15 @@ class FlightController:
         if (have_frame and not self.law_held and self.modes.law_active
                 and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
             self.law_held = True
-            self.law_holds += 1
+            self.counters.law_holds += 1
         self._sync_mode()
         self._fast_tick(self.planner.slow_due())
         if have_frame:
             self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
         exec_ns = time.monotonic_ns() - wake_ns
         self.stats.record(lateness_ns, exec_ns)
-        self._exec_ns_sum += exec_ns
-        self._exec_n += 1
-        self._log_row(lateness_ns, exec_ns)
+        self.counters.add_exec(exec_ns)
+        self.telemetry.log_row(self.ilog, self.meas, self.meas_stamp_us, lateness_ns, exec_ns)
         self._housekeeping(now_s)
 
     # ------------------------------------------------------------------ shutdown
@@ -730,10 +635,10 @@ class FlightController:
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
             "late ticks %d/%d, overruns %d, skipped %d, law errors %d",
-            c.frames, c.outputs, self.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
+            c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
             c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
-            self.skipped_ticks(), self.law_errors)
+            self.telemetry.skipped_ticks(), self.counters.law_errors)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

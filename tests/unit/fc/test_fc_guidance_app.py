@@ -66,7 +66,7 @@ def test_fc_steps_guidance_at_50_hz_in_cruise_and_throttles(tmp_path):
         assert h == pytest.approx(28000.0, abs=1.0) and v == pytest.approx(2250.0, abs=1.0)
         assert chi == pytest.approx(0.0, abs=1e-3)
         # the law's command is the guidance's (near the flown alpha at engagement)
-        assert math.degrees(fc.cmd_active[0]) == pytest.approx(3.9, abs=0.5)
+        assert math.degrees(fc.out.cmd_active[0]) == pytest.approx(3.9, abs=0.5)
     finally:
         fc.close()
 
