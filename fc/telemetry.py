@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fc.estimator import E_N, Estimator
+from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
@@ -63,26 +64,25 @@ class FcCounters:
         self.exec_ns_sum = self.exec_n = 0
 
 
+@dataclass
 class Telemetry:
     """Builds the telemetry the ground-station link sends and the internals-log rows."""
 
-    def __init__(self, out: TickOutput, counters: FcCounters, est: Estimator,
-                 modes: ModeManager, plant: PlantLink, gcs, stats: LoopStats,
-                 planner: TickPlanner, gate: FrameGate, law, status_names: list[str],
-                 guid: GuidanceRunner) -> None:
-        self.out = out
-        self.counters = counters
-        self.est = est
-        self.modes = modes
-        self.plant = plant
-        self.gcs = gcs              # fc/gcs.py GcsLink: its rejection counters
-        self.stats = stats
-        self.planner = planner
-        self.gate = gate
-        self.law = law
-        self.status_names = status_names
-        self.guid = guid
-        self._named: list = []
+    out: TickOutput
+    counters: FcCounters
+    est: Estimator
+    modes: ModeManager
+    plant: PlantLink
+    gcs: GcsLink                # its rejection counters
+    stats: LoopStats
+    planner: TickPlanner
+    gate: FrameGate
+    law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
+    status_names: list
+    guid: GuidanceRunner
+    _named: list = field(default_factory=list)
+
+    def __post_init__(self) -> None:
         self.refresh()
 
     def skipped_ticks(self) -> int:
