@@ -28,6 +28,7 @@ from fc.mission_mode import MissionFlight
 from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
+from fc.mode_control import ModeControl
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
 from fc.param_service import ParamService, load_param_file
 from fc.params import ParamTable, build_table
@@ -45,10 +46,6 @@ __all__ = ["FcConfig", "FlightController", "load_law_module"]
 HOLD_AFTER_S = 0.01
 
 ML = mavlink
-#: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
-DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-                  | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_AHRS
-                  | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
 
 
 @dataclass
@@ -136,16 +133,8 @@ class FlightController:
         self.out = TickOutput(self.settings.cmd_rad)
         self.pwm_us = self.out.pwm_us           # VehicleView (the same list)
         self.counters = FcCounters()
-        self._law_engaged = False               # the law runs from an engagement (no reset
-                                                # on a switch between law modes, same CO)
         self.modes = ModeManager()
-        self.seen_data = False
-        self.last_good_wall_s = -1.0
         self.last_stamp_us = -1
-        self.law_changes_seen = -1
-        # True while the law is engaged but the estimate is not yet healthy: the law is reset
-        # (integrators, observer, estimates start from the current state) on the first healthy frame.
-        self.law_reset_pending = False
         # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
         # stepped on the frozen estimate (it would wind up); the last command is held
         self.law_held = False
@@ -165,6 +154,9 @@ class FlightController:
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
+        self.mode_ctl = ModeControl(self.modes, self.params, self.settings, self.law, self.guid,
+                                    self.est, self.meas, self.planner, self.plant,
+                                    self.gcs.announce_param, self._event, self.log)
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
@@ -177,7 +169,7 @@ class FlightController:
                 raise ValueError(text)
         if cfg.arm:
             self.modes.set_armed(True, data_ok=True)
-        self._sync_mode()
+        self.mode_ctl.sync()
         self.telemetry.refresh()
 
     # ------------------------------------------------------------------ parameters
@@ -185,7 +177,7 @@ class FlightController:
         """Validate and apply one parameter (GCS, timeline). None on success, else the reason."""
         reason = self.param_svc.set(name, value)
         if reason is None and name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
-            self.law_changes_seen = -1       # re-sync CO_ENABLE (and reset the law)
+            self.mode_ctl.resync()           # re-sync CO_ENABLE (and reset the law)
         return reason
 
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
@@ -207,69 +199,10 @@ class FlightController:
             reason = self.mission_flight.entry_refusal(self)
             if reason is not None:
                 return False, reason
-        ok, text = self.modes.request_mode(mode)
-        self._sync_mode()
-        return ok, text
+        return self.mode_ctl.request_mode(mode)
 
     def arm(self, armed: bool) -> tuple[bool, str]:
-        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
-                                        and not self.modes.data_lost and not self.plant.ended)
-        self._sync_mode()
-        return ok, text
-
-    def _sync_mode(self) -> None:
-        """After any mode/arming change: CO_ENABLE from the mode, law reset on engagement."""
-        if self.modes.changes == self.law_changes_seen:
-            return
-        self.law_changes_seen = self.modes.changes
-        co_changed = False
-        if self.modes.mode in (FlightMode.COORDINATED, FlightMode.UNCOORDINATED):
-            co = self.modes.co_enable
-        elif self.modes.mode in GUIDANCE_MODES:
-            co = 1.0 if self.params.get("GUID_INNER_CO") > 0.5 else 0.0
-        else:
-            co = None
-        if co is not None and "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
-            self.law.set_param("CO_ENABLE", co)
-            self.params.force("CO_ENABLE", co)
-            co_changed = True
-            self.gcs.announce_param("CO_ENABLE")
-        if self.modes.law_active:
-            if self._law_engaged and not co_changed and not self.law_reset_pending:
-                pass        # a switch between law modes with the same law: it runs on, bumpless
-            elif self.est.healthy:
-                self._engage_law()
-            else:
-                self.law_reset_pending = True   # engaged before data: reset on first healthy frame
-        else:
-            self._law_engaged = False
-        self._sync_guidance()
-        self.log.info("mode %s, %s", self.modes.mode.name,
-                      "armed" if self.modes.armed else "disarmed")
-
-    def _engage_law(self) -> None:
-        """Start the law from the current (healthy) estimate (and the guidance, in its modes)."""
-        self.law.reset(self.est.est)
-        self.law_reset_pending = False
-        self._law_engaged = True
-        self.planner.ticks = 0      # slow loop runs on the first tick after engagement
-        if self.modes.guidance_active:
-            self.guid.engage(self.est.est, self.meas, self.modes.mode)
-
-    def _sync_guidance(self) -> None:
-        """Guidance engagement after a mode change: engaged from the current state on entry
-        into a guidance mode (with the law, once the estimate is healthy), re-targeted to the
-        current altitude, course and speed on a switch between guidance modes."""
-        if not self.modes.guidance_active:
-            if self.guid.engaged:
-                self.guid.disengage()
-            return
-        if self.law_reset_pending:
-            return                  # engaged with the law on the first healthy frame
-        if not self.guid.engaged:
-            self.guid.engage(self.est.est, self.meas, self.modes.mode)
-        elif self.guid.mode != self.modes.mode:
-            self.guid.hold_current(self.est.est, self.meas, self.modes.mode)
+        return self.mode_ctl.arm(armed)
 
     def set_guidance_targets(self, h_m: float | None = None, chi_rad: float | None = None,
                              V_m_s: float | None = None) -> str | None:
@@ -304,7 +237,7 @@ class FlightController:
     def _fast_tick(self, slow: bool) -> None:
         if self.modes.law_active and self.law_held:
             pass                        # hold the last command: no new data to act on
-        elif self.modes.law_active and not self.law_reset_pending:
+        elif self.modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
                     if (self.guid.tick(self.est.est, self.meas)
@@ -320,9 +253,7 @@ class FlightController:
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
                 self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
-                self.modes.request_mode(FlightMode.FAILSAFE)
-                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, "law fault: FAILSAFE")
-                self._sync_mode()
+                self.mode_ctl.law_fault()
                 self.out.delta_rad[:] = self.settings.trim_rad
         else:
             self.out.delta_rad[:] = self.settings.trim_rad
@@ -338,18 +269,7 @@ class FlightController:
         """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
         self.meas[:] = self.meas_scratch
         self.est.update(self.meas)
-        if self.plant.relock_allowed and not self.modes.data_lost:
-            self.plant.relock_allowed = False
-        if self.est.healthy:
-            self.seen_data = True
-            if self.law_reset_pending and self.modes.law_active:
-                self._engage_law()
-            self.last_good_wall_s = now_s
-            text = self.modes.on_data_ok(now_s, self.settings.fs_recover,
-                                          self.settings.fs_recover_s)
-            if text is not None:
-                self._event(text)
-                self._sync_mode()
+        self.mode_ctl.on_frame(now_s)
         if self.timeline is not None:
             for c in self.timeline.due(self.meas[0]):
                 for name, value in c.values:
@@ -368,16 +288,7 @@ class FlightController:
         self.gcs.poll(now_s)
         if self.plant.counters.goodbyes != self._goodbyes_seen:
             self._plant_said_goodbye()
-        if (self.seen_data and not self.modes.data_lost and not self.plant.ended
-                and now_s - self.last_good_wall_s > self.settings.fs_timeout_s):
-            text = self.modes.on_data_lost()
-            self.plant.relock_allowed = True   # a restarted plant may come from a new port
-            if text:
-                self.log.warning(text)
-                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, text)
-                self._sync_mode()
-        elif self.modes.data_lost and now_s - self.last_good_wall_s > 0.05:
-            self.modes.on_data_gap()
+        self.mode_ctl.check_data(now_s)
         if self.plant.counters.relocks != self._relocks_seen:
             self._relocks_seen = self.plant.counters.relocks
             self._event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
@@ -419,11 +330,7 @@ class FlightController:
 
     # telemetry sources for fc/gcs.py
     def health_failed_bits(self) -> int:
-        if self.modes.data_lost or self.plant.ended:
-            return DATA_LOSS_BITS
-        if self.seen_data and not self.est.healthy:
-            return ML.MAV_SYS_STATUS_AHRS
-        return 0
+        return self.mode_ctl.health_failed_bits()
 
     def load_permille(self) -> int:
         return self.counters.load_permille
@@ -489,7 +396,7 @@ class FlightController:
             # the plant re-sent frame k (re-request): answer again with the same output
             self.plant.send_servo(stamp, self.pwm_us)
             return
-        self._sync_mode()
+        self.mode_ctl.sync()
         n = self.planner.due(stamp * 1000)
         for _ in range(n):
             self._fast_tick(self.planner.slow_due())
@@ -514,9 +421,7 @@ class FlightController:
             self.est.reset()
             if self.cfg.mode == "lockstep":
                 self.planner.next_ns = None     # its deadlines are plant time (real time: wall)
-            self.law_changes_seen = -1      # re-engages the law (reset at the new state)
-            self._law_engaged = False
-            self.guid.disengage()
+            self.mode_ctl.restart()         # law and guidance re-engaged at the new state
             if self.timeline is not None:
                 self.timeline.next = 0      # the command timeline starts over with sim time
         self.last_stamp_us = stamp
@@ -614,7 +519,7 @@ class FlightController:
                 and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
             self.law_held = True
             self.counters.law_holds += 1
-        self._sync_mode()
+        self.mode_ctl.sync()
         self._fast_tick(self.planner.slow_due())
         if have_frame:
             self.plant.send_servo(self.meas_stamp_us, self.pwm_us)

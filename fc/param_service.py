@@ -70,20 +70,21 @@ def load_param_file(table: ParamTable, path: str, log: logging.Logger) -> list[t
     return []
 
 
+@dataclass
 class ParamService:
     """Sets and saves parameters for the running controller (ground station, timeline)."""
 
-    def __init__(self, table: ParamTable, law_names: set[str], law, guid: GuidanceRunner,
-                 est: Estimator, path: str, log: logging.Logger) -> None:
-        self.table = table
-        self.law_names = law_names
-        self.law = law
-        self.guid = guid
-        self.est = est
-        self.path = path
-        self.log = log
-        self.dirty = False          # a setting changed since the last save
-        self.settings = ProcessSettings()
+    table: ParamTable
+    law_names: set
+    law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
+    guid: GuidanceRunner
+    est: Estimator
+    path: str                   # the parameter file
+    log: logging.Logger
+    dirty: bool = False         # a setting changed since the last save
+    settings: ProcessSettings = field(default_factory=ProcessSettings)
+
+    def __post_init__(self) -> None:
         self.apply_process()
 
     def apply_process(self) -> None:
