@@ -23,6 +23,7 @@ from fc.estimator import E_N, Estimator
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
+from fc.intake import FrameIntake
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.iothread import IoThread
@@ -124,7 +125,6 @@ class FlightController:
         # --- state
         self.meas = np.zeros(M_N)
         self.meas_scratch = np.zeros(M_N)
-        self.meas_stamp_us = 0
         self.est = Estimator(self.params.get("EST_STALE_S"))
         # parameter changes after start-up, the process's own parameters in SI
         self.param_svc = ParamService(self.params, law_names, self.law, self.guid, self.est,
@@ -134,13 +134,11 @@ class FlightController:
         self.pwm_us = self.out.pwm_us           # VehicleView (the same list)
         self.counters = FcCounters()
         self.modes = ModeManager()
-        self.last_stamp_us = -1
         # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
         # stepped on the frozen estimate (it would wind up); the last command is held
         self.law_held = False
         self.last_frame_wall_s = -1.0
         self._goodbyes_seen = 0
-        self.timeline = Timeline(commands) if commands is not None else None
         self._chore = 0                 # which of the 1 Hz chores the next housekeeping does
         self._relocks_seen = 0
 
@@ -157,6 +155,10 @@ class FlightController:
         self.mode_ctl = ModeControl(self.modes, self.params, self.settings, self.law, self.guid,
                                     self.est, self.meas, self.planner, self.plant,
                                     self.gcs.announce_param, self._event, self.log)
+        self.intake = FrameIntake(self.meas, self.meas_scratch, self.est, self.mode_ctl,
+                                  self.planner, cfg.mode == "lockstep", self.counters,
+                                  Timeline(commands) if commands is not None else None,
+                                  self.set_param, self.gcs.announce_param, self._event)
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
@@ -265,20 +267,6 @@ class FlightController:
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
         self.pwm_us[3] = self.guid.throttle_pwm() if self.modes.guidance_active else 0
 
-    def _new_frame(self, now_s: float) -> None:
-        """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
-        self.meas[:] = self.meas_scratch
-        self.est.update(self.meas)
-        self.mode_ctl.on_frame(now_s)
-        if self.timeline is not None:
-            for c in self.timeline.due(self.meas[0]):
-                for name, value in c.values:
-                    reason = self.set_param(name, value)
-                    if reason is not None:
-                        self._event(f"timeline t={c.t_s:g}: {reason}", ML.MAV_SEVERITY_WARNING)
-                    else:
-                        self.gcs.announce_param(name)
-
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
 
@@ -329,6 +317,11 @@ class FlightController:
         self.gcs.statustext(ML.MAV_SEVERITY_INFO, text)
 
     # telemetry sources for fc/gcs.py
+    @property
+    def meas_stamp_us(self) -> int:
+        """Plant time of the newest frame, us."""
+        return self.intake.stamp_us
+
     def health_failed_bits(self) -> int:
         return self.mode_ctl.health_failed_bits()
 
@@ -392,7 +385,7 @@ class FlightController:
 
     def _lockstep_frame(self, stamp: int, now_s: float) -> None:
         t_exec = time.perf_counter_ns()
-        if not self._take_frame(stamp, now_s):
+        if not self.intake.take(stamp, now_s):
             # the plant re-sent frame k (re-request): answer again with the same output
             self.plant.send_servo(stamp, self.pwm_us)
             return
@@ -402,32 +395,8 @@ class FlightController:
             self._fast_tick(self.planner.slow_due())
         self.plant.send_servo(stamp, self.pwm_us)
         if n:
-            self.telemetry.log_row(self.ilog, self.meas, self.meas_stamp_us, 0,
+            self.telemetry.log_row(self.ilog, self.meas, self.intake.stamp_us, 0,
                                    time.perf_counter_ns() - t_exec)
-
-    def _take_frame(self, stamp: int, now_s: float) -> bool:
-        """Frame intake, both timing modes: the frame in ``meas_scratch`` stamped ``stamp``
-        (plant time, us) arrived at ``now_s`` (wall clock). A repeat of the newest stamp is
-        counted and dropped (False: the caller answers it or not). Plant time going backwards
-        (a plant restarted, or a reordered frame) restarts the loops: estimator, tick planner,
-        law and guidance engagement (at the new state), command timeline. Then the estimator,
-        timeline and failsafe bookkeeping (:meth:`_new_frame`); True."""
-        if stamp == self.last_stamp_us:
-            self.counters.duplicate_frames += 1
-            return False
-        if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
-            self.counters.plant_resets += 1
-            self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
-            self.est.reset()
-            if self.cfg.mode == "lockstep":
-                self.planner.next_ns = None     # its deadlines are plant time (real time: wall)
-            self.mode_ctl.restart()         # law and guidance re-engaged at the new state
-            if self.timeline is not None:
-                self.timeline.next = 0      # the command timeline starts over with sim time
-        self.last_stamp_us = stamp
-        self.meas_stamp_us = stamp
-        self._new_frame(now_s)
-        return True
 
     def _run_realtime(self, stop) -> None:
         if self.cfg.sync == "frame":
@@ -502,7 +471,7 @@ class FlightController:
             stamp = self.plant.read_frame(self.meas_scratch)
             if stamp < 0:
                 break
-            if not self._take_frame(stamp, now_s):
+            if not self.intake.take(stamp, now_s):
                 continue
             if n_new == 0:
                 first_rx_ns = self.plant.frame_rx_ns
@@ -522,11 +491,11 @@ class FlightController:
         self.mode_ctl.sync()
         self._fast_tick(self.planner.slow_due())
         if have_frame:
-            self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
+            self.plant.send_servo(self.intake.stamp_us, self.pwm_us)
         exec_ns = time.monotonic_ns() - wake_ns
         self.stats.record(lateness_ns, exec_ns)
         self.counters.add_exec(exec_ns)
-        self.telemetry.log_row(self.ilog, self.meas, self.meas_stamp_us, lateness_ns, exec_ns)
+        self.telemetry.log_row(self.ilog, self.meas, self.intake.stamp_us, lateness_ns, exec_ns)
         self._housekeeping(now_s)
 
     # ------------------------------------------------------------------ shutdown
