@@ -18,7 +18,6 @@ import struct
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
 from typing import Iterable
 
 import numpy as np

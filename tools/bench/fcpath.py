@@ -8,8 +8,8 @@ housekeeping (ground-station poll and streams). The datagrams come from the meas
 stand-in's encoder with the plant physics between frames, so the law sees a flight.
 
 This is the fc's share of a lockstep exchange (the rest is the plant's share and the
-two UDP hops: the ping-pong floor). It uses the fc's loop methods (``_lockstep_frame``,
-``_housekeeping``) directly; if those change, the part is reported as skipped.
+two UDP hops: the ping-pong floor). It uses the fc's loop parts (``loops.lockstep_frame``,
+``loops.housekeeping``, fc/loops.py) directly; if those change, the part is reported as skipped.
 """
 from __future__ import annotations
 
@@ -72,9 +72,9 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             st = fc.plant.read_frame(fc.meas_scratch)
             t1 = pc()
             if st >= 0:
-                fc._lockstep_frame(st, mono())
+                fc.loops.lockstep_frame(st, mono())
             t2 = pc()
-            fc._housekeeping(mono())
+            fc.loops.housekeeping(mono())
             t3 = pc()
             if k >= warm:
                 t[k - warm] = (t1 - t0, t2 - t1, t3 - t2)

@@ -30,7 +30,7 @@ def _frames(fc, t0_s, n, **kw):
     for k in range(n):
         m = level_meas(t0_s + k / fc.cfg.fast_hz, alpha_deg=3.9, V=2250.0, h=28000.0, **kw)
         fc.meas_scratch[:] = m
-        fc._lockstep_frame(int(round(m[M_T_S] * 1e6)), time.monotonic())
+        fc.loops.lockstep_frame(int(round(m[M_T_S] * 1e6)), time.monotonic())
         s4.append(fc.pwm_us[3])
     return s4
 
