@@ -1,10 +1,13 @@
-"""fc/app.py - the flight-controller process: loops, glue between links, estimator and law.
+"""fc/app.py - the flight-controller process: builds its parts and wires them.
 
-Data flows one way per fast tick: sensor frame (fc/link.py) -> estimator (fc/estimator.py)
--> [slow loop: law.slow_step] -> law.fast_step -> surface command -> SERVO_OUTPUT_RAW.
-Mode logic lives in fc/modes.py, the ground station in fc/gcs.py, parameters in fc/params.py,
-time in fc/scheduler.py. The law (fc/control, docs/architecture.md section 11) is injected:
-``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAMS``.
+Data flows one way per fast tick: sensor frame (fc/link.py) -> frame intake (fc/intake.py:
+estimator, failsafe bookkeeping, timeline) -> [guidance, fc/guided.py] -> law.slow_step /
+law.fast_step -> surface command -> SERVO_OUTPUT_RAW. The parts: run loops and housekeeping
+(fc/loops.py), mode/failsafe (fc/mode_control.py around fc/modes.py), parameters
+(fc/param_service.py, fc/params.py), telemetry (fc/telemetry.py), the ground station
+(fc/gcs.py, which sees this controller as a fc/vehicle_view.py VehicleView); who calls whom:
+docs/architecture.md, the fc's parts. The law (fc/control, docs/architecture.md section 11) is
+injected: ``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAMS``.
 """
 from __future__ import annotations
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fc.guided import GUIDANCE_NAMES, GuidanceRunner
 from fc.estimator import Estimator
+from fc.guided import GUIDANCE_NAMES, GuidanceRunner
 from fc.link import mavlink as ML
 from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, set_aside
 

@@ -80,10 +80,7 @@ class Telemetry:
     law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
     status_names: list
     guid: GuidanceRunner
-    _named: list = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        self.refresh()
+    _named: list = field(default_factory=list)     # as of the last refresh()
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
@@ -116,9 +113,8 @@ class Telemetry:
             (b"FS_CAUSE", float(self.modes.fs_cause)),
             (b"DUP_FRAMES", float(self.counters.duplicate_frames)),
         ]
-        st = getattr(self.law, "status", None)
-        for i, n in enumerate(self.status_names[:16]):
-            nv.append((n.upper()[:10].encode("ascii", "replace"), float(st[i])))
+        for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
+            nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
         self._named = nv
 
     def debug_vectors(self) -> list:
