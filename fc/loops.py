@@ -69,7 +69,7 @@ class Housekeeping:
         if self.plant.counters.relocks != self.relocks_seen:
             self.relocks_seen = self.plant.counters.relocks
             self.event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
-                        ML.MAV_SEVERITY_WARNING)
+                       ML.MAV_SEVERITY_WARNING)
         if now_s >= self.next_1hz:
             # the 1 Hz chores, one per housekeeping call (each after a tick's answer has gone),
             # so no single call delays the next frame's tick by their sum
@@ -175,6 +175,8 @@ class RunLoops:
             self.housekeeping(now_s)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
+        """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),
+        arrived at ``now_s`` (wall clock): the ticks its stamp makes due, one answer."""
         t_exec = time.perf_counter_ns()
         if not self.intake.take(stamp, now_s):
             # the plant re-sent frame k (re-request): answer again with the same output
