@@ -22,7 +22,7 @@ import numpy as np
 from fc.estimator import E_N, Estimator
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
-from fc.intake import FrameIntake
+from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
@@ -145,7 +145,8 @@ class FlightController:
         self.intake = FrameIntake(self.meas, self.meas_scratch, self.est, self.mode_ctl,
                                   self.planner, cfg.mode == "lockstep", self.counters,
                                   Timeline(commands) if commands is not None else None,
-                                  self.set_param, self.gcs.announce_param, self._event)
+                                  self.set_param, self.gcs.announce_param, self._event,
+                                  REORDER_WINDOW_US if cfg.mode == "realtime" else 0)
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
@@ -307,11 +308,12 @@ class FlightController:
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
-            "late ticks %d/%d, overruns %d, skipped %d, law errors %d",
-            c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
-            c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
+            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d",
+            c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
+            c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
-            self.telemetry.skipped_ticks(), self.counters.law_errors)
+            self.telemetry.skipped_ticks(), self.counters.law_errors,
+            self.counters.reordered_frames)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

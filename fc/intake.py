@@ -4,10 +4,14 @@ One part of the flight controller (docs/architecture.md, the fc's parts). The ru
 plant frame into ``scratch`` (fc/link.py ``PlantLink.read_frame``) and hand its stamp to
 :meth:`FrameIntake.take`, in lockstep and in real time alike:
 
-- a repeat of the newest stamp (the plant re-sent it) is counted and dropped;
-- plant time going backwards (a plant restarted, a reordered frame) restarts the loops: the
-  estimator, the tick planner (lockstep: its deadlines are plant time), law and guidance
-  engagement (reset at the new state, fc/mode_control.py) and the command timeline;
+- a repeat of the newest stamp (the plant re-sent it, or the link duplicated it) is counted
+  and dropped;
+- a frame at most ``late_window_us`` older than the newest is a late one (the link reordered
+  it): counted and dropped. The window is 0 in lockstep, where one frame is in flight at a
+  time, and :data:`REORDER_WINDOW_US` in real time;
+- plant time going further back (a plant restarted) restarts the loops: the estimator, the
+  tick planner (lockstep: its deadlines are plant time), law and guidance engagement (reset
+  at the new state, fc/mode_control.py) and the command timeline;
 - otherwise the frame becomes ``meas``: the estimator, the failsafe bookkeeping and the
   command timeline (``--timeline``) take it.
 """
@@ -25,7 +29,11 @@ from fc.scheduler import TickPlanner
 from fc.telemetry import FcCounters
 from fc.timeline import Timeline
 
-__all__ = ["FrameIntake"]
+__all__ = ["FrameIntake", "REORDER_WINDOW_US"]
+
+#: Real time: a frame at most this much older than the newest (plant time, us) was reordered on
+#: the link and is dropped; further back, the plant restarted (docs/fc.md, timing).
+REORDER_WINDOW_US = 100_000
 
 
 @dataclass
@@ -43,16 +51,21 @@ class FrameIntake:
     set_param: Callable[[str, float], str | None]
     announce_param: Callable[[str], None]
     event: Callable[[str, int], None]
+    late_window_us: int = 0         # see the module docstring
     stamp_us: int = 0               # plant time of ``meas``, us
     last_stamp_us: int = -1
 
     def take(self, stamp: int, now_s: float) -> bool:
         """The frame in ``scratch`` stamped ``stamp`` (plant time, us) arrived at ``now_s``
-        (wall clock). False for a repeat (the caller answers it or not), else True."""
+        (wall clock). False for a repeat or a late frame (the caller answers it or not), else
+        True."""
         if stamp == self.last_stamp_us:
             self.counters.duplicate_frames += 1
             return False
         if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
+            if self.last_stamp_us - stamp <= self.late_window_us:
+                self.counters.reordered_frames += 1
+                return False
             self.counters.plant_resets += 1
             self.event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
             self.est.reset()

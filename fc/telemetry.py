@@ -44,7 +44,8 @@ class TickOutput:
 class FcCounters:
     """Event counters of the process (fc.log at exit, NAMED_VALUE_FLOAT)."""
 
-    duplicate_frames: int = 0       # plant frames repeated (re-requests), answered again
+    duplicate_frames: int = 0       # plant frames repeated (re-requests, link duplicates)
+    reordered_frames: int = 0       # real time: late plant frames (reordered), dropped
     plant_resets: int = 0           # plant time went backwards
     law_errors: int = 0             # the law raised (FAILSAFE)
     law_holds: int = 0              # real time: law not stepped on a frozen estimate

@@ -31,19 +31,19 @@ def _take(fc, t_s):
 
 @pytest.mark.parametrize("mode", ["lockstep", "realtime"])
 def test_plant_time_going_backwards_restarts_the_loops_in_both_timing_modes(tmp_path, mode):
-    # GIVEN the fc flying COORDINATED on 40 ms of frames, its timeline past its second command
+    # GIVEN the fc flying COORDINATED on frames from 0.2 s, its timeline past both commands
     fc = _fc(tmp_path, mode)
     try:
         fc.planner.anchor(time.monotonic_ns())     # as the real-time loop does (wall clock)
         for k in range(20):
-            assert _take(fc, 0.002 * k)
+            assert _take(fc, 0.2 + 0.002 * k)
         fc.mode_ctl.sync()
         assert fc.mode_ctl.engaged and fc.est.healthy
         assert fc.params.get("CMD_ALPHA_DEG") == pytest.approx(3.0)
         # WHEN the same stamp comes again THEN it is counted and dropped
-        assert not _take(fc, 0.038)
+        assert not _take(fc, 0.238)
         assert fc.counters.duplicate_frames == 1
-        # WHEN plant time goes back to 0
+        # WHEN plant time goes back to 0 (a restarted plant)
         assert _take(fc, 0.0)
         # THEN the estimator, the law's engagement and the timeline started over (alike in
         # both timing modes), the lockstep planner too (real time: its deadlines are wall clock)
@@ -56,5 +56,29 @@ def test_plant_time_going_backwards_restarts_the_loops_in_both_timing_modes(tmp_
         fc.mode_ctl.sync()                 # the next tick re-engages at the new state
         assert fc.mode_ctl.engaged or fc.mode_ctl.reset_pending
         assert math.isfinite(fc.est.est[0]) and fc.est.est[0] > 0.0
+    finally:
+        fc.close()
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_a_reordered_frame_is_dropped_in_real_time_and_a_restart_in_lockstep(tmp_path, mode):
+    # GIVEN the fc flying on 40 ms of frames
+    fc = _fc(tmp_path, mode)
+    try:
+        for k in range(20):
+            assert _take(fc, 0.002 * k)
+        fc.mode_ctl.sync()
+        assert fc.mode_ctl.engaged
+        # WHEN a frame 10 ms older than the newest arrives
+        took = _take(fc, 0.028)
+        if mode == "realtime":
+            # THEN in real time the link reordered it: dropped, counted, the loops run on
+            assert not took and fc.counters.reordered_frames == 1
+            assert fc.counters.plant_resets == 0 and fc.mode_ctl.engaged
+            assert fc.meas_stamp_us == 38000
+        else:
+            # THEN in lockstep (one frame in flight) the plant restarted
+            assert took and fc.counters.plant_resets == 1 and not fc.mode_ctl.engaged
+            assert fc.meas_stamp_us == 28000
     finally:
         fc.close()
