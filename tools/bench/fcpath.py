@@ -54,7 +54,6 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
         cfg = FcConfig(mode="lockstep", plant_bind=("127.0.0.1", 0), gcs=[sink.getsockname()],
                        gcs_bind=("127.0.0.1", 0), out=d, arm=True, flight_mode="COORDINATED")
         fc = FlightController(cfg, log)
-        fc._next_1hz = 0.0
         sim = make_sim("paper", 500.0)
         codec = FrameCodec()
         meas = np.zeros(14)
@@ -79,7 +78,7 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             if k >= warm:
                 t[k - warm] = (t1 - t0, t2 - t1, t3 - t2)
             _drain(plant, sink)
-            cmd[:] = fc.delta_rad
+            cmd[:] = fc.out.delta_rad
             sim.step_frame(cmd)
         return {"frames": n, "read_frame": stats_us(t[:, 0]), "frame": stats_us(t[:, 1]),
                 "housekeeping": stats_us(t[:, 2]), "total": stats_us(t.sum(axis=1)),
