@@ -1,56 +1,46 @@
-"""fc/app.py - the flight-controller process: loops, glue between links, estimator and law.
+"""fc/app.py - the flight-controller process: builds its parts and wires them.
 
-Data flows one way per fast tick: sensor frame (fc/link.py) -> estimator (fc/estimator.py)
--> [slow loop: law.slow_step] -> law.fast_step -> surface command -> SERVO_OUTPUT_RAW.
-Mode logic lives in fc/modes.py, the ground station in fc/gcs.py, parameters in fc/params.py,
-time in fc/scheduler.py. The law (fc/control, docs/architecture.md section 11) is injected:
-``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAMS``.
+Data flows one way per fast tick: sensor frame (fc/link.py) -> frame intake (fc/intake.py:
+estimator, failsafe bookkeeping, timeline) -> [guidance, fc/guided.py] -> law.slow_step /
+law.fast_step -> surface command -> SERVO_OUTPUT_RAW. The parts: run loops and housekeeping
+(fc/loops.py), mode/failsafe (fc/mode_control.py around fc/modes.py), parameters
+(fc/param_service.py, fc/params.py), telemetry (fc/telemetry.py), the ground station
+(fc/gcs.py, which sees this controller as a fc/vehicle_view.py VehicleView); who calls whom:
+docs/architecture.md, the fc's parts. The law (fc/control, docs/architecture.md section 11) is
+injected: ``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAMS``.
 """
 from __future__ import annotations
 
-import gc
 import importlib
 import logging
 import math
 import os
-import select
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fc.estimator import E_N, Estimator
-from fc.guidance.layout import GS_GAM_C
 from fc.gcs import GcsLink
-from fc.guided import GUIDANCE_NAMES, GuidanceRunner
+from fc.guided import GuidanceRunner
+from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
-from fc.mission import Mission
-from fc.mission_mode import MissionFlight
 from fc.iothread import IoThread
 from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
                      mavlink)
+from fc.mission import Mission
+from fc.mission_mode import MissionFlight
+from fc.mode_control import ModeControl
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
-from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, build_table, set_aside
-from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
-                          hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
-                          try_realtime)
+from fc.param_service import ParamService, load_param_file
+from fc.params import ParamTable, build_table
+from fc.loops import Housekeeping, RunLoops
+from fc.scheduler import FrameGate, LoopStats, TickPlanner
+from fc.telemetry import FcCounters, Telemetry, TickOutput
 from fc.timeline import Timeline, load_timeline
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
-#: Real time: with no new plant frame for this long (wall clock, 5 frame periods at 500 Hz) the
-#: law is not stepped and the last surface command is held until data comes back or FAILSAFE
-#: takes over; stepping it on a frozen estimate winds it up (docs/reliability.md, promise 2).
-HOLD_AFTER_S = 0.01
-
 ML = mavlink
-DEG = math.pi / 180.0
-EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
-            "h_m", "gamma_rad")
-#: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
-DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-                  | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_AHRS
-                  | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
 
 
 @dataclass
@@ -112,12 +102,10 @@ class FlightController:
         # --- parameters and law
         law_cls, law_params = load_law_module(cfg.law_module)
         self.params: ParamTable = build_table(law_params)
-        self.law_names = {p.name for p in law_params}
-        self.params_path = cfg.params or os.path.join(cfg.out, "params.parm")
-        self.params_dirty = False
-        self.startup_texts: list[tuple[int, str]] = []
-        self._load_params()
-        overrides = {n: self.params.get(n) for n in self.law_names}
+        law_names = {p.name for p in law_params}
+        params_path = cfg.params or os.path.join(cfg.out, "params.parm")
+        startup_texts = load_param_file(self.params, params_path, self.log)
+        overrides = {n: self.params.get(n) for n in law_names}
         self.law = law_cls(overrides)
         self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
         self._warm_up_law(law_cls, overrides)
@@ -131,43 +119,15 @@ class FlightController:
         # --- state
         self.meas = np.zeros(M_N)
         self.meas_scratch = np.zeros(M_N)
-        self._rx_meas = np.zeros(M_N)
-        self.meas_stamp_us = 0
         self.est = Estimator(self.params.get("EST_STALE_S"))
-        self.cmd_rad = np.zeros(3)
-        self.trim_rad = np.zeros(3)
-        self.delta_rad = np.zeros(3)
-        self.pwm_us = [1500, 1500, 1500, 0]     # servo4: throttle, 0 = no output
-        self.cmd_active = self.cmd_rad          # the law's command: CMD_* or the guidance's
-        self._law_engaged = False               # the law runs from an engagement (no reset
-                                                # on a switch between law modes, same CO)
-        self._apply_process_params()
+        # parameter changes after start-up, the process's own parameters in SI
+        self.param_svc = ParamService(self.params, law_names, self.law, self.guid, self.est,
+                                      params_path, self.log)
+        self.settings = self.param_svc.settings
+        self.out = TickOutput(self.settings.cmd_rad)
+        self.pwm_us = self.out.pwm_us           # VehicleView (the same list)
+        self.counters = FcCounters()
         self.modes = ModeManager()
-        self.seen_data = False
-        self.last_good_wall_s = -1.0
-        self.last_stamp_us = -1
-        self.answered_stamp_us = -1
-        self.law_changes_seen = -1
-        # True while the law is engaged but the estimate is not yet healthy: the law is reset
-        # (integrators, observer, estimates start from the current state) on the first healthy frame.
-        self.law_reset_pending = False
-        # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
-        # stepped on the frozen estimate (it would wind up); the last command is held
-        self.law_held = False
-        self.law_holds = 0
-        self.last_frame_wall_s = -1.0
-        self.law_errors = 0
-        self.duplicate_frames = 0
-        self.plant_resets = 0
-        self._goodbyes_seen = 0
-        self.timeline = Timeline(commands) if commands is not None else None
-        self._exec_ns_sum = 0
-        self._exec_n = 0
-        self.gc_us = 0.0                # last 1 Hz garbage collection, us (NAMED_VALUE GC_US)
-        self._chore = 0                 # which of the 1 Hz chores the next housekeeping does
-        self._load_permille = 0
-        self._named_cache: list = []
-        self._relocks_seen = 0
 
         # --- links and logs (bind last: READY means everything is in place)
         self.plant = PlantLink(UdpEndpoint(*cfg.plant_bind), plant_sysid=cfg.plant_sysid,
@@ -179,8 +139,26 @@ class FlightController:
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
-        self.ilog = InternalsLog(cfg.out, self._columns())
-        for sev, text in self.startup_texts:
+        self.mode_ctl = ModeControl(self.modes, self.params, self.settings, self.law, self.guid,
+                                    self.est, self.meas, self.planner, self.plant,
+                                    self.gcs.announce_param, self._event, self.log)
+        self.intake = FrameIntake(self.meas, self.meas_scratch, self.est, self.mode_ctl,
+                                  self.planner, cfg.mode == "lockstep", self.counters,
+                                  Timeline(commands) if commands is not None else None,
+                                  self.set_param, self.gcs.announce_param, self._event,
+                                  REORDER_WINDOW_US if cfg.mode == "realtime" else 0)
+        self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
+                                   self.gcs, self.stats, self.planner, self.gate, self.law,
+                                   self.status_names, self.guid)
+        self.ilog = InternalsLog(cfg.out, self.telemetry.columns())
+        housekeeping = Housekeeping(self.gcs, self.plant, self.intake, self.mode_ctl, self.stats,
+                                    self.planner, self.counters, self.telemetry, self.param_svc,
+                                    self.io, self._event, self.log)
+        self.loops = RunLoops(cfg.mode, cfg.sync, cfg.spin_us, cfg.realtime_priority, self.plant,
+                              self.gcs, self.intake, self.planner, self.gate, self.stats,
+                              self.counters, self.telemetry, self.ilog, self.modes,
+                              self.mode_ctl, self.out, self._fast_tick, housekeeping, self.log)
+        for sev, text in startup_texts:
             self.gcs.statustext(sev, text)
         if cfg.flight_mode:
             ok, text = self.modes.request_mode(FlightMode[cfg.flight_mode.upper()])
@@ -188,69 +166,16 @@ class FlightController:
                 raise ValueError(text)
         if cfg.arm:
             self.modes.set_armed(True, data_ok=True)
-        self._sync_mode()
-        self._refresh_telemetry_cache()
+        self.mode_ctl.sync()
+        self.telemetry.refresh()
 
     # ------------------------------------------------------------------ parameters
-    def _load_params(self) -> None:
-        path = self.params_path
-        if os.path.exists(path):
-            try:
-                applied, warnings = self.params.load(path)
-            except (ParamFileError, OSError) as exc:
-                aside = set_aside(path)
-                msg = (f"parameter file unreadable ({exc}); kept aside as {aside}; "
-                       "running on defaults")
-                self.log.error(msg)
-                self.startup_texts.append((ML.MAV_SEVERITY_CRITICAL,
-                                           "param file corrupt: kept aside, defaults used"))
-            else:
-                for w in warnings:
-                    self.log.warning(w)
-                self.log.info("loaded %d parameters from %s", len(applied), path)
-                return
-        self.params.save(path)
-
     def set_param(self, name: str, value: float) -> str | None:
         """Validate and apply one parameter (GCS, timeline). None on success, else the reason."""
-        if name in PROCESS_DRIVEN:
-            return PROCESS_DRIVEN[name]
-        old = self.params.get(name) if name in self.params else None
-        reason = self.params.set(name, value, notify=False)
-        if reason is not None:
-            return reason      # the caller says why (STATUSTEXT, mirrored to fc.log, rate-limited)
-        new = self.params.get(name)
-        if name in self.law_names:
-            try:
-                self.law.set_param(name, new)
-            except (KeyError, ValueError) as exc:
-                self.params.force(name, old)
-                return f"{name}: {exc}"
-            self.guid.set_param(name, new)       # the nominal model's MDL_MASS / MDL_XCG
-        elif name in GUIDANCE_NAMES:
-            self.guid.set_param(name, new)
-        else:
-            self._apply_process_params()
-            if name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
-                self.law_changes_seen = -1       # re-sync CO_ENABLE (and reset the law)
-        if self.params.defn(name).group != "command":
-            self.params_dirty = True
-        self.log.info("param %s = %g (was %g)", name, new, old)
-        return None
-
-    def _apply_process_params(self) -> None:
-        p = self.params
-        self.cmd_rad[0] = p.get("CMD_ALPHA_DEG") * DEG
-        self.cmd_rad[1] = p.get("CMD_BETA_DEG") * DEG
-        self.cmd_rad[2] = p.get("CMD_MU_DEG") * DEG
-        self.trim_rad[0] = p.get("TRIM_ELEVL_DEG") * DEG
-        self.trim_rad[1] = p.get("TRIM_ELEVR_DEG") * DEG
-        self.trim_rad[2] = p.get("TRIM_RUD_DEG") * DEG
-        self.fs_timeout_s = p.get("FS_TIMEOUT_S")
-        self.fs_recover = p.get("FS_RECOVER") > 0.5
-        self.fs_recover_s = p.get("FS_RECOVER_S")
-        if hasattr(self, "est"):
-            self.est.stale_s = p.get("EST_STALE_S")
+        reason = self.param_svc.set(name, value)
+        if reason is None and name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
+            self.mode_ctl.resync()           # re-sync CO_ENABLE (and reset the law)
+        return reason
 
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
         """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
@@ -271,70 +196,10 @@ class FlightController:
             reason = self.mission_flight.entry_refusal(self)
             if reason is not None:
                 return False, reason
-        ok, text = self.modes.request_mode(mode)
-        self._sync_mode()
-        return ok, text
+        return self.mode_ctl.request_mode(mode)
 
     def arm(self, armed: bool) -> tuple[bool, str]:
-        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
-                                        and not self.modes.data_lost and not self.plant.ended)
-        self._sync_mode()
-        return ok, text
-
-    def _sync_mode(self) -> None:
-        """After any mode/arming change: CO_ENABLE from the mode, law reset on engagement."""
-        if self.modes.changes == self.law_changes_seen:
-            return
-        self.law_changes_seen = self.modes.changes
-        co_changed = False
-        if self.modes.mode in (FlightMode.COORDINATED, FlightMode.UNCOORDINATED):
-            co = self.modes.co_enable
-        elif self.modes.mode in GUIDANCE_MODES:
-            co = 1.0 if self.params.get("GUID_INNER_CO") > 0.5 else 0.0
-        else:
-            co = None
-        if co is not None and "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
-            self.law.set_param("CO_ENABLE", co)
-            self.params.force("CO_ENABLE", co)
-            co_changed = True
-            if hasattr(self, "gcs"):
-                self.gcs.announce_param("CO_ENABLE")
-        if self.modes.law_active:
-            if self._law_engaged and not co_changed and not self.law_reset_pending:
-                pass        # a switch between law modes with the same law: it runs on, bumpless
-            elif self.est.healthy:
-                self._engage_law()
-            else:
-                self.law_reset_pending = True   # engaged before data: reset on first healthy frame
-        else:
-            self._law_engaged = False
-        self._sync_guidance()
-        self.log.info("mode %s, %s", self.modes.mode.name,
-                      "armed" if self.modes.armed else "disarmed")
-
-    def _engage_law(self) -> None:
-        """Start the law from the current (healthy) estimate (and the guidance, in its modes)."""
-        self.law.reset(self.est.est)
-        self.law_reset_pending = False
-        self._law_engaged = True
-        self.planner.ticks = 0      # slow loop runs on the first tick after engagement
-        if self.modes.guidance_active:
-            self.guid.engage(self.est.est, self.meas, self.modes.mode)
-
-    def _sync_guidance(self) -> None:
-        """Guidance engagement after a mode change: engaged from the current state on entry
-        into a guidance mode (with the law, once the estimate is healthy), re-targeted to the
-        current altitude, course and speed on a switch between guidance modes."""
-        if not self.modes.guidance_active:
-            if self.guid.engaged:
-                self.guid.disengage()
-            return
-        if self.law_reset_pending:
-            return                  # engaged with the law on the first healthy frame
-        if not self.guid.engaged:
-            self.guid.engage(self.est.est, self.meas, self.modes.mode)
-        elif self.guid.mode != self.modes.mode:
-            self.guid.hold_current(self.est.est, self.meas, self.modes.mode)
+        return self.mode_ctl.arm(armed)
 
     def set_guidance_targets(self, h_m: float | None = None, chi_rad: float | None = None,
                              V_m_s: float | None = None) -> str | None:
@@ -366,32 +231,32 @@ class FlightController:
             self.log.warning("law warm-up failed: %r", exc)
 
     # ------------------------------------------------------------------ the tick
-    def _fast_tick(self, slow: bool) -> None:
-        if self.modes.law_active and self.law_held:
+    def _fast_tick(self, slow: bool, held: bool) -> None:
+        """One fast tick: the guidance (in its modes), the law (``slow``: its slow loop too;
+        ``held``: no new data, the last command held), the surface and throttle outputs."""
+        if self.modes.law_active and held:
             pass                        # hold the last command: no new data to act on
-        elif self.modes.law_active and not self.law_reset_pending:
+        elif self.modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
                     if (self.guid.tick(self.est.est, self.meas)
                             and self.modes.mode == FlightMode.MISSION):
                         self.gcs.mission_send(self.mission_flight.tick(self))
-                    self.cmd_active = self.guid.cmd_rad
+                    self.out.cmd_active = self.guid.cmd_rad
                 else:
-                    self.cmd_active = self.cmd_rad
+                    self.out.cmd_active = self.settings.cmd_rad
                 if slow:
-                    self.law.slow_step(self.est.est, self.cmd_active, self.planner.slow_dt_s)
+                    self.law.slow_step(self.est.est, self.out.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
-                self.delta_rad[:] = self.law.delta_cmd_rad
+                self.out.delta_rad[:] = self.law.delta_cmd_rad
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
-                self.law_errors += 1
+                self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
-                self.modes.request_mode(FlightMode.FAILSAFE)
-                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, "law fault: FAILSAFE")
-                self._sync_mode()
-                self.delta_rad[:] = self.trim_rad
+                self.mode_ctl.law_fault()
+                self.out.delta_rad[:] = self.settings.trim_rad
         else:
-            self.delta_rad[:] = self.trim_rad
-        d = self.delta_rad
+            self.out.delta_rad[:] = self.settings.trim_rad
+        d = self.out.delta_rad
         self.pwm_us[0] = deflection_to_pwm(d[0])
         self.pwm_us[1] = deflection_to_pwm(d[1])
         self.pwm_us[2] = deflection_to_pwm(d[2])
@@ -399,411 +264,56 @@ class FlightController:
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
         self.pwm_us[3] = self.guid.throttle_pwm() if self.modes.guidance_active else 0
 
-    def _new_frame(self, now_s: float) -> None:
-        """A new sensor frame is in ``meas_scratch``: estimator, timeline, failsafe bookkeeping."""
-        self.meas[:] = self.meas_scratch
-        self.est.update(self.meas)
-        if self.plant.relock_allowed and not self.modes.data_lost:
-            self.plant.relock_allowed = False
-        if self.est.healthy:
-            self.seen_data = True
-            if self.law_reset_pending and self.modes.law_active:
-                self._engage_law()
-            self.last_good_wall_s = now_s
-            text = self.modes.on_data_ok(now_s, self.fs_recover, self.fs_recover_s)
-            if text is not None:
-                self._event(text)
-                self._sync_mode()
-        if self.timeline is not None:
-            for c in self.timeline.due(self.meas[0]):
-                for name, value in c.values:
-                    reason = self.set_param(name, value)
-                    if reason is not None:
-                        self._event(f"timeline t={c.t_s:g}: {reason}", ML.MAV_SEVERITY_WARNING)
-                    else:
-                        self.gcs.announce_param(name)
-
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
 
-    def _log_row(self, lateness_ns: int, exec_ns: int) -> None:
-        r = self.ilog.row()
-        if r is None:
-            return
-        r[0] = self.meas[0]
-        r[1] = time.monotonic()
-        r[2] = float(self.meas_stamp_us)
-        r[3] = float(self.modes.mode)
-        r[4] = 1.0 if self.modes.armed else 0.0
-        r[5] = 1.0 if self.est.healthy else 0.0
-        r[6] = float(self.est.masks[0])
-        r[7] = float(self.est.masks[1])
-        r[8:8 + E_N] = self.est.est
-        k = 8 + E_N
-        r[k:k + 3] = self.cmd_active
-        r[k + 3:k + 6] = self.delta_rad
-        r[k + 6] = lateness_ns * 1e-3
-        r[k + 7] = exec_ns * 1e-3
-        ns = len(self.status_names)
-        if ns:
-            r[k + 8:k + 8 + ns] = self.law.status[:ns]
-        r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
-        r[k + 9 + ns] = float(self.guid.limits)
-        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
-
-    def _columns(self) -> list[str]:
-        cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
-                "est_stale_mask"]
-        cols += ["est_" + c for c in EST_COLS]
-        cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
-                 "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
-        cols += ["law_" + n for n in self.status_names]
-        cols += ["guid_throttle", "guid_limits", "guid_tgt_h_m", "guid_tgt_chi_rad",
-                 "guid_tgt_V_m_s"]
-        return cols
-
-    # ------------------------------------------------------------------ housekeeping
-    def _housekeeping(self, now_s: float) -> None:
-        """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
-        self.gcs.poll(now_s)
-        if self.plant.counters.goodbyes != self._goodbyes_seen:
-            self._plant_said_goodbye()
-        if (self.seen_data and not self.modes.data_lost and not self.plant.ended
-                and now_s - self.last_good_wall_s > self.fs_timeout_s):
-            text = self.modes.on_data_lost()
-            self.plant.relock_allowed = True   # a restarted plant may come from a new port
-            if text:
-                self.log.warning(text)
-                self.gcs.statustext(ML.MAV_SEVERITY_CRITICAL, text)
-                self._sync_mode()
-        elif self.modes.data_lost and now_s - self.last_good_wall_s > 0.05:
-            self.modes.on_data_gap()
-        if self.plant.counters.relocks != self._relocks_seen:
-            self._relocks_seen = self.plant.counters.relocks
-            self._event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
-                        ML.MAV_SEVERITY_WARNING)
-        if now_s >= self._next_1hz:
-            # the 1 Hz chores, one per housekeeping call (each after a tick's answer has gone),
-            # so no single call delays the next frame's tick by their sum
-            stage = self._chore
-            if stage == 0:
-                self.stats.roll()
-                if self._exec_n:
-                    self._load_permille = min(1000, int(1000 * self._exec_ns_sum / self._exec_n
-                                                        / self.planner.period_ns))
-                self._exec_ns_sum = self._exec_n = 0
-            elif stage == 1:
-                t_gc = time.perf_counter_ns()
-                collect_garbage()
-                self.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
-            elif stage == 2:
-                self._refresh_telemetry_cache()
-            else:
-                self.gcs.flush()
-                if self.params_dirty:
-                    self.params_dirty = False
-                    self.io.submit(self._save_params, self.params.values.copy())
-            if stage == 3:
-                self._chore = 0
-                self._next_1hz = now_s + 1.0
-            else:
-                self._chore = stage + 1
-        self.gcs.service(now_s)
-
-    def _plant_said_goodbye(self) -> None:
-        """The plant ended its run on purpose (docs/wire.md section 5): the silence that
-        follows is not a loss of plant data, so no FAILSAFE and no warning; the next plant
-        may come from a new address. A frame arriving later clears ``plant.ended``."""
-        self._goodbyes_seen = self.plant.counters.goodbyes
-        self.plant.relock_allowed = True
-        text = f"plant ended its run at t={self.meas[0]:.3f} s"
-        self.log.info(text)
-        self.gcs.statustext(ML.MAV_SEVERITY_INFO, text)
-
-    def _save_params(self, values: np.ndarray | None = None) -> None:
-        """Write the parameter file (runs on the I/O thread; ``values`` is a snapshot)."""
-        try:
-            saved = ParamTable(self.params.defs)
-            saved.values[:] = self.params.values if values is None else values
-            for i, d in enumerate(saved.defs):     # commands are not settings: defaults on file
-                if d.group == "command":
-                    saved.values[i] = d.default
-            saved.save(self.params_path)
-        except OSError as exc:
-            self.log.error("cannot save parameters to %s: %s", self.params_path, exc)
-
     # telemetry sources for fc/gcs.py
-    def health_failed_bits(self) -> int:
-        if self.modes.data_lost or self.plant.ended:
-            return DATA_LOSS_BITS
-        if self.seen_data and not self.est.healthy:
-            return ML.MAV_SYS_STATUS_AHRS
-        return 0
+    @property
+    def meas_stamp_us(self) -> int:
+        """Plant time of the newest frame, us."""
+        return self.intake.stamp_us
 
-    def skipped_ticks(self) -> int:
-        """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
-        return self.planner.skipped + (self.gate.skipped if hasattr(self, "gate") else 0)
+    def health_failed_bits(self) -> int:
+        return self.mode_ctl.health_failed_bits()
 
     def load_permille(self) -> int:
-        return self._load_permille
+        return self.counters.load_permille
 
     def error_counts(self) -> tuple[int, int, int, int, int]:
-        return (self.gcs.rejected_bad + self.gcs.rejected_signing, self.plant.counters.rejected,
-                self.est.invalid_frames, self.stats.overruns + self.skipped_ticks(),
-                self.stats.late)
+        return self.telemetry.error_counts()
 
     def named_values(self) -> list:
-        return self._named_cache
+        return self.telemetry.named_values()
 
     def debug_vectors(self) -> list:
-        """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
-        cache: in lockstep the flight log takes them at 10 Hz of sim time)."""
-        e = self.est.est
-        vec = [
-            (b"CMD_DEG", tuple(math.degrees(x) for x in self.cmd_active)),
-            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
-            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.delta_rad)),
-        ]
-        if self.modes.guidance_active:
-            # x: the envelope limit bitfield in force (fc/guidance/layout.py LIM_*), y: the
-            # throttle command (0..1), z: the flight-path angle command (deg)
-            vec.append((b"GUID", (float(self.guid.limits), self.guid.throttle(),
-                                  math.degrees(self.guid.g.status[GS_GAM_C]))))
-        return vec
+        return self.telemetry.debug_vectors()
 
     def throttle_percent(self) -> int:
-        """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
-        return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
+        return self.telemetry.throttle_percent()
 
     def nav_controller_output(self):
-        """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
-        guidance modes."""
-        if not (self.modes.guidance_active and self.guid.engaged):
-            return None
-        return self.guid.nav_output(self.est.est)
+        return self.telemetry.nav_controller_output()
 
-    def _refresh_telemetry_cache(self) -> None:
-        e = self.est.est
-        c = self.plant.counters if hasattr(self, "plant") else None
-        nv = [
-            (b"GAMMA_DEG", math.degrees(e[8])),
-            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
-            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
-            (b"SKIPPED", float(self.skipped_ticks())),
-            (b"TICK_FALLB", float(self.gate.fallback_ticks if hasattr(self, "gate") else 0)),
-            (b"GC_US", float(getattr(self, "gc_us", 0.0))),
-            (b"REJ_PLANT", float(c.rejected if c else 0)),
-            (b"REJ_GCS", float(self.gcs.rejected_bad if hasattr(self, "gcs") else 0)),
-            (b"REJ_SIGN", float(self.gcs.rejected_signing if hasattr(self, "gcs") else 0)),
-            (b"EST_INVAL", float(self.est.invalid_frames)),
-            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
-            (b"FS_CAUSE", float(self.modes.fs_cause if hasattr(self, "modes") else 0)),
-            (b"DUP_FRAMES", float(self.duplicate_frames)),
-        ]
-        st = getattr(self.law, "status", None)
-        for i, n in enumerate(self.status_names[:16]):
-            nv.append((n.upper()[:10].encode("ascii", "replace"), float(st[i])))
-        self._named_cache = nv
-
-    # ------------------------------------------------------------------ loops
     def run(self, stop) -> None:
-        self._next_1hz = 0.0
-        if gc.isenabled():              # python -m fc froze it before READY
-            self.log.info(freeze_heap())
-        try:
-            if self.cfg.mode == "realtime":
-                if self.cfg.realtime_priority > 0:
-                    ok, msg = try_realtime(self.cfg.realtime_priority)
-                    (self.log.info if ok else self.log.warning)(msg)
-                self._run_realtime(stop)
-            else:
-                # each lockstep exchange wakes an idle CPU; keep wake-ups off the hypervisor's
-                # path (docs/performance.md: idle vCPUs halt on this VM, a round trip triples)
-                self.log.info(hold_cpu_wakeup_latency(0))
-                self._run_lockstep(stop)
-        finally:
-            release_heap()      # automatic collection back on (an embedding process goes on)
-
-    def _run_lockstep(self, stop) -> None:
-        plant_fd = self.plant.endpoint.fileno()
-        gcs_fd = self.gcs.endpoint.fileno()
-        fds = [plant_fd, gcs_fd]
-        mono = time.monotonic
-        while not stop():
-            # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits
-            try:
-                select.select(fds, [], [], 0.01)
-            except InterruptedError:
-                pass
-            now_s = mono()
-            for _ in range(16):   # frames per wake-up: bounded
-                stamp = self.plant.read_frame(self.meas_scratch)
-                if stamp < 0:
-                    break
-                t0 = time.perf_counter_ns()
-                self._lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
-                self._exec_ns_sum += time.perf_counter_ns() - t0
-                self._exec_n += 1
-            self._housekeeping(now_s)
-
-    def _lockstep_frame(self, stamp: int, now_s: float) -> None:
-        if stamp == self.answered_stamp_us:
-            # the plant re-sent frame k (re-request): answer again with the same output
-            self.duplicate_frames += 1
-            self.plant.send_servo(stamp, self.pwm_us)
-            return
-        if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
-            self.plant_resets += 1
-            self._event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
-            self.est.reset()
-            self.planner.next_ns = None
-            self.law_changes_seen = -1      # re-engages the law (reset at the new state)
-            self._law_engaged = False
-            self.guid.disengage()
-            if self.timeline is not None:
-                self.timeline.next = 0      # the command timeline starts over with sim time
-        self.last_stamp_us = stamp
-        self.meas_stamp_us = stamp
-        t_exec = time.perf_counter_ns()
-        self._new_frame(now_s)
-        self._sync_mode()
-        n = self.planner.due(stamp * 1000)
-        for _ in range(n):
-            self._fast_tick(self.planner.slow_due())
-        self.plant.send_servo(stamp, self.pwm_us)
-        self.answered_stamp_us = stamp
-        if n:
-            self._log_row(0, time.perf_counter_ns() - t_exec)
-
-    def _run_realtime(self, stop) -> None:
-        if self.cfg.sync == "frame":
-            self._run_realtime_frame(stop)
-        else:
-            self._run_realtime_clock(stop)
-
-    def _run_realtime_clock(self, stop) -> None:
-        """Free-running clock (``--sync clock``): ticks on absolute deadlines ``t0 + k T``,
-        each answering the newest frame; the answer's delay is the phase between the fc's
-        clock and the plant's (docs/fc.md)."""
-        planner = self.planner
-        planner.anchor(time.monotonic_ns() + planner.period_ns)
-        spin_ns = self.cfg.spin_us * 1000
-        mono_ns = time.monotonic_ns
-        while not stop():
-            deadline = planner.next_ns
-            sleep_until_ns(deadline, spin_ns)
-            wake = mono_ns()
-            planner.due(wake)
-            self._rt_drain(wake * 1e-9)
-            self._rt_tick(wake, wake - deadline)
-
-    def _run_realtime_frame(self, stop) -> None:
-        """Frame-synchronised (``--sync frame``, the default): the fast tick runs when a new
-        sensor frame arrives, the deadline standing in when a frame is late or missing
-        (:class:`fc.scheduler.FrameGate`). Waits are ``select`` on the plant socket with a
-        microsecond timeout; with ``--spin-us`` the last microseconds before the expected
-        frame are polled instead. Lateness of a frame tick = wake-up time minus the kernel's
-        receive stamp of the frame (``SO_TIMESTAMPNS``); of a deadline tick = wake-up time minus
-        the deadline."""
-        gate = self.gate
-        spin_ns = self.cfg.spin_us * 1000
-        mono_ns = time.monotonic_ns
-        wall_ns = time.time_ns
-        sel = select.select
-        fds = [self.plant.endpoint.fileno()]
-        stamped = self.plant.endpoint.enable_rx_timestamps()
-        gate.start(mono_ns())
-        while not stop():
-            until = gate.wait_until_ns()
-            now = mono_ns()
-            if now < until:
-                sleep_to = until - spin_ns if spin_ns else until
-                try:
-                    ready = sel(fds, [], [], (sleep_to - now) * 1e-9) if sleep_to > now else ()
-                    if not ready and spin_ns:
-                        while not ready and mono_ns() < until:
-                            ready = sel(fds, [], [], 0.0)[0]
-                except InterruptedError:
-                    continue
-            wake = mono_ns()
-            wake_wall = wall_ns()
-            n_new, rx_ns = self._rt_drain(wake * 1e-9)
-            if n_new:
-                if not gate.on_frame(wake):
-                    continue                    # early frame: absorbed, tick at the deadline
-                lateness = wake_wall - rx_ns if (stamped and rx_ns) else 0
-            elif wake < until:
-                continue                        # woken by a duplicate or rejected datagram
-            else:
-                gate.on_timeout(wake)
-                lateness = wake - until
-            self._rt_tick(wake, lateness)
-
-    def _rt_drain(self, now_s: float) -> tuple[int, int]:
-        """Read every waiting frame through the estimator, in arrival order. Returns (new
-        frames, kernel receive stamp of the first of them, ns)."""
-        n_new = 0
-        first_rx_ns = 0
-        for _ in range(64):   # bounded work per wake-up
-            stamp = self.plant.read_frame(self._rx_meas)
-            if stamp < 0:
-                break
-            if stamp == self.last_stamp_us:
-                self.duplicate_frames += 1
-                continue
-            if stamp < self.last_stamp_us:
-                # plant restarted, or a reordered/hostile frame: the estimator starts over
-                # (it ignores stamps that do not advance); the law keeps running
-                self.plant_resets += 1
-                self.est.reset()
-                if self.last_stamp_us - stamp > 100_000:
-                    self._event("plant time went backwards: estimator restarted",
-                                ML.MAV_SEVERITY_WARNING)
-            if n_new == 0:
-                first_rx_ns = self.plant.frame_rx_ns
-            n_new += 1
-            self.meas_scratch[:] = self._rx_meas
-            self.last_stamp_us = stamp
-            self.meas_stamp_us = stamp
-            self._new_frame(now_s)
-            self.last_frame_wall_s = now_s
-            self.law_held = False
-        return n_new, first_rx_ns
-
-    def _rt_tick(self, wake_ns: int, lateness_ns: int) -> None:
-        """One real-time fast tick (woken at ``wake_ns``), its answer and the housekeeping."""
-        now_s = wake_ns * 1e-9
-        have_frame = self.last_frame_wall_s >= 0.0
-        if (have_frame and not self.law_held and self.modes.law_active
-                and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
-            self.law_held = True
-            self.law_holds += 1
-        self._sync_mode()
-        self._fast_tick(self.planner.slow_due())
-        if have_frame:
-            self.plant.send_servo(self.meas_stamp_us, self.pwm_us)
-        exec_ns = time.monotonic_ns() - wake_ns
-        self.stats.record(lateness_ns, exec_ns)
-        self._exec_ns_sum += exec_ns
-        self._exec_n += 1
-        self._log_row(lateness_ns, exec_ns)
-        self._housekeeping(now_s)
+        """Loop until ``stop()`` returns True (fc/loops.py)."""
+        self.loops.run(stop)
 
     # ------------------------------------------------------------------ shutdown
     def close(self) -> None:
         """Flush and close logs and sockets (SIGINT/SIGTERM path)."""
         self.io.close()
-        if self.params_dirty:
-            self._save_params()
+        if self.param_svc.dirty:
+            self.param_svc.save()
         c = self.plant.counters
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
-            "late ticks %d/%d, overruns %d, skipped %d, law errors %d",
-            c.frames, c.outputs, self.duplicate_frames, c.relocks, c.rejected, c.rejected_sysid,
-            c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
+            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d",
+            c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
+            c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
-            self.skipped_ticks(), self.law_errors)
+            self.telemetry.skipped_ticks(), self.counters.law_errors,
+            self.counters.reordered_frames)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

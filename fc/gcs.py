@@ -19,10 +19,8 @@ Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
 loop, and a ground station that goes away never affects control: sends are fire-and-forget.
 
-The vehicle (fc/app.py) is reached through a small interface: ``params`` (ParamTable),
-``modes`` (ModeManager), ``set_param``, ``request_mode``, ``arm``, ``set_attitude_command``
-and the telemetry sources ``meas``, ``est``, ``cmd_rad``, ``delta_rad``, ``pwm_us``,
-``named_values()``, ``health_failed_bits()``, ``load_permille()``.
+The vehicle (fc/app.py) is reached through a typed interface, fc/vehicle_view.py
+``VehicleView``: exactly the members read and called here.
 """
 from __future__ import annotations
 
@@ -34,10 +32,11 @@ from collections import deque
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
                      G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
                      decode_datagram, mavlink, mavlink_dev, new_codec)
-from fc.mission import MSG_IDS as MISSION_MSGS, Mission, encode as mission_encode
+from fc.mission import MSG_IDS as MISSION_MSGS, encode as mission_encode
 from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
+from fc.vehicle_view import VehicleView
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
 
@@ -139,7 +138,7 @@ class _Streams:
 class GcsLink:
     """Ground-station side of the fc. Single-threaded: called from the control loop."""
 
-    def __init__(self, vehicle, bind: tuple[str, int], outputs: list[tuple[str, int]],
+    def __init__(self, vehicle: VehicleView, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
                  log=None, max_rx: int = 8, max_tx: int = 6, io=None,
                  sim_time: bool = False) -> None:
@@ -157,8 +156,8 @@ class GcsLink:
         self.sim_time = sim_time
         self.epoch_us = int(time.time() * 1e6)    # .tlog stamp = epoch + time base
         self.home: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m MSL
-        #: the stored mission (fc/mission.py): the vehicle's if it has one (MISSION mode flies it)
-        self.mission = getattr(vehicle, "mission", None) or Mission()
+        #: the stored mission (fc/mission.py): the vehicle's (MISSION mode flies it)
+        self.mission = vehicle.mission
         self.default = _Streams(self.mav, STREAM_DEFAULTS_S)
         self.intervals = self.default.intervals        # the default schedule (outputs)
         self.next_due = self.default.next_due

@@ -68,7 +68,7 @@ class MissionFlight:
         """None if MISSION may be entered, else the reason."""
         if self.mission.count == 0:
             return "MISSION refused: no mission stored"
-        if not self._fix(fc) or getattr(fc.gcs, "home", None) is None:
+        if not self._fix(fc) or fc.gcs.home is None:
             return "MISSION refused: no GNSS fix"
         return None
 

@@ -18,12 +18,11 @@ import struct
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
-from typing import Callable, Iterable
+from typing import Iterable
 
 import numpy as np
 
-from fc.control.params import Param
+from fc.control.params import Param, checked_value
 
 __all__ = ["ParamDef", "PROCESS_PARAMS", "ParamTable", "ParamFileError", "build_table",
            "render_markdown", "law_param_defs", "UNITS", "encode_value", "decode_set_value"]
@@ -31,9 +30,20 @@ __all__ = ["ParamDef", "PROCESS_PARAMS", "ParamTable", "ParamFileError", "build_
 NAME_MAX = 16
 NAME_RE = re.compile(r"^[A-Z][A-Z0-9_]{0,15}$")
 
-#: Unit vocabulary accepted in the table (PX4 PR #15502: one spelling per unit).
-UNITS = {"deg", "deg/s", "rad", "rad/s", "s", "ms", "us", "Hz", "m", "m/s", "1", "bool",
-         "1/s", "1/s^2", "rad/s^2", "N m", "kg m^2", "%", "m/s^2", "Pa", "N"}
+#: Unit vocabulary of the table (PX4 PR #15502: one spelling per unit): unit -> meaning.
+#: A parameter whose unit is not here is refused when the table is built.
+UNITS: dict[str, str] = {
+    "deg": "angle, degrees (SI: rad)", "deg/s": "angular rate, degrees per second",
+    "rad": "angle, radians", "rad/s": "angular rate", "rad/s^2": "angular acceleration",
+    "1/rad": "per radian", "1/rad^2": "per radian squared", "s/rad": "seconds per radian",
+    "s^3/rad^2": "seconds cubed per radian squared", "s": "seconds", "ms": "milliseconds",
+    "us": "microseconds", "Hz": "hertz", "1/s": "per second", "1/s^2": "per second squared",
+    "m": "metres", "m/s": "metres per second", "m/s^2": "metres per second squared",
+    "kg": "kilograms", "kg m^2": "moment of inertia", "N": "newtons", "N m": "newton metres",
+    "Pa": "pascals", "%": "percent",
+    "1": "dimensionless number (a ratio, a count)", "-": "dimensionless option or gain",
+    "bool": "switch, 0 or 1",
+}
 
 
 #: One record type for every parameter, the law's and the process's (fc/control/params.py):
@@ -100,6 +110,9 @@ def _check_defs(defs: list[ParamDef]) -> None:
         if d.name in seen:
             raise ValueError(f"parameter {d.name} defined twice (law and process tables collide?)")
         seen.add(d.name)
+        if d.unit not in UNITS:
+            raise ValueError(f"parameter {d.name}: unit {d.unit!r} not in the vocabulary "
+                             "(fc/params.py UNITS)")
         if not (math.isfinite(d.min) and math.isfinite(d.max) and d.min <= d.default <= d.max):
             raise ValueError(f"parameter {d.name}: default {d.default} outside [{d.min}, {d.max}]")
 
@@ -146,17 +159,11 @@ class ParamFileError(ValueError):
     """A parameter file that cannot be read (syntax, non-finite value)."""
 
 
-def _f32(x: float) -> float:
-    """The value as it travels on the wire (REAL32)."""
-    return float(np.float32(x))
-
-
 class ParamTable:
-    """Values of every parameter, in the table order (the MAVLink index).
-
-    ``on_change(name, value)`` is called after every accepted change; it is where the
-    process converts to SI and pushes the value into the law (``law.set_param``).
-    """
+    """Values of every parameter, in the table order (the MAVLink index), in the table's
+    units. The SI conversion is not here: the law and the guidance convert what they are
+    given (``si_scale``, fc/control/params.py ``to_si``), the fc process its own parameters
+    (fc/app.py ``_apply_process_params``)."""
 
     def __init__(self, defs: list[ParamDef]) -> None:
         _check_defs(defs)
@@ -164,8 +171,6 @@ class ParamTable:
         self.names = [d.name for d in defs]
         self.index = {n: i for i, n in enumerate(self.names)}
         self.values = np.array([d.default for d in defs], dtype=np.float64)
-        self.on_change: Callable[[str, float], None] | None = None
-        self.validator: Callable[[str, float], str | None] | None = None
 
     def __len__(self) -> int:
         return len(self.names)
@@ -183,29 +188,21 @@ class ParamTable:
         """None if ``value`` may be set, else the reason (for STATUSTEXT and fc.log)."""
         if name not in self.index:
             return f"unknown parameter {name}"
-        if not math.isfinite(value):
-            return f"{name}: non-finite value refused"
-        d = self.defs[self.index[name]]
-        # compare at wire precision so the float32 of a bound is accepted
-        if value < _f32(d.min) or value > _f32(d.max):
-            return f"{name}={value:g} outside [{d.min:g}, {d.max:g}] {d.unit}"
-        if d.integer and value != round(value):
-            return f"{name}={value:g} must be a whole number"
-        if self.validator is not None:
-            return self.validator(name, value)
+        try:
+            checked_value(self.defs[self.index[name]], value)
+        except ValueError as exc:
+            return str(exc)
         return None
 
-    def set(self, name: str, value: float, notify: bool = True) -> str | None:
-        """Set if valid; returns None on success, else the reason (value unchanged)."""
-        value = float(value)
-        reason = self.check(name, value)
-        if reason is not None:
-            return reason
-        d = self.defs[self.index[name]]
-        value = min(max(value, d.min), d.max)
-        self.values[self.index[name]] = value
-        if notify and self.on_change is not None:
-            self.on_change(name, value)
+    def set(self, name: str, value: float) -> str | None:
+        """Set if valid (:func:`fc.control.params.checked_value`, the one rule); returns None
+        on success, else the reason (value unchanged)."""
+        if name not in self.index:
+            return f"unknown parameter {name}"
+        try:
+            self.values[self.index[name]] = checked_value(self.defs[self.index[name]], value)
+        except ValueError as exc:
+            return str(exc)
         return None
 
     def force(self, name: str, value: float) -> None:

@@ -44,56 +44,34 @@ class Param:
     integer: bool = False
 
 
+def checked_value(prm: Param, value: float) -> float:
+    """The one validation rule of every parameter (the law's, the guidance's and the fc's
+    table, fc/params.py): ``value`` in ``prm.unit`` as a float within [min, max].
+
+    A bound that travelled as float32 over MAVLink (1.01 -> 1.00999999) is the bound: the
+    float32 of each bound is accepted and the value clamped into [min, max]. Raises
+    ValueError with the reason (not a number, not finite, outside the range, fractional for
+    an integer option).
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{prm.name}: {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{prm.name}: non-finite value refused")
+    lo = min(prm.min, float(np.float32(prm.min)))
+    hi = max(prm.max, float(np.float32(prm.max)))
+    if v < lo or v > hi:
+        raise ValueError(f"{prm.name}={v:g} outside [{prm.min:g}, {prm.max:g}] {prm.unit}")
+    if prm.integer and v != round(v):
+        raise ValueError(f"{prm.name}={v:g} must be a whole number")
+    return min(max(v, prm.min), prm.max)
+
+
 def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
     return Param(name, float(default), float(lo), float(hi), unit, group, text,
                  si_scale, integer)
 
-
-# Index constants into the SI parameter array used by the kernels. They must follow the order
-# of LAW_PARAMS (checked below at import).
-P_PAPER_LITERAL = 0
-P_CO_ENABLE = 1
-P_CO_FAC_EQ = 2
-P_CO_K1 = 3          # k1 .. k9 are P_CO_K1 + i - 1
-P_CO_DALPHA = 12
-P_CO_NORM = 13
-P_CO_LAM_MAX = 14
-P_CO_SURF = 15
-P_CO_E = 16
-P_CO_DET_MIN = 17
-P_SLW_K1 = 18        # K1, K2, K3 consecutive
-P_SLW_KAPPA = 21
-P_SLW_GAMMA = 22
-P_SLW_LEAK = 23
-P_SLW_TH_BND = 24
-P_SLW_OMC_MAX = 25
-P_SLW_AW = 26
-P_FST_KAPPA = 27
-P_FST_GAMMA = 28
-P_FST_LEAK = 29
-P_FST_TH_BND = 30
-P_FST_CF_WN = 31
-P_FST_CF_ZETA = 32
-P_DOB_ENABLE = 33
-P_DOB_C = 34
-P_DOB_ACHIEVED = 35
-P_ACT_MAX = 36
-P_ACT_RATE = 37
-P_ACT_TAU = 38
-P_ALLOC_MODE = 39
-P_REF_PF_EN = 40
-P_REF_PF_WN = 41
-P_REF_PF_ZETA = 42
-P_MDL_MASS = 43
-P_MDL_IXX = 44
-P_MDL_IYY = 45
-P_MDL_IZZ = 46
-P_MDL_XCG = 47
-P_SLW_CFB = 48
-P_FLT_RATE_HZ = 49
-P_FLT_ANG_HZ = 50
-P_CO_MAP = 51
-P_N = 52
 
 LAW_PARAMS: tuple[Param, ...] = (
     _p("PAPER_LITERAL", 0, 0, 1, "-", "LAW",
@@ -227,24 +205,53 @@ LAW_PARAMS: tuple[Param, ...] = (
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
 
-_EXPECTED = {"PAPER_LITERAL": P_PAPER_LITERAL, "CO_ENABLE": P_CO_ENABLE, "CO_FAC_EQ": P_CO_FAC_EQ,
-             "CO_K1": P_CO_K1, "CO_K9": P_CO_K1 + 8, "CO_DALPHA": P_CO_DALPHA,
-             "CO_NORM": P_CO_NORM, "CO_LAM_MAX": P_CO_LAM_MAX, "CO_SURF": P_CO_SURF,
-             "CO_E": P_CO_E, "CO_DET_MIN": P_CO_DET_MIN, "SLW_K1": P_SLW_K1,
-             "SLW_K3": P_SLW_K1 + 2, "SLW_KAPPA": P_SLW_KAPPA, "SLW_GAMMA": P_SLW_GAMMA,
-             "SLW_LEAK": P_SLW_LEAK, "SLW_TH_BND": P_SLW_TH_BND, "SLW_OMC_MAX": P_SLW_OMC_MAX,
-             "SLW_AW": P_SLW_AW, "FST_KAPPA": P_FST_KAPPA, "FST_GAMMA": P_FST_GAMMA,
-             "FST_LEAK": P_FST_LEAK, "FST_TH_BND": P_FST_TH_BND, "FST_CF_WN": P_FST_CF_WN,
-             "FST_CF_ZETA": P_FST_CF_ZETA, "DOB_ENABLE": P_DOB_ENABLE, "DOB_C": P_DOB_C,
-             "DOB_ACHIEVED": P_DOB_ACHIEVED, "ACT_MAX": P_ACT_MAX, "ACT_RATE": P_ACT_RATE,
-             "ACT_TAU": P_ACT_TAU, "ALLOC_MODE": P_ALLOC_MODE, "REF_PF_EN": P_REF_PF_EN,
-             "REF_PF_WN": P_REF_PF_WN, "REF_PF_ZETA": P_REF_PF_ZETA, "MDL_MASS": P_MDL_MASS,
-             "MDL_IXX": P_MDL_IXX, "MDL_IYY": P_MDL_IYY, "MDL_IZZ": P_MDL_IZZ,
-             "MDL_XCG": P_MDL_XCG, "SLW_CFB": P_SLW_CFB,
-             "FLT_RATE_HZ": P_FLT_RATE_HZ, "FLT_ANG_HZ": P_FLT_ANG_HZ, "CO_MAP": P_CO_MAP}
-for _name, _idx in _EXPECTED.items():
-    assert PARAM_INDEX[_name] == _idx, (_name, PARAM_INDEX[_name], _idx)
-assert len(LAW_PARAMS) == P_N
+# Index constants into the SI parameter array the kernels use: positions in LAW_PARAMS, the
+# one place the order is written (numba reads them as compile-time constants).
+P_PAPER_LITERAL = PARAM_INDEX["PAPER_LITERAL"]
+P_CO_ENABLE = PARAM_INDEX["CO_ENABLE"]
+P_CO_FAC_EQ = PARAM_INDEX["CO_FAC_EQ"]
+P_CO_K1 = PARAM_INDEX["CO_K1"]          # k1 .. k9 are P_CO_K1 + i - 1
+P_CO_DALPHA = PARAM_INDEX["CO_DALPHA"]
+P_CO_NORM = PARAM_INDEX["CO_NORM"]
+P_CO_LAM_MAX = PARAM_INDEX["CO_LAM_MAX"]
+P_CO_SURF = PARAM_INDEX["CO_SURF"]
+P_CO_E = PARAM_INDEX["CO_E"]
+P_CO_DET_MIN = PARAM_INDEX["CO_DET_MIN"]
+P_SLW_K1 = PARAM_INDEX["SLW_K1"]        # K1, K2, K3 consecutive
+P_SLW_KAPPA = PARAM_INDEX["SLW_KAPPA"]
+P_SLW_GAMMA = PARAM_INDEX["SLW_GAMMA"]
+P_SLW_LEAK = PARAM_INDEX["SLW_LEAK"]
+P_SLW_TH_BND = PARAM_INDEX["SLW_TH_BND"]
+P_SLW_OMC_MAX = PARAM_INDEX["SLW_OMC_MAX"]
+P_SLW_AW = PARAM_INDEX["SLW_AW"]
+P_FST_KAPPA = PARAM_INDEX["FST_KAPPA"]
+P_FST_GAMMA = PARAM_INDEX["FST_GAMMA"]
+P_FST_LEAK = PARAM_INDEX["FST_LEAK"]
+P_FST_TH_BND = PARAM_INDEX["FST_TH_BND"]
+P_FST_CF_WN = PARAM_INDEX["FST_CF_WN"]
+P_FST_CF_ZETA = PARAM_INDEX["FST_CF_ZETA"]
+P_DOB_ENABLE = PARAM_INDEX["DOB_ENABLE"]
+P_DOB_C = PARAM_INDEX["DOB_C"]
+P_DOB_ACHIEVED = PARAM_INDEX["DOB_ACHIEVED"]
+P_ACT_MAX = PARAM_INDEX["ACT_MAX"]
+P_ACT_RATE = PARAM_INDEX["ACT_RATE"]
+P_ACT_TAU = PARAM_INDEX["ACT_TAU"]
+P_ALLOC_MODE = PARAM_INDEX["ALLOC_MODE"]
+P_REF_PF_EN = PARAM_INDEX["REF_PF_EN"]
+P_REF_PF_WN = PARAM_INDEX["REF_PF_WN"]
+P_REF_PF_ZETA = PARAM_INDEX["REF_PF_ZETA"]
+P_MDL_MASS = PARAM_INDEX["MDL_MASS"]
+P_MDL_IXX = PARAM_INDEX["MDL_IXX"]
+P_MDL_IYY = PARAM_INDEX["MDL_IYY"]
+P_MDL_IZZ = PARAM_INDEX["MDL_IZZ"]
+P_MDL_XCG = PARAM_INDEX["MDL_XCG"]
+P_SLW_CFB = PARAM_INDEX["SLW_CFB"]
+P_FLT_RATE_HZ = PARAM_INDEX["FLT_RATE_HZ"]
+P_FLT_ANG_HZ = PARAM_INDEX["FLT_ANG_HZ"]
+P_CO_MAP = PARAM_INDEX["CO_MAP"]
+P_N = len(LAW_PARAMS)
+assert [PARAM_INDEX[f"CO_K{i}"] for i in range(1, 10)] == list(range(P_CO_K1, P_CO_K1 + 9))
+assert [PARAM_INDEX[f"SLW_K{i}"] for i in (1, 2, 3)] == list(range(P_SLW_K1, P_SLW_K1 + 3))
 for _prm in LAW_PARAMS:
     assert len(_prm.name) <= 16 and _prm.name == _prm.name.upper(), _prm.name
     assert _prm.min <= _prm.default <= _prm.max, _prm.name
@@ -253,29 +260,12 @@ for _prm in LAW_PARAMS:
 def check_value(name: str, value: float) -> float:
     """Validate ``value`` (human units) for parameter ``name``; return it as a float.
 
-    Raises KeyError for an unknown name and ValueError for a value out of range, not finite,
-    or not a whole number for an integer option.
+    Raises KeyError for an unknown name, ValueError for a value :func:`checked_value`
+    refuses and for a CO_FAC_EQ other than 14 or 19.
     """
     if name not in PARAM_INDEX:
         raise KeyError(f"unknown control-law parameter {name!r}")
-    prm = LAW_PARAMS[PARAM_INDEX[name]]
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: value {value!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: value {v} is not finite")
-    # a bound sent as float32 over MAVLink (1.01 -> 1.00999999) is the bound
-    tol_lo = 1e-6 * max(1.0, abs(prm.min))
-    tol_hi = 1e-6 * max(1.0, abs(prm.max))
-    if prm.min - tol_lo <= v < prm.min:
-        v = prm.min
-    elif prm.max < v <= prm.max + tol_hi:
-        v = prm.max
-    if v < prm.min or v > prm.max:
-        raise ValueError(f"{name}: {v} outside [{prm.min}, {prm.max}] {prm.unit}")
-    if prm.integer and v != round(v):
-        raise ValueError(f"{name}: option value must be a whole number, got {v}")
+    v = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value)
     if name == "CO_FAC_EQ" and v not in (14.0, 19.0):
         raise ValueError(f"{name}: must be 14 or 19, got {v}")
     return v

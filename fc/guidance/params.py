@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from fc.control.params import Param
+from fc.control.params import Param, checked_value
 
 DEG = math.pi / 180.0
 
@@ -24,41 +24,6 @@ def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
     return Param(name, float(default), float(lo), float(hi), unit, group, text,
                  si_scale, integer)
 
-
-# Index constants into the SI parameter array (order of GUIDANCE_PARAMS, checked at import).
-P_GA_K_H = 0
-P_GA_K_HI = 1
-P_GA_HDOT_MAX = 2
-P_GA_K_GAM = 3
-P_GH_K_CHI = 4
-P_GH_CHIDOT_MAX = 5
-P_GS_K_V = 6
-P_GS_K_VI = 7
-P_GS_ACC_MAX = 8
-P_GE_ALPHA_MIN = 9
-P_GE_ALPHA_MAX = 10
-P_GE_ALPHA_RATE = 11
-P_GE_GAM_MAX = 12
-P_GE_GAM_RATE = 13
-P_GE_MU_MAX = 14
-P_GE_MU_RATE = 15
-P_GE_NZ_MIN = 16
-P_GE_NZ_MAX = 17
-P_GE_QBAR_MIN = 18
-P_GE_QBAR_MAX = 19
-P_GE_QBAR_BAND = 20
-P_GE_THR_RATE = 21
-P_GM_CT_MAX = 22
-P_GM_T_MAX = 23
-P_GA_HI_MAX = 24
-P_GS_VI_MAX = 25
-P_GA_K_GAMI = 26
-P_GA_GI_MAX = 27
-P_GH_CHI_TAU = 28
-P_GA_HI_ZONE = 29
-P_GA_GI_ZONE = 30
-P_GA_GDOT_TAU = 31
-P_N = 32
 
 GUIDANCE_PARAMS: tuple[Param, ...] = (
     _p("GA_K_H", 0.05, 0, 2, "1/s", "GA",
@@ -143,20 +108,41 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
 
 PARAM_INDEX = {p.name: i for i, p in enumerate(GUIDANCE_PARAMS)}
 
-_EXPECTED = {"GA_K_H": P_GA_K_H, "GA_K_HI": P_GA_K_HI, "GA_HDOT_MAX": P_GA_HDOT_MAX,
-             "GA_K_GAM": P_GA_K_GAM, "GH_K_CHI": P_GH_K_CHI, "GH_CHIDOT_MAX": P_GH_CHIDOT_MAX,
-             "GS_K_V": P_GS_K_V, "GS_K_VI": P_GS_K_VI, "GS_ACC_MAX": P_GS_ACC_MAX,
-             "GE_ALPHA_MIN": P_GE_ALPHA_MIN, "GE_ALPHA_MAX": P_GE_ALPHA_MAX,
-             "GE_ALPHA_RATE": P_GE_ALPHA_RATE, "GE_GAM_MAX": P_GE_GAM_MAX,
-             "GE_GAM_RATE": P_GE_GAM_RATE, "GE_MU_MAX": P_GE_MU_MAX, "GE_MU_RATE": P_GE_MU_RATE,
-             "GE_NZ_MIN": P_GE_NZ_MIN, "GE_NZ_MAX": P_GE_NZ_MAX, "GE_QBAR_MIN": P_GE_QBAR_MIN,
-             "GE_QBAR_MAX": P_GE_QBAR_MAX, "GE_QBAR_BAND": P_GE_QBAR_BAND,
-             "GE_THR_RATE": P_GE_THR_RATE, "GM_CT_MAX": P_GM_CT_MAX, "GM_T_MAX": P_GM_T_MAX,
-             "GA_HI_MAX": P_GA_HI_MAX, "GS_VI_MAX": P_GS_VI_MAX,
-             "GA_K_GAMI": P_GA_K_GAMI, "GA_GI_MAX": P_GA_GI_MAX, "GH_CHI_TAU": P_GH_CHI_TAU,
-             "GA_HI_ZONE": P_GA_HI_ZONE, "GA_GI_ZONE": P_GA_GI_ZONE,
-             "GA_GDOT_TAU": P_GA_GDOT_TAU}
-assert len(GUIDANCE_PARAMS) == P_N and all(PARAM_INDEX[k] == v for k, v in _EXPECTED.items())
+# Index constants into the SI parameter array the kernels use: positions in GUIDANCE_PARAMS, the
+# one place the order is written (numba reads them as compile-time constants).
+P_GA_K_H = PARAM_INDEX["GA_K_H"]
+P_GA_K_HI = PARAM_INDEX["GA_K_HI"]
+P_GA_HDOT_MAX = PARAM_INDEX["GA_HDOT_MAX"]
+P_GA_K_GAM = PARAM_INDEX["GA_K_GAM"]
+P_GH_K_CHI = PARAM_INDEX["GH_K_CHI"]
+P_GH_CHIDOT_MAX = PARAM_INDEX["GH_CHIDOT_MAX"]
+P_GS_K_V = PARAM_INDEX["GS_K_V"]
+P_GS_K_VI = PARAM_INDEX["GS_K_VI"]
+P_GS_ACC_MAX = PARAM_INDEX["GS_ACC_MAX"]
+P_GE_ALPHA_MIN = PARAM_INDEX["GE_ALPHA_MIN"]
+P_GE_ALPHA_MAX = PARAM_INDEX["GE_ALPHA_MAX"]
+P_GE_ALPHA_RATE = PARAM_INDEX["GE_ALPHA_RATE"]
+P_GE_GAM_MAX = PARAM_INDEX["GE_GAM_MAX"]
+P_GE_GAM_RATE = PARAM_INDEX["GE_GAM_RATE"]
+P_GE_MU_MAX = PARAM_INDEX["GE_MU_MAX"]
+P_GE_MU_RATE = PARAM_INDEX["GE_MU_RATE"]
+P_GE_NZ_MIN = PARAM_INDEX["GE_NZ_MIN"]
+P_GE_NZ_MAX = PARAM_INDEX["GE_NZ_MAX"]
+P_GE_QBAR_MIN = PARAM_INDEX["GE_QBAR_MIN"]
+P_GE_QBAR_MAX = PARAM_INDEX["GE_QBAR_MAX"]
+P_GE_QBAR_BAND = PARAM_INDEX["GE_QBAR_BAND"]
+P_GE_THR_RATE = PARAM_INDEX["GE_THR_RATE"]
+P_GM_CT_MAX = PARAM_INDEX["GM_CT_MAX"]
+P_GM_T_MAX = PARAM_INDEX["GM_T_MAX"]
+P_GA_HI_MAX = PARAM_INDEX["GA_HI_MAX"]
+P_GS_VI_MAX = PARAM_INDEX["GS_VI_MAX"]
+P_GA_K_GAMI = PARAM_INDEX["GA_K_GAMI"]
+P_GA_GI_MAX = PARAM_INDEX["GA_GI_MAX"]
+P_GH_CHI_TAU = PARAM_INDEX["GH_CHI_TAU"]
+P_GA_HI_ZONE = PARAM_INDEX["GA_HI_ZONE"]
+P_GA_GI_ZONE = PARAM_INDEX["GA_GI_ZONE"]
+P_GA_GDOT_TAU = PARAM_INDEX["GA_GDOT_TAU"]
+P_N = len(GUIDANCE_PARAMS)
 assert all(len(p.name) <= 16 and p.min <= p.default <= p.max for p in GUIDANCE_PARAMS)
 assert all((p.si_scale == DEG) == p.unit.startswith("deg") for p in GUIDANCE_PARAMS)
 
@@ -165,15 +151,7 @@ def check_value(name: str, value: float) -> float:
     """Validate one value in table units; KeyError (unknown name) or ValueError (bad value)."""
     if name not in PARAM_INDEX:
         raise KeyError(f"unknown guidance parameter {name!r}")
-    p = GUIDANCE_PARAMS[PARAM_INDEX[name]]
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: value must be finite, got {value!r}")
-    if v < p.min or v > p.max:
-        raise ValueError(f"{name}: {v} outside [{p.min}, {p.max}] {p.unit}")
-    if p.integer and v != round(v):
-        raise ValueError(f"{name}: must be a whole number, got {v}")
-    return v
+    return checked_value(GUIDANCE_PARAMS[PARAM_INDEX[name]], value)
 
 
 def to_si(name: str, value: float) -> float:

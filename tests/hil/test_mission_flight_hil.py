@@ -112,7 +112,7 @@ def test_mission_mode_refused_without_mission_or_fix(tmp_path):
         for k in range(50):
             m = level_meas(k / 500.0, alpha_deg=3.9, V=2250.0, h=28000.0)
             fc.meas_scratch[:] = m
-            fc._lockstep_frame(int(round(m[0] * 1e6)), time.monotonic())
+            fc.loops.lockstep_frame(int(round(m[0] * 1e6)), time.monotonic())
         # WHEN MISSION is requested with no mission THEN refused, mode kept
         ok, text = fc.request_mode(FlightMode.MISSION)
         assert not ok and "no mission" in text and fc.modes.mode == FlightMode.CRUISE

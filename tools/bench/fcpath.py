@@ -8,8 +8,8 @@ housekeeping (ground-station poll and streams). The datagrams come from the meas
 stand-in's encoder with the plant physics between frames, so the law sees a flight.
 
 This is the fc's share of a lockstep exchange (the rest is the plant's share and the
-two UDP hops: the ping-pong floor). It uses the fc's loop methods (``_lockstep_frame``,
-``_housekeeping``) directly; if those change, the part is reported as skipped.
+two UDP hops: the ping-pong floor). It uses the fc's loop parts (``loops.lockstep_frame``,
+``loops.housekeeping``, fc/loops.py) directly; if those change, the part is reported as skipped.
 """
 from __future__ import annotations
 
@@ -54,7 +54,6 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
         cfg = FcConfig(mode="lockstep", plant_bind=("127.0.0.1", 0), gcs=[sink.getsockname()],
                        gcs_bind=("127.0.0.1", 0), out=d, arm=True, flight_mode="COORDINATED")
         fc = FlightController(cfg, log)
-        fc._next_1hz = 0.0
         sim = make_sim("paper", 500.0)
         codec = FrameCodec()
         meas = np.zeros(14)
@@ -72,14 +71,14 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             st = fc.plant.read_frame(fc.meas_scratch)
             t1 = pc()
             if st >= 0:
-                fc._lockstep_frame(st, mono())
+                fc.loops.lockstep_frame(st, mono())
             t2 = pc()
-            fc._housekeeping(mono())
+            fc.loops.housekeeping(mono())
             t3 = pc()
             if k >= warm:
                 t[k - warm] = (t1 - t0, t2 - t1, t3 - t2)
             _drain(plant, sink)
-            cmd[:] = fc.delta_rad
+            cmd[:] = fc.out.delta_rad
             sim.step_frame(cmd)
         return {"frames": n, "read_frame": stats_us(t[:, 0]), "frame": stats_us(t[:, 1]),
                 "housekeeping": stats_us(t[:, 2]), "total": stats_us(t.sum(axis=1)),

@@ -30,7 +30,7 @@ def _frames(fc, t0_s, n, **kw):
     for k in range(n):
         m = level_meas(t0_s + k / fc.cfg.fast_hz, alpha_deg=3.9, V=2250.0, h=28000.0, **kw)
         fc.meas_scratch[:] = m
-        fc._lockstep_frame(int(round(m[M_T_S] * 1e6)), time.monotonic())
+        fc.loops.lockstep_frame(int(round(m[M_T_S] * 1e6)), time.monotonic())
         s4.append(fc.pwm_us[3])
     return s4
 
@@ -66,7 +66,7 @@ def test_fc_steps_guidance_at_50_hz_in_cruise_and_throttles(tmp_path):
         assert h == pytest.approx(28000.0, abs=1.0) and v == pytest.approx(2250.0, abs=1.0)
         assert chi == pytest.approx(0.0, abs=1e-3)
         # the law's command is the guidance's (near the flown alpha at engagement)
-        assert math.degrees(fc.cmd_active[0]) == pytest.approx(3.9, abs=0.5)
+        assert math.degrees(fc.out.cmd_active[0]) == pytest.approx(3.9, abs=0.5)
     finally:
         fc.close()
 
@@ -124,5 +124,15 @@ def test_targets_outside_the_envelope_are_refused_and_kept(tmp_path, kw, word):
         assert fc.guidance_targets() == before
         assert fc.set_guidance_targets(h_m=30000.0, V_m_s=2350.0) is None
         assert fc.guidance_targets()[0] == 30000.0 and fc.guidance_targets()[2] == 2350.0
+    finally:
+        fc.close()
+
+
+def test_the_flight_controller_is_the_vehicle_view_its_ground_station_link_reads(tmp_path):
+    from fc.vehicle_view import VehicleView
+    fc = _fc(tmp_path)
+    try:
+        assert isinstance(fc, VehicleView)
+        assert fc.gcs.mission is fc.mission
     finally:
         fc.close()

@@ -128,3 +128,36 @@ def test_docs_params_md_is_current(table):
         on_disk = f.read()
     assert on_disk == render_markdown(table), (
         "docs/params.md is stale: run python -m fc.params --write-docs")
+
+
+def test_every_unit_is_in_the_vocabulary_and_an_unknown_unit_is_refused(table):
+    from fc.params import UNITS, ParamDef
+    # GIVEN the full table; THEN each unit it uses is in the vocabulary, which explains it
+    assert {d.unit for d in table.defs} <= set(UNITS)
+    assert all(UNITS[u] for u in UNITS)
+    # WHEN a table is built with a unit outside the vocabulary; THEN it is refused by name
+    with pytest.raises(ValueError, match="furlong"):
+        ParamTable([ParamDef("X_LEN", 1.0, 0.0, 2.0, "furlong", "test", "a length")])
+
+
+def test_one_rule_for_the_table_the_law_and_the_guidance():
+    import numpy as np
+    from fc.control.params import LAW_PARAMS, check_value
+    from fc.guidance.params import GUIDANCE_PARAMS
+    from fc.guidance.params import check_value as guidance_check
+    table = build_table()
+    # GIVEN each parameter and values at, just beyond (as float32) and outside its bounds;
+    # THEN the fc's table and the owner's check accept and refuse the same values, alike
+    for owner, check in ((LAW_PARAMS, check_value), (GUIDANCE_PARAMS, guidance_check)):
+        for p in owner:
+            span = p.max - p.min
+            for v in (p.min, p.max, float(np.float32(p.min)), float(np.float32(p.max)),
+                      p.min - 0.01 * span - 1e-3, p.max + 0.01 * span + 1e-3, math.nan):
+                reason = table.check(p.name, v)
+                try:
+                    check(p.name, v)
+                    owner_ok = True
+                except ValueError:
+                    owner_ok = False
+                if p.name != "CO_FAC_EQ":
+                    assert (reason is None) == owner_ok, (p.name, v, reason)

@@ -16,14 +16,16 @@ os.environ["MAVLINK20"] = "1"
 from fc.gcs import PEER_TIMEOUT_S, STREAM_DEFAULTS_S, GcsLink  # noqa: E402
 from fc.link import G_N, LinkCounters  # noqa: E402
 from fc.link import mavlink as ML  # noqa: E402
+from fc.mission import Mission  # noqa: E402
 from fc.modes import ModeManager  # noqa: E402
 from fc.params import build_table  # noqa: E402
 from fc.ratelimit import RateLimiter  # noqa: E402
+from fc.vehicle_view import VehicleView  # noqa: E402
 from tests.fc_harness import free_udp_port  # noqa: E402
 
 
 class _Vehicle:
-    """What GcsLink reads of the vehicle (fc/gcs.py module docstring), at rest."""
+    """What GcsLink reads of the vehicle (fc/vehicle_view.py ``VehicleView``), at rest."""
 
     sysid, compid = 1, 1
 
@@ -34,12 +36,22 @@ class _Vehicle:
         self.meas_stamp_us = 0
         self.pwm_us = [1500, 1500, 1500, 0]
         self.plant = SimpleNamespace(gps_samples=0, gps=np.zeros(G_N), counters=LinkCounters())
+        self.mission = Mission()
 
     def set_param(self, name, value):
         return self.params.set(name, value)
 
     def request_mode(self, mode):
         return self.modes.request_mode(mode)
+
+    def arm(self, armed):
+        return self.modes.set_armed(armed, data_ok=True)
+
+    def set_attitude_command(self, alpha_deg, beta_deg, mu_deg):
+        return "no attitude commands at rest"
+
+    def set_guidance_targets(self, h_m=None, chi_rad=None, V_m_s=None):
+        return "no guidance at rest"
 
     def debug_vectors(self):
         return [(b"CMD_DEG", (0.0, 0.0, 0.0))] * 3
@@ -61,6 +73,14 @@ class _Vehicle:
 
     def nav_controller_output(self):
         return None
+
+
+def test_the_stub_vehicle_is_a_vehicle_view():
+    assert isinstance(_Vehicle(), VehicleView)
+    # a vehicle missing a member GcsLink reads is not one
+    v = _Vehicle()
+    del v.mission
+    assert not isinstance(v, VehicleView)
 
 
 class _Null:

@@ -1,0 +1,292 @@
+"""fc/loops.py - the flight controller's run loops and housekeeping.
+
+One part of the flight controller (docs/architecture.md, the fc's parts; docs/fc.md, timing).
+:class:`RunLoops` runs one of three loops until told to stop: lockstep (a tick per plant
+frame, answered with that frame's stamp), real time frame-synchronised (``--sync frame``, a
+tick per sensor frame, the deadline standing in for a late one) or real time on a free clock
+(``--sync clock``). Every loop reads frames through the one frame intake (fc/intake.py), steps
+the controller's fast tick (a callable: the law and guidance step of fc/app.py) and then the
+:class:`Housekeeping` (ground station, failsafe check, 1 Hz chores), bounded work per call.
+"""
+from __future__ import annotations
+
+import gc
+import logging
+import select
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from fc.gcs import GcsLink
+from fc.intake import FrameIntake
+from fc.internals_log import InternalsLog
+from fc.iothread import IoThread
+from fc.link import PlantLink
+from fc.link import mavlink as ML
+from fc.mode_control import ModeControl
+from fc.modes import ModeManager
+from fc.param_service import ParamService
+from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
+                          hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
+                          try_realtime)
+from fc.telemetry import FcCounters, Telemetry, TickOutput
+
+__all__ = ["HOLD_AFTER_S", "Housekeeping", "RunLoops"]
+
+#: Real time: with no new plant frame for this long (wall clock, 5 frame periods at 500 Hz) the
+#: law is not stepped and the last surface command is held until data comes back or FAILSAFE
+#: takes over; stepping it on a frozen estimate winds it up (docs/reliability.md, promise 2).
+HOLD_AFTER_S = 0.01
+
+
+@dataclass
+class Housekeeping:
+    """Ground station, failsafe, 1 Hz chores; called after each tick's answer has gone."""
+
+    gcs: GcsLink
+    plant: PlantLink
+    intake: FrameIntake
+    mode_ctl: ModeControl
+    stats: LoopStats
+    planner: TickPlanner
+    counters: FcCounters
+    telemetry: Telemetry
+    param_svc: ParamService
+    io: IoThread
+    event: Callable[[str, int], None]
+    log: logging.Logger
+    goodbyes_seen: int = 0
+    relocks_seen: int = 0
+    chore: int = 0                  # which of the 1 Hz chores the next call does
+    next_1hz: float = 0.0           # wall clock of the next round of 1 Hz chores
+
+    def __call__(self, now_s: float) -> None:
+        """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
+        self.gcs.poll(now_s)
+        if self.plant.counters.goodbyes != self.goodbyes_seen:
+            self._plant_said_goodbye()
+        self.mode_ctl.check_data(now_s)
+        if self.plant.counters.relocks != self.relocks_seen:
+            self.relocks_seen = self.plant.counters.relocks
+            self.event(f"plant link: new plant address {self.plant.peer[0]}:{self.plant.peer[1]}",
+                       ML.MAV_SEVERITY_WARNING)
+        if now_s >= self.next_1hz:
+            # the 1 Hz chores, one per housekeeping call (each after a tick's answer has gone),
+            # so no single call delays the next frame's tick by their sum
+            stage = self.chore
+            if stage == 0:
+                self.stats.roll()
+                self.counters.roll_load(self.planner.period_ns)
+            elif stage == 1:
+                t_gc = time.perf_counter_ns()
+                collect_garbage()
+                self.counters.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
+            elif stage == 2:
+                self.telemetry.refresh()
+            else:
+                self.gcs.flush()
+                values = self.param_svc.snapshot()
+                if values is not None:
+                    self.io.submit(self.param_svc.save, values)
+            if stage == 3:
+                self.chore = 0
+                self.next_1hz = now_s + 1.0
+            else:
+                self.chore = stage + 1
+        self.gcs.service(now_s)
+
+    def _plant_said_goodbye(self) -> None:
+        """The plant ended its run on purpose (docs/wire.md section 5): the silence that
+        follows is not a loss of plant data, so no FAILSAFE and no warning; the next plant
+        may come from a new address. A frame arriving later clears ``plant.ended``."""
+        self.goodbyes_seen = self.plant.counters.goodbyes
+        self.plant.relock_allowed = True
+        text = f"plant ended its run at t={self.intake.meas[0]:.3f} s"
+        self.log.info(text)
+        self.event(text, ML.MAV_SEVERITY_INFO)
+
+
+@dataclass
+class RunLoops:
+    """The run loops (module docstring). ``tick(slow, held)`` is the controller's fast tick:
+    ``slow`` steps the slow loop too, ``held`` holds the last command (no new data)."""
+
+    mode: str                       # lockstep | realtime
+    sync: str                       # realtime: frame | clock
+    spin_us: int
+    realtime_priority: int
+    plant: PlantLink
+    gcs: GcsLink
+    intake: FrameIntake
+    planner: TickPlanner
+    gate: FrameGate
+    stats: LoopStats
+    counters: FcCounters
+    telemetry: Telemetry
+    ilog: InternalsLog
+    modes: ModeManager
+    mode_ctl: ModeControl
+    out: TickOutput
+    tick: Callable[[bool, bool], None]
+    housekeeping: Housekeeping
+    log: logging.Logger
+    # real time: no new frame for longer than HOLD_AFTER_S (wall clock) -> the law is not
+    # stepped on the frozen estimate (it would wind up); the last command is held
+    law_held: bool = False
+    last_frame_wall_s: float = -1.0
+
+    def run(self, stop: Callable[[], bool]) -> None:
+        """Loop until ``stop()`` returns True."""
+        if gc.isenabled():              # python -m fc froze it before READY
+            self.log.info(freeze_heap())
+        try:
+            if self.mode == "realtime":
+                if self.realtime_priority > 0:
+                    ok, msg = try_realtime(self.realtime_priority)
+                    (self.log.info if ok else self.log.warning)(msg)
+                self._run_realtime(stop)
+            else:
+                # each lockstep exchange wakes an idle CPU; keep wake-ups off the hypervisor's
+                # path (docs/performance.md: idle vCPUs halt on this VM, a round trip triples)
+                self.log.info(hold_cpu_wakeup_latency(0))
+                self._run_lockstep(stop)
+        finally:
+            release_heap()      # automatic collection back on (an embedding process goes on)
+
+    def _run_lockstep(self, stop) -> None:
+        plant_fd = self.plant.endpoint.fileno()
+        gcs_fd = self.gcs.endpoint.fileno()
+        fds = [plant_fd, gcs_fd]
+        mono = time.monotonic
+        while not stop():
+            # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits
+            try:
+                select.select(fds, [], [], 0.01)
+            except InterruptedError:
+                pass
+            now_s = mono()
+            for _ in range(16):   # frames per wake-up: bounded
+                stamp = self.plant.read_frame(self.intake.scratch)
+                if stamp < 0:
+                    break
+                t0 = time.perf_counter_ns()
+                self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
+                self.counters.add_exec(time.perf_counter_ns() - t0)
+            self.housekeeping(now_s)
+
+    def lockstep_frame(self, stamp: int, now_s: float) -> None:
+        """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),
+        arrived at ``now_s`` (wall clock): the ticks its stamp makes due, one answer."""
+        t_exec = time.perf_counter_ns()
+        if not self.intake.take(stamp, now_s):
+            # the plant re-sent frame k (re-request): answer again with the same output
+            self.plant.send_servo(stamp, self.out.pwm_us)
+            return
+        self.mode_ctl.sync()
+        n = self.planner.due(stamp * 1000)
+        for _ in range(n):
+            self.tick(self.planner.slow_due(), False)
+        self.plant.send_servo(stamp, self.out.pwm_us)
+        if n:
+            self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, 0,
+                                   time.perf_counter_ns() - t_exec)
+
+    def _run_realtime(self, stop) -> None:
+        if self.sync == "frame":
+            self._run_realtime_frame(stop)
+        else:
+            self._run_realtime_clock(stop)
+
+    def _run_realtime_clock(self, stop) -> None:
+        """Free-running clock (``--sync clock``): ticks on absolute deadlines ``t0 + k T``,
+        each answering the newest frame; the answer's delay is the phase between the fc's
+        clock and the plant's (docs/fc.md)."""
+        planner = self.planner
+        planner.anchor(time.monotonic_ns() + planner.period_ns)
+        spin_ns = self.spin_us * 1000
+        mono_ns = time.monotonic_ns
+        while not stop():
+            deadline = planner.next_ns
+            sleep_until_ns(deadline, spin_ns)
+            wake = mono_ns()
+            planner.due(wake)
+            self._rt_drain(wake * 1e-9)
+            self._rt_tick(wake, wake - deadline)
+
+    def _run_realtime_frame(self, stop) -> None:
+        """Frame-synchronised (``--sync frame``, the default): the fast tick runs when a new
+        sensor frame arrives, the deadline standing in when a frame is late or missing
+        (:class:`fc.scheduler.FrameGate`). Waits are ``select`` on the plant socket with a
+        microsecond timeout; with ``--spin-us`` the last microseconds before the expected
+        frame are polled instead. Lateness of a frame tick = wake-up time minus the kernel's
+        receive stamp of the frame (``SO_TIMESTAMPNS``); of a deadline tick = wake-up time minus
+        the deadline."""
+        gate = self.gate
+        spin_ns = self.spin_us * 1000
+        mono_ns = time.monotonic_ns
+        wall_ns = time.time_ns
+        sel = select.select
+        fds = [self.plant.endpoint.fileno()]
+        stamped = self.plant.endpoint.enable_rx_timestamps()
+        gate.start(mono_ns())
+        while not stop():
+            until = gate.wait_until_ns()
+            now = mono_ns()
+            if now < until:
+                sleep_to = until - spin_ns if spin_ns else until
+                try:
+                    ready = sel(fds, [], [], (sleep_to - now) * 1e-9) if sleep_to > now else ()
+                    if not ready and spin_ns:
+                        while not ready and mono_ns() < until:
+                            ready = sel(fds, [], [], 0.0)[0]
+                except InterruptedError:
+                    continue
+            wake = mono_ns()
+            wake_wall = wall_ns()
+            n_new, rx_ns = self._rt_drain(wake * 1e-9)
+            if n_new:
+                if not gate.on_frame(wake):
+                    continue                    # early frame: absorbed, tick at the deadline
+                lateness = wake_wall - rx_ns if (stamped and rx_ns) else 0
+            elif wake < until:
+                continue                        # woken by a duplicate or rejected datagram
+            else:
+                gate.on_timeout(wake)
+                lateness = wake - until
+            self._rt_tick(wake, lateness)
+
+    def _rt_drain(self, now_s: float) -> tuple[int, int]:
+        """Read every waiting frame through the estimator, in arrival order. Returns (new
+        frames, kernel receive stamp of the first of them, ns)."""
+        n_new = 0
+        first_rx_ns = 0
+        for _ in range(64):   # bounded work per wake-up
+            stamp = self.plant.read_frame(self.intake.scratch)
+            if stamp < 0:
+                break
+            if not self.intake.take(stamp, now_s):
+                continue
+            if n_new == 0:
+                first_rx_ns = self.plant.frame_rx_ns
+            n_new += 1
+            self.last_frame_wall_s = now_s
+            self.law_held = False
+        return n_new, first_rx_ns
+
+    def _rt_tick(self, wake_ns: int, lateness_ns: int) -> None:
+        """One real-time fast tick (woken at ``wake_ns``), its answer and the housekeeping."""
+        now_s = wake_ns * 1e-9
+        have_frame = self.last_frame_wall_s >= 0.0
+        if (have_frame and not self.law_held and self.modes.law_active
+                and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
+            self.law_held = True
+            self.counters.law_holds += 1
+        self.mode_ctl.sync()
+        self.tick(self.planner.slow_due(), self.law_held)
+        if have_frame:
+            self.plant.send_servo(self.intake.stamp_us, self.out.pwm_us)
+        exec_ns = time.monotonic_ns() - wake_ns
+        self.stats.record(lateness_ns, exec_ns)
+        self.counters.add_exec(exec_ns)
+        self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, lateness_ns, exec_ns)
+        self.housekeeping(now_s)

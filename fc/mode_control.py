@@ -1,0 +1,184 @@
+"""fc/mode_control.py - flight mode, law and guidance engagement, data-loss failsafe.
+
+One part of the flight controller (docs/architecture.md, the fc's parts), around the mode
+state machine of fc/modes.py (which decides; this part acts). After any mode or arming change
+(:meth:`ModeControl.sync`): CO_ENABLE follows the mode (GUID_INNER_CO in the guidance modes),
+the law is reset at engagement from the current estimate (or on the first healthy frame when
+the estimate is not healthy yet), the guidance engaged or re-targeted. The data-loss failsafe
+(docs/fc.md): FAILSAFE after FS_TIMEOUT_S of wall clock without a healthy frame, recovery
+after FS_RECOVER_S of data back (FS_RECOVER).
+"""
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+import numpy as np
+
+from fc.estimator import Estimator
+from fc.guided import GuidanceRunner
+from fc.link import PlantLink
+from fc.link import mavlink as ML
+from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
+from fc.param_service import ProcessSettings
+from fc.params import ParamTable
+from fc.scheduler import TickPlanner
+
+__all__ = ["DATA_LOSS_BITS", "ModeControl"]
+
+#: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
+DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+                  | ML.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE | ML.MAV_SYS_STATUS_AHRS
+                  | ML.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
+
+
+class ModeControl:
+    """Acts on the mode state machine's decisions: law, guidance, failsafe."""
+
+    def __init__(self, modes: ModeManager, params: ParamTable, settings: ProcessSettings,
+                 law, guid: GuidanceRunner, est: Estimator, meas: np.ndarray,
+                 planner: TickPlanner, plant: PlantLink,
+                 announce_param: Callable[[str], None],
+                 event: Callable[[str, int], None], log: logging.Logger) -> None:
+        self.modes = modes
+        self.params = params
+        self.settings = settings
+        self.law = law
+        self.guid = guid
+        self.est = est
+        self.meas = meas                # the newest sensor frame (fc/link.py M_*), in place
+        self.planner = planner
+        self.plant = plant
+        self.announce_param = announce_param    # PARAM_VALUE of a value the process set
+        self.event = event                      # STATUSTEXT (severity) and fc.log
+        self.log = log
+        self.changes_seen = -1          # the mode manager's change count acted on
+        self.engaged = False            # the law runs from an engagement (no reset on a
+                                        # switch between law modes with the same CO)
+        # True while the law is engaged but the estimate is not yet healthy: the law is reset
+        # (integrators, observer, estimates start from the current state) on the first
+        # healthy frame.
+        self.reset_pending = False
+        self.seen_data = False          # a healthy frame since start-up
+        self.last_good_wall_s = -1.0    # wall clock of the newest healthy frame
+
+    def resync(self) -> None:
+        """Act again on the next :meth:`sync` (re-engages the law, reset at the new state)."""
+        self.changes_seen = -1
+
+    def restart(self) -> None:
+        """Plant time went backwards: the law and the guidance start over at the new state."""
+        self.changes_seen = -1
+        self.engaged = False
+        self.guid.disengage()
+
+    def request_mode(self, mode: int) -> tuple[bool, str]:
+        ok, text = self.modes.request_mode(mode)
+        self.sync()
+        return ok, text
+
+    def arm(self, armed: bool) -> tuple[bool, str]:
+        ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
+                                        and not self.modes.data_lost and not self.plant.ended)
+        self.sync()
+        return ok, text
+
+    def sync(self) -> None:
+        """After any mode/arming change: CO_ENABLE from the mode, law reset on engagement."""
+        modes = self.modes
+        if modes.changes == self.changes_seen:
+            return
+        self.changes_seen = modes.changes
+        co_changed = False
+        if modes.mode in (FlightMode.COORDINATED, FlightMode.UNCOORDINATED):
+            co = modes.co_enable
+        elif modes.mode in GUIDANCE_MODES:
+            co = 1.0 if self.params.get("GUID_INNER_CO") > 0.5 else 0.0
+        else:
+            co = None
+        if co is not None and "CO_ENABLE" in self.params and self.params.get("CO_ENABLE") != co:
+            self.law.set_param("CO_ENABLE", co)
+            self.params.force("CO_ENABLE", co)
+            co_changed = True
+            self.announce_param("CO_ENABLE")
+        if modes.law_active:
+            if self.engaged and not co_changed and not self.reset_pending:
+                pass        # a switch between law modes with the same law: it runs on, bumpless
+            elif self.est.healthy:
+                self._engage_law()
+            else:
+                self.reset_pending = True   # engaged before data: reset on first healthy frame
+        else:
+            self.engaged = False
+        self._sync_guidance()
+        self.log.info("mode %s, %s", modes.mode.name, "armed" if modes.armed else "disarmed")
+
+    def _engage_law(self) -> None:
+        """Start the law from the current (healthy) estimate (and the guidance, in its modes)."""
+        self.law.reset(self.est.est)
+        self.reset_pending = False
+        self.engaged = True
+        self.planner.ticks = 0      # slow loop runs on the first tick after engagement
+        if self.modes.guidance_active:
+            self.guid.engage(self.est.est, self.meas, self.modes.mode)
+
+    def _sync_guidance(self) -> None:
+        """Guidance engagement after a mode change: engaged from the current state on entry
+        into a guidance mode (with the law, once the estimate is healthy), re-targeted to the
+        current altitude, course and speed on a switch between guidance modes."""
+        if not self.modes.guidance_active:
+            if self.guid.engaged:
+                self.guid.disengage()
+            return
+        if self.reset_pending:
+            return                  # engaged with the law on the first healthy frame
+        if not self.guid.engaged:
+            self.guid.engage(self.est.est, self.meas, self.modes.mode)
+        elif self.guid.mode != self.modes.mode:
+            self.guid.hold_current(self.est.est, self.meas, self.modes.mode)
+
+    def law_fault(self) -> None:
+        """The law raised: FAILSAFE (the caller puts the surfaces at trim)."""
+        self.modes.request_mode(FlightMode.FAILSAFE)
+        self.event("law fault: FAILSAFE", ML.MAV_SEVERITY_CRITICAL)
+        self.sync()
+
+    # ---------------------------------------------------------------- data-loss failsafe
+    def on_frame(self, now_s: float) -> None:
+        """After the estimator took a new frame that arrived at ``now_s`` (wall clock)."""
+        if self.plant.relock_allowed and not self.modes.data_lost:
+            self.plant.relock_allowed = False
+        if not self.est.healthy:
+            return
+        self.seen_data = True
+        if self.reset_pending and self.modes.law_active:
+            self._engage_law()
+        self.last_good_wall_s = now_s
+        s = self.settings
+        text = self.modes.on_data_ok(now_s, s.fs_recover, s.fs_recover_s)
+        if text is not None:
+            self.event(text, ML.MAV_SEVERITY_NOTICE)
+            self.sync()
+
+    def check_data(self, now_s: float) -> None:
+        """Housekeeping: FAILSAFE once healthy frames stop for FS_TIMEOUT_S (not after the
+        plant said goodbye)."""
+        modes = self.modes
+        if (self.seen_data and not modes.data_lost and not self.plant.ended
+                and now_s - self.last_good_wall_s > self.settings.fs_timeout_s):
+            text = modes.on_data_lost()
+            self.plant.relock_allowed = True   # a restarted plant may come from a new port
+            if text:
+                self.log.warning(text)
+                self.event(text, ML.MAV_SEVERITY_CRITICAL)
+                self.sync()
+        elif modes.data_lost and now_s - self.last_good_wall_s > 0.05:
+            modes.on_data_gap()
+
+    def health_failed_bits(self) -> int:
+        """SYS_STATUS health bits failed now."""
+        if self.modes.data_lost or self.plant.ended:
+            return DATA_LOSS_BITS
+        if self.seen_data and not self.est.healthy:
+            return ML.MAV_SYS_STATUS_AHRS
+        return 0

@@ -1,0 +1,185 @@
+"""fc/telemetry.py - the flight controller's telemetry snapshot and internals-log rows.
+
+One part of the flight controller (docs/architecture.md, the fc's parts). It reads the other
+parts (estimator, modes, plant link, ground-station link counters, loop statistics, law,
+guidance) and the newest tick's output (:class:`TickOutput`), and builds what the ground
+station gets (NAMED_VALUE_FLOAT, DEBUG_VECT, SYS_STATUS counts, VFR_HUD throttle,
+NAV_CONTROLLER_OUTPUT) and the rows of the internals log (fc/internals_log.py). It changes
+nothing it reads.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fc.estimator import E_N, Estimator
+from fc.gcs import GcsLink
+from fc.guidance.layout import GS_GAM_C
+from fc.guided import GuidanceRunner
+from fc.internals_log import InternalsLog
+from fc.link import PlantLink
+from fc.modes import ModeManager
+from fc.scheduler import FrameGate, LoopStats, TickPlanner
+
+__all__ = ["EST_COLS", "FcCounters", "TickOutput", "Telemetry"]
+
+EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
+            "h_m", "gamma_rad")
+
+
+@dataclass
+class TickOutput:
+    """The newest fast tick's output."""
+
+    cmd_active: np.ndarray                  # the law's command, rad: CMD_* or the guidance's
+    delta_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))  # surfaces L, R, rudder
+    pwm_us: list = field(default_factory=lambda: [1500, 1500, 1500, 0])  # servo4: throttle,
+                                                                        # 0 = no output
+
+
+@dataclass
+class FcCounters:
+    """Event counters of the process (fc.log at exit, NAMED_VALUE_FLOAT)."""
+
+    duplicate_frames: int = 0       # plant frames repeated (re-requests, link duplicates)
+    reordered_frames: int = 0       # real time: late plant frames (reordered), dropped
+    plant_resets: int = 0           # plant time went backwards
+    law_errors: int = 0             # the law raised (FAILSAFE)
+    law_holds: int = 0              # real time: law not stepped on a frozen estimate
+    gc_us: float = 0.0              # last 1 Hz garbage collection, us
+    exec_ns_sum: int = 0            # tick execution time since the last load figure, ns
+    exec_n: int = 0
+    load_permille: int = 0          # SYS_STATUS.load
+
+    def add_exec(self, ns: int) -> None:
+        self.exec_ns_sum += ns
+        self.exec_n += 1
+
+    def roll_load(self, period_ns: int) -> None:
+        """The 1 Hz load figure: mean tick execution time over the fast period."""
+        if self.exec_n:
+            self.load_permille = min(1000, int(1000 * self.exec_ns_sum / self.exec_n / period_ns))
+        self.exec_ns_sum = self.exec_n = 0
+
+
+@dataclass
+class Telemetry:
+    """Builds the telemetry the ground-station link sends and the internals-log rows."""
+
+    out: TickOutput
+    counters: FcCounters
+    est: Estimator
+    modes: ModeManager
+    plant: PlantLink
+    gcs: GcsLink                # its rejection counters
+    stats: LoopStats
+    planner: TickPlanner
+    gate: FrameGate
+    law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
+    status_names: list
+    guid: GuidanceRunner
+    _named: list = field(default_factory=list)     # as of the last refresh()
+
+    def skipped_ticks(self) -> int:
+        """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
+        return self.planner.skipped + self.gate.skipped
+
+    def error_counts(self) -> tuple[int, int, int, int, int]:
+        return (self.gcs.rejected_bad + self.gcs.rejected_signing, self.plant.counters.rejected,
+                self.est.invalid_frames, self.stats.overruns + self.skipped_ticks(),
+                self.stats.late)
+
+    def named_values(self) -> list:
+        """NAMED_VALUE_FLOAT (name, value) pairs, as of the last :meth:`refresh` (1 Hz)."""
+        return self._named
+
+    def refresh(self) -> None:
+        e = self.est.est
+        c = self.plant.counters
+        nv = [
+            (b"GAMMA_DEG", math.degrees(e[8])),
+            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
+            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
+            (b"SKIPPED", float(self.skipped_ticks())),
+            (b"TICK_FALLB", float(self.gate.fallback_ticks)),
+            (b"GC_US", self.counters.gc_us),
+            (b"REJ_PLANT", float(c.rejected)),
+            (b"REJ_GCS", float(self.gcs.rejected_bad)),
+            (b"REJ_SIGN", float(self.gcs.rejected_signing)),
+            (b"EST_INVAL", float(self.est.invalid_frames)),
+            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
+            (b"FS_CAUSE", float(self.modes.fs_cause)),
+            (b"DUP_FRAMES", float(self.counters.duplicate_frames)),
+        ]
+        for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
+            nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
+        self._named = nv
+
+    def debug_vectors(self) -> list:
+        """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
+        cache: in lockstep the flight log takes them at 10 Hz of sim time)."""
+        e = self.est.est
+        vec = [
+            (b"CMD_DEG", tuple(math.degrees(x) for x in self.out.cmd_active)),
+            (b"EST_DEG", (math.degrees(e[0]), math.degrees(e[1]), math.degrees(e[2]))),
+            (b"DELTA_DEG", tuple(math.degrees(x) for x in self.out.delta_rad)),
+        ]
+        if self.modes.guidance_active:
+            # x: the envelope limit bitfield in force (fc/guidance/layout.py LIM_*), y: the
+            # throttle command (0..1), z: the flight-path angle command (deg)
+            vec.append((b"GUID", (float(self.guid.limits), self.guid.throttle(),
+                                  math.degrees(self.guid.g.status[GS_GAM_C]))))
+        return vec
+
+    def throttle_percent(self) -> int:
+        """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
+        return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
+
+    def nav_controller_output(self):
+        """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
+        guidance modes."""
+        if not (self.modes.guidance_active and self.guid.engaged):
+            return None
+        return self.guid.nav_output(self.est.est)
+
+    # ---------------------------------------------------------------- internals log
+    def columns(self) -> list[str]:
+        cols = ["t_s", "wall_s", "stamp_us", "mode", "armed", "est_healthy", "est_invalid_mask",
+                "est_stale_mask"]
+        cols += ["est_" + c for c in EST_COLS]
+        cols += ["cmd_alpha_rad", "cmd_beta_rad", "cmd_mu_rad", "delta_left_rad",
+                 "delta_right_rad", "delta_rudder_rad", "lateness_us", "exec_us"]
+        cols += ["law_" + n for n in self.status_names]
+        cols += ["guid_throttle", "guid_limits", "guid_tgt_h_m", "guid_tgt_chi_rad",
+                 "guid_tgt_V_m_s"]
+        return cols
+
+    def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: int,
+                exec_ns: int) -> None:
+        """One internals-log row of the newest tick (dropped when the log is full)."""
+        r = ilog.row()
+        if r is None:
+            return
+        r[0] = meas[0]
+        r[1] = time.monotonic()
+        r[2] = float(stamp_us)
+        r[3] = float(self.modes.mode)
+        r[4] = 1.0 if self.modes.armed else 0.0
+        r[5] = 1.0 if self.est.healthy else 0.0
+        r[6] = float(self.est.masks[0])
+        r[7] = float(self.est.masks[1])
+        r[8:8 + E_N] = self.est.est
+        k = 8 + E_N
+        r[k:k + 3] = self.out.cmd_active
+        r[k + 3:k + 6] = self.out.delta_rad
+        r[k + 6] = lateness_ns * 1e-3
+        r[k + 7] = exec_ns * 1e-3
+        ns = len(self.status_names)
+        if ns:
+            r[k + 8:k + 8 + ns] = self.law.status[:ns]
+        r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
+        r[k + 9 + ns] = float(self.guid.limits)
+        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
