@@ -135,10 +135,15 @@ def record(frames: int, flight_mode: str = "COORDINATED", frame_hz: float = 500.
         rig.close()
 
 
-def replay(datagrams: list, flight_mode: str = "COORDINATED") -> dict:
+def replay(datagrams: list, flight_mode: str = "COORDINATED", baseline: bool = False) -> dict:
     """Plain replay (no instrumentation): wall and process CPU time per frame of the fc's
-    calls only (feeding and draining the sockets excluded), us."""
+    calls only (feeding and draining the sockets excluded), us. ``baseline``: the fc's calls
+    replaced by one bare ``recv`` of the datagram (the feeding loop's own cost, for a
+    callgrind difference)."""
     rig = _Rig(flight_mode)
+    if baseline:
+        sock = rig.fc.plant.endpoint.sock
+        rig.fc_step = lambda: sock.recv(65536)
     try:
         pc = time.perf_counter_ns
         cpu = time.process_time_ns
@@ -440,6 +445,9 @@ def main(argv=None) -> int:
     p.add_argument("--record-only", action="store_true",
                    help="only record and replay once without instrumentation (the baseline "
                         "for a callgrind difference of two --frames)")
+    p.add_argument("--baseline", action="store_true",
+                   help="with --record-only: replay with the controller's calls replaced by "
+                        "a bare recv of each datagram (what the feeding loop costs)")
     p.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     a = p.parse_args(argv)
     if a.frames < 1:
@@ -449,7 +457,7 @@ def main(argv=None) -> int:
     print(f"tools.bench profile: {a.frames} frames, flight mode {a.flight_mode}, load "
           f"{load0:.2f}", file=sys.stderr)
     data = record(a.frames + WARM_FRAMES, a.flight_mode)
-    plain = replay(data, a.flight_mode)
+    plain = replay(data, a.flight_mode, baseline=a.baseline)
     print(f"plain replay: wall median {plain['wall_median_us']:.1f} us, mean "
           f"{plain['wall_mean_us']:.1f} us, CPU mean {plain['cpu_mean_us']:.1f} us per frame "
           f"({plain['frames']} frames)")
