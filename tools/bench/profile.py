@@ -27,9 +27,10 @@ of a lockstep exchange; the two UDP hops and the plant's work are the rest):
 
 Shares (%) do not depend on the machine's load; microseconds do (the load average is
 printed). Under valgrind (``valgrind --tool=callgrind python -m tools.bench profile
---no-cprofile --frames N``, twice with two N) the difference of the instruction counts is
-the cost per frame in instructions, independent of the load. Prints figures, asserts
-nothing.
+--record-only --frames N``, once as is and once with ``--baseline``) the difference of the
+two instruction counts divided by N + 200 is the controller's user-space cost per frame in
+instructions, independent of the load (slow: numba's start-up under valgrind takes many
+minutes). Prints figures, asserts nothing.
 """
 from __future__ import annotations
 
@@ -443,8 +444,9 @@ def main(argv=None) -> int:
     p.add_argument("--no-cprofile", action="store_true",
                    help="leave out the cProfile pass (e.g. under valgrind)")
     p.add_argument("--record-only", action="store_true",
-                   help="only record and replay once without instrumentation (the baseline "
-                        "for a callgrind difference of two --frames)")
+                   help="only record and replay once without instrumentation (for a callgrind "
+                        "run; its difference with the same run plus --baseline is the fc's "
+                        "cost)")
     p.add_argument("--baseline", action="store_true",
                    help="with --record-only: replay with the controller's calls replaced by "
                         "a bare recv of each datagram (what the feeding loop costs)")
