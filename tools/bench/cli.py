@@ -1,6 +1,6 @@
 """``python -m tools.bench [--quick] [--json FILE] [--only PARTS] [--keep DIR]``
 
-and ``python -m tools.bench {law,plant,pingpong,fc-timing,campaign} ...`` (``SUBCOMMANDS``: the
+and ``python -m tools.bench {law,plant,pingpong,fc-timing,campaign,profile} ...`` (``SUBCOMMANDS``: the
 focused benchmarks, each with its own options; ``python -m tools.bench law --help``).
 
 Measures, in one run, every figure of docs/performance.md and prints a table with the target
@@ -493,6 +493,7 @@ SUBCOMMANDS = {
     "pingpong": "tools.bench.pingpong",  # the loopback UDP floor between two processes
     "fc-timing": "tools.bench.fc_timing",  # the fc's real-time tick lateness per fast rate
     "campaign": "tools.bench.campaign",  # Monte Carlo campaign wall time per worker count
+    "profile": "tools.bench.profile",    # where the fc's CPU per plant frame goes (issue 16)
 }
 
 

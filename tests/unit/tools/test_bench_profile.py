@@ -1,0 +1,40 @@
+"""``python -m tools.bench profile`` (issue 16): the per-part report of the fc's frame path.
+
+A smoke test of the tool, not of any time: a short replay must produce a table whose parts
+are the controller's own calls (so a renamed method shows up here, not as a silent zero) and
+a cProfile listing of the controller's functions.
+"""
+from __future__ import annotations
+
+import json
+
+from tools.bench import profile
+
+
+def test_profile_reports_every_frame_part(tmp_path, capsys):
+    out = tmp_path / "p.json"
+    assert profile.main(["--frames", "300", "--top", "10", "--chore-every", "100",
+                         "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    rows = {r["part"]: r for r in d["parts"]}
+    # the per-frame parts were wrapped and called once per frame
+    for part in ("read_frame", "decode", "estimator", "fast_step", "send_servo", "framing",
+                 "log_row", "gcs_poll", "gcs_service", "tlog_streams"):
+        assert rows[part]["calls_per_frame"] == 1.0, part
+        assert rows[part]["mean_us_per_frame"] > 0.0, part
+    assert rows["pwm"]["calls_per_frame"] == 3.0
+    # the 1 Hz chores were made due (every 100 frames: each chore once per round of 4)
+    for part in ("stats_roll", "gc", "telemetry", "gcs_flush"):
+        assert rows[part]["calls_per_frame"] > 0.0, part
+    assert rows["total"]["mean_us_per_frame"] > 0.0
+    assert d["plain"]["frames"] == 300 and d["plain"]["wall_median_us"] > 0.0
+    assert "_lockstep_frame" in d["cprofile"]
+    assert "| total |" in capsys.readouterr().out
+
+
+def test_guidance_part_runs_in_cruise(tmp_path):
+    out = tmp_path / "p.json"
+    assert profile.main(["--frames", "50", "--no-cprofile", "--flight-mode", "CRUISE",
+                         "--json", str(out)]) == 0
+    rows = {r["part"]: r for r in json.loads(out.read_text())["parts"]}
+    assert rows["guidance"]["calls_per_frame"] == 1.0
