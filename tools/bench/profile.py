@@ -13,7 +13,7 @@ of a lockstep exchange; the two UDP hops and the plant's work are the rest):
 2. replay: a fresh controller gets the recorded datagrams one at a time through its plant
    socket; its outputs are the same as in pass 1 (the fc is deterministic in its inputs), so
    it flies the same flight. Each step of its lockstep loop (``plant.read_frame``,
-   ``_lockstep_frame``, ``_housekeeping``) is what is measured:
+   ``loops.lockstep_frame``, ``loops.housekeeping``) is what is measured:
 
    - parts: the controller's own callables (decode, estimator, guidance, law, PWM, framing,
      send, internals row, GCS poll, GCS streams, the .tlog's sim-paced streams, the 1 Hz
@@ -82,7 +82,8 @@ class _Rig:
                        gcs=[self.sink.getsockname()], gcs_bind=("127.0.0.1", 0), out=self.dir,
                        arm=True, flight_mode=flight_mode)
         self.fc = FlightController(cfg, log)
-        self.fc._next_1hz = 0.0
+        self.hk = self.fc.loops.housekeeping     # the Housekeeping part (1 Hz chores)
+        self.hk.next_1hz = 0.0
         self.addr = self.fc.plant.endpoint.address
         from fc.scheduler import freeze_heap
         freeze_heap()           # as ``python -m fc`` before READY: no automatic collections
@@ -98,8 +99,8 @@ class _Rig:
         mono = time.monotonic
         st = fc.plant.read_frame(fc.meas_scratch)
         if st >= 0:
-            fc._lockstep_frame(st, mono())
-        fc._housekeeping(mono())
+            fc.loops.lockstep_frame(st, mono())
+        fc.loops.housekeeping(mono())
 
     def close(self) -> None:
         from fc.scheduler import release_heap
@@ -129,7 +130,7 @@ def record(frames: int, flight_mode: str = "COORDINATED", frame_hz: float = 500.
             data = codec.encode(meas, int(round(sim.t_s * 1e6)))
             out.append(data)
             rig.step(data)
-            cmd[:] = rig.fc.delta_rad
+            cmd[:] = rig.fc.out.delta_rad
             sim.step_frame(cmd)
         return out
     finally:
@@ -177,11 +178,11 @@ PARTS = (
     ("read_frame", None, "recv + decode (plant.read_frame)"),
     ("recv", "read_frame", "socket recv + kernel stamp (endpoint.recv)"),
     ("decode", "read_frame", "decode ATTITUDE+AOA_SSA+VFR_HUD (plant._decode, lean decoder)"),
-    ("frame", None, "frame (_lockstep_frame)"),
-    ("new_frame", "frame", "new frame bookkeeping (_new_frame)"),
+    ("frame", None, "frame (loops.lockstep_frame)"),
+    ("new_frame", "frame", "frame intake (intake.take)"),
     ("estimator", "new_frame", "estimator (est.update)"),
-    ("sync_mode", "frame", "mode sync (_sync_mode)"),
-    ("fast_tick", "frame", "fast tick (_fast_tick)"),
+    ("sync_mode", "frame", "mode sync (mode_ctl.sync)"),
+    ("fast_tick", "frame", "fast tick (loops.tick)"),
     ("guidance", "fast_tick", "guidance (guid.tick)"),
     ("slow_step", "fast_tick", "law slow loop (law.slow_step)"),
     ("fast_step", "fast_tick", "law fast loop (law.fast_step)"),
@@ -189,15 +190,15 @@ PARTS = (
     ("send_servo", "frame", "SERVO_OUTPUT_RAW (plant.send_servo)"),
     ("framing", "send_servo", "framing + CRC (lean packer)"),
     ("sendto", "send_servo", "socket send (endpoint.send)"),
-    ("log_row", "frame", "internals log row (_log_row)"),
-    ("housekeeping", None, "housekeeping (_housekeeping)"),
+    ("log_row", "frame", "internals log row (telemetry.log_row)"),
+    ("housekeeping", None, "housekeeping (loops.housekeeping)"),
     ("gcs_poll", "housekeeping", "GCS receive (gcs.poll)"),
     ("gcs_service", "housekeeping", "GCS send + .tlog (gcs.service)"),
     ("tlog_streams", "gcs_service", ".tlog sim-paced streams (gcs._service_log)"),
     ("gcs_streams", "gcs_service", "GCS streams (gcs._streams)"),
     ("stats_roll", "housekeeping", "1 Hz: lateness statistics (stats.roll)"),
     ("gc", "housekeeping", "1 Hz: garbage collection (collect_garbage)"),
-    ("telemetry", "housekeeping", "1 Hz: telemetry snapshot (_refresh_telemetry_cache)"),
+    ("telemetry", "housekeeping", "1 Hz: telemetry snapshot (telemetry.refresh)"),
     ("gcs_flush", "housekeeping", "1 Hz: .tlog flush (gcs.flush)"),
 )
 
@@ -206,21 +207,22 @@ def _target(fc, name: str):
     """(object, attribute) to wrap for a part; attributes of modules are patched on the
     module (``fc.app``'s global), the rest on the instance (shadowing the class method)."""
     import fc.app as app
+    import fc.loops as loops_mod
     plant = fc.plant
     return {
         "read_frame": (plant, "read_frame"), "recv": (plant.endpoint, "recv"),
-        "decode": (plant, "_decode"), "frame": (fc, "_lockstep_frame"),
-        "new_frame": (fc, "_new_frame"), "estimator": (fc.est, "update"),
-        "sync_mode": (fc, "_sync_mode"), "fast_tick": (fc, "_fast_tick"),
+        "decode": (plant, "_decode"), "frame": (fc.loops, "lockstep_frame"),
+        "new_frame": (fc.intake, "take"), "estimator": (fc.est, "update"),
+        "sync_mode": (fc.mode_ctl, "sync"), "fast_tick": (fc.loops, "tick"),
         "guidance": (fc.guid, "tick"), "slow_step": (fc.law, "slow_step"),
         "fast_step": (fc.law, "fast_step"), "pwm": (app, "deflection_to_pwm"),
         "send_servo": (plant, "send_servo"),
         "framing": (getattr(plant, "_packer", None), "pack"),
-        "sendto": (plant.endpoint, "send"), "log_row": (fc, "_log_row"),
-        "housekeeping": (fc, "_housekeeping"), "gcs_poll": (fc.gcs, "poll"),
+        "sendto": (plant.endpoint, "send"), "log_row": (fc.telemetry, "log_row"),
+        "housekeeping": (fc.loops, "housekeeping"), "gcs_poll": (fc.gcs, "poll"),
         "gcs_service": (fc.gcs, "service"), "tlog_streams": (fc.gcs, "_service_log"),
         "gcs_streams": (fc.gcs, "_streams"), "stats_roll": (fc.stats, "roll"),
-        "gc": (app, "collect_garbage"), "telemetry": (fc, "_refresh_telemetry_cache"),
+        "gc": (loops_mod, "collect_garbage"), "telemetry": (fc.telemetry, "refresh"),
         "gcs_flush": (fc.gcs, "flush"),
     }[name]
 
@@ -279,8 +281,8 @@ def _unwrap(obj, attr: str, orig, cls) -> None:
     import types
     if cls is not None:
         obj.__class__ = cls
-    elif isinstance(obj, types.ModuleType):
-        setattr(obj, attr, orig)
+    elif isinstance(obj, types.ModuleType) or attr in getattr(type(obj), "__dataclass_fields__", ()):
+        setattr(obj, attr, orig)    # a module global or a dataclass field (fc.loops' parts)
     else:
         delattr(obj, attr)          # the class method shows through again
 
@@ -315,7 +317,7 @@ def profile_parts(datagrams: list, flight_mode: str = "COORDINATED",
             acc[:] = 0
             cnt[:] = 0
             if chore_every > 0 and k >= WARM_FRAMES and (k - WARM_FRAMES) % chore_every == 0:
-                rig.fc._next_1hz = 0.0
+                rig.hk.next_1hz = 0.0
             rig.fc_step()
             if k >= WARM_FRAMES:
                 per[k - WARM_FRAMES] = acc
