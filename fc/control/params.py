@@ -69,6 +69,7 @@ def checked_value(prm: Param, value: float) -> float:
 
 
 def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
+    """One parameter record (the tables' shorthand; the guidance's table uses it too)."""
     return Param(name, float(default), float(lo), float(hi), unit, group, text,
                  si_scale, integer)
 

@@ -15,14 +15,9 @@ import math
 
 import numpy as np
 
-from fc.control.params import Param, checked_value
+from fc.control.params import Param, _p, checked_value
 
 DEG = math.pi / 180.0
-
-
-def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
-    return Param(name, float(default), float(lo), float(hi), unit, group, text,
-                 si_scale, integer)
 
 
 GUIDANCE_PARAMS: tuple[Param, ...] = (
