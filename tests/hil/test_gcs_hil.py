@@ -190,7 +190,8 @@ def test_qgroundcontrol_connect_sequence_completes(vehicle):
     assert ack.result == ML.MAV_RESULT_UNSUPPORTED
     # a request addressed to another vehicle is not ours to answer
     gcs.mav.command_long_send(7, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
-    assert gcs.wait("COMMAND_ACK", 1.0, cond=lambda m: m.command == ML.MAV_CMD_REQUEST_MESSAGE) is None
+    assert gcs.wait("COMMAND_ACK", 1.0,
+                    cond=lambda m: m.command == ML.MAV_CMD_REQUEST_MESSAGE) is None
     ack = gcs.command(ML.MAV_CMD_GET_MESSAGE_INTERVAL, ML.MAVLINK_MSG_ID_HEARTBEAT)
     assert ack.result == ML.MAV_RESULT_ACCEPTED
     mi = gcs.wait("MESSAGE_INTERVAL", 5, cond=lambda m: m.message_id == 0)

@@ -27,6 +27,7 @@ and NAMED_VALUE_FLOAT counters. It can sign (MAVLink 2 signing key, changeable a
 from __future__ import annotations
 
 import bisect
+import functools
 import itertools
 import math
 import os
@@ -134,17 +135,22 @@ class _ToVehicle:
                 pass
 
 
-class _Codec(mavlink.MAVLink):
-    """The station's one codec: every message it sends, from any thread and whether through
-    ``send`` or a generated ``*_send``, is packed, numbered and written under one lock."""
+@functools.cache
+def _codec_class(dialect):
+    """The station's codec class over ``dialect`` (a pymavlink v20 dialect module): every
+    message it sends, from any thread and whether through ``send`` or a generated ``*_send``,
+    is packed, numbered and written under one lock."""
 
-    def __init__(self, out, lock: threading.Lock, **ids):
-        super().__init__(out, **ids)
-        self._lock = lock
+    class Codec(dialect.MAVLink):
+        def __init__(self, out, lock: threading.Lock, **ids):
+            super().__init__(out, **ids)
+            self._lock = lock
 
-    def send(self, mavmsg, force_mavlink1: bool = False) -> None:
-        with self._lock:
-            super().send(mavmsg, force_mavlink1=force_mavlink1)
+        def send(self, mavmsg, force_mavlink1: bool = False) -> None:
+            with self._lock:
+                super().send(mavmsg, force_mavlink1=force_mavlink1)
+
+    return Codec
 
 
 def _matcher(match, cond):
@@ -170,6 +176,11 @@ class ScriptedGcs:
         main job); the rig and the tests do not, so the vehicle hears only what they send.
     record : keep every message received in the log, the high-rate streams (RECORD_SKIP)
         included; without it those go only to the telemetry rings (``tel``).
+    vehicle : (host, port) to send to before the vehicle has been heard: a peer ground
+        station talking to the fc's ``--gcs-bind`` port (default None: listen where the fc
+        sends, a ``--gcs`` output, and answer whoever the vehicle's messages come from).
+    dialect : the pymavlink v20 dialect of the codec (default ``ardupilotmega``; e.g.
+        ``development`` for the standard-modes messages AVAILABLE_MODES and CURRENT_MODE).
 
     Every message the vehicle (system 1) sends is logged in arrival order with its monotonic
     receive time (the newest LOG_KEEP at least). :meth:`wait` reads the log either as a
@@ -185,18 +196,19 @@ class ScriptedGcs:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, sysid: int = GCS_SYSID,
                  compid: int = GCS_COMPID, key: bytes | None = None, heartbeat: bool = False,
-                 record: bool = True):
+                 record: bool = True, vehicle: tuple[str, int] | None = None,
+                 dialect=mavlink):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((host, port))
         self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
-        self.mav = _Codec(_ToVehicle(self), threading.Lock(), srcSystem=sysid,
-                          srcComponent=compid)
+        self.mav = _codec_class(dialect)(_ToVehicle(self), threading.Lock(), srcSystem=sysid,
+                                         srcComponent=compid)
         self.mav.robust_parsing = True
         if key is not None:
             self.setup_signing(key)
         self.conn = self
-        self.vehicle_addr: tuple[str, int] | None = None
+        self.vehicle_addr: tuple[str, int] | None = vehicle
         self.tel = Telemetry()
         self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
         self.record = record
@@ -383,6 +395,18 @@ class ScriptedGcs:
             start = self._index_at(since)
         hit = self._scan(start, pred, 0.0, until)
         return None if hit is None else hit[1]
+
+    def messages(self, match, since: float = 0.0, until: float = math.inf, *,
+                 cond=None) -> list:
+        """Every message kept that was received in [since, until] (monotonic s) and matches
+        ``match`` and ``cond`` (as :meth:`wait`), oldest first, without waiting."""
+        pred, out = _matcher(match, cond), []
+        with self._cond:
+            i = self._index_at(since)
+            while (hit := self._scan(i, pred, 0.0, until)) is not None:
+                out.append(hit[1])
+                i = hit[0] + 1
+        return out
 
     def wait_text(self, needle: str, timeout_s: float, since: float = 0.0) -> str | None:
         """The first STATUSTEXT containing ``needle`` received since ``since``; None at the

@@ -151,3 +151,32 @@ def test_signing_station_refuses_unsigned_vehicle_messages_and_signs_its_own():
         gcs.close()
         unsigned.close()
         signed.close()
+
+
+def test_a_peer_station_speaks_first_and_lists_a_time_window():
+    # GIVEN a vehicle socket and a peer station told where it is (it has not heard it yet)
+    veh = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    veh.bind(("127.0.0.1", 0))
+    veh.settimeout(5.0)
+    gcs = ScriptedGcs(port=0, vehicle=veh.getsockname())
+    mav = mavlink.MAVLink(_Null(), srcSystem=1, srcComponent=1)
+    try:
+        # WHEN the station sends first THEN the vehicle gets it
+        gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        data, addr = veh.recvfrom(2048)
+        assert mavlink.MAVLink(_Null()).parse_buffer(data)[0].get_type() == "HEARTBEAT"
+        # AND messages() lists what arrived in a receive-time window, oldest first
+        for text in (b"one", b"two"):
+            veh.sendto(mav.statustext_encode(6, text).pack(mav), addr)
+            mav.seq += 1
+        assert gcs.wait_text("two", 5.0) == "two"
+        t_mid = time.monotonic()
+        veh.sendto(mav.statustext_encode(6, b"three").pack(mav), addr)
+        assert gcs.wait_text("three", 5.0) == "three"
+        assert [m.text for m in gcs.messages("STATUSTEXT")] == ["one", "two", "three"]
+        assert [m.text for m in gcs.messages("STATUSTEXT", t_mid)] == ["three"]
+        assert gcs.messages("STATUSTEXT", 0.0, t_mid, cond=lambda m: m.text == "one")[0].text \
+            == "one"
+    finally:
+        gcs.close()
+        veh.close()
