@@ -442,6 +442,8 @@ class ScriptedGcs:
 
     def _hb_loop(self) -> None:
         while not self._stop.wait(1.0):
+            if self.vehicle_addr is None:
+                continue                  # nobody to send to yet (no sequence number used)
             self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
                                     mavlink.MAV_STATE_ACTIVE)
 
