@@ -121,7 +121,7 @@ _LINK_IDS = itertools.count()
 
 class _ToVehicle:
     """The codec's output file: what ``mav.send`` / ``mav.*_send`` writes goes to the vehicle
-    (once it has been heard), so callers can use pymavlink's generated senders directly."""
+    (once it has been heard, or to ``vehicle`` before), so callers can use pymavlink's generated senders directly."""
 
     def __init__(self, gcs: "ScriptedGcs"):
         self.gcs = gcs
@@ -185,10 +185,12 @@ class ScriptedGcs:
     Every message the vehicle (system 1) sends is logged in arrival order with its monotonic
     receive time (the newest LOG_KEEP at least). :meth:`wait` reads the log either as a
     stream (the next unread message, as pymavlink's ``recv_match``) or from a receive time
-    (``since``); :meth:`command`, :meth:`param_get`, :meth:`param_set`,
-    :meth:`upload_mission` and :meth:`download_mission` wait for the answer to what they
-    sent, received after the send. ``named`` holds the latest NAMED_VALUE_FLOAT values and
-    ``texts`` the STATUSTEXTs ((monotonic s, severity, text)).
+    (``since``), :meth:`messages` lists a receive-time window; :meth:`command`,
+    :meth:`param_get`, :meth:`param_set`, :meth:`send_mission` and :meth:`download_mission`
+    wait for the answer to what they sent, received after the send (the operator's
+    ``set_param``, ``arm``, ``set_mode``, ``set_command_deg``, ``upload_mission`` are built on
+    them). ``named`` holds the latest NAMED_VALUE_FLOAT values and ``texts`` the STATUSTEXTs
+    ((monotonic s, severity, text)).
 
     ``mav`` is its codec (``gcs.mav.param_set_send(...)`` goes to the vehicle once it has been
     heard) and ``conn`` the object itself, as with a pymavlink connection.
