@@ -1,4 +1,6 @@
-"""Helpers for the fc HIL tests: the fc as a real process, a scripted plant and a GCS client.
+"""Helpers for the fc HIL tests: the fc as a real process, a scripted plant, a closed loop.
+
+The ground station is the harness's one scripted ground station, ``tools.sitl.gcs.ScriptedGcs``.
 
 Everything on 127.0.0.1 with free ports; every wait is bounded; processes are stopped by the
 fixtures that start them (``FcProcess`` is a context manager).
@@ -21,7 +23,6 @@ from hyfc_wire.pwm import throttle_from_pwm
 from tools.sitl.procs import Child, free_udp_port  # noqa: F401  (tests import it from here)
 
 os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -174,37 +175,6 @@ class FcProcess:
 
     def __exit__(self, *exc) -> None:
         self.stop()
-
-
-class GcsClient:
-    """A pymavlink ground station listening where the fc sends (``udpin``).
-
-    Deliberately pymavlink's stock ``mavutil`` connection, read synchronously, not the
-    harness's ``tools.sitl.gcs.ScriptedGcs``: these tests check the fc against the connection a
-    third-party ground station (MAVProxy, scripts) uses."""
-
-    def __init__(self, port: int, sysid: int = 255, compid: int = 190) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=sysid,
-                                               source_component=compid, dialect="ardupilotmega")
-
-    def wait(self, mtype, timeout_s: float = 10.0, cond=None):
-        """First message of ``mtype`` (str or list) satisfying ``cond``, or None at timeout."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return None
-            m = self.conn.recv_match(type=mtype, blocking=True, timeout=min(left, 0.5))
-            if m is not None and (cond is None or cond(m)):
-                return m
-
-    def command(self, command: int, *params: float, timeout_s: float = 5.0):
-        p = list(params) + [0.0] * (7 - len(params))
-        self.conn.mav.command_long_send(1, 1, command, 0, *p)
-        return self.wait("COMMAND_ACK", timeout_s, lambda m: m.command == command)
-
-    def close(self) -> None:
-        self.conn.close()
 
 
 def pwm_to_rad(us: int) -> float:

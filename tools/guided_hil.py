@@ -6,7 +6,8 @@ sent from a ground station mid-flight.
     python -m tools.guided_hil figures RUN_DIR/coordinated --from 300
 
     # a lockstep GUIDED flight of the cruise scenario (tools.hil, two processes over UDP) with
-    # a pymavlink ground station sending +2 km altitude, +30 deg heading, +100 m/s in turn
+    # the scripted ground station (tools/sitl/gcs.py) sending +2 km altitude, +30 deg
+    # heading, +100 m/s in turn
     python -m tools.guided_hil steps --out DIR [--at 100 600 1100] [--duration 1600]
 
 The fc logs its targets (fc_internals.npz ``guid_tgt_*``), so the figures need nothing else
@@ -17,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import subprocess
 import sys
 import time
@@ -141,40 +141,40 @@ def step_figures(truth: dict, fc: dict, channel: str, t_step_s: float, band: flo
 
 
 def _drive_steps(port: int, at_s: list[float], log) -> list[dict]:
-    """The ground station: listen on ``port`` (udpin), wait for the fc's sim time (DEBUG_VECT
-    SIM_T) to reach each ``at_s`` and send the step as COMMAND_LONG; returns the acks."""
-    os.environ["MAVLINK20"] = "1"
-    from pymavlink import mavutil
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255,
-                                      source_component=190, dialect="ardupilotmega")
+    """The ground station (tools.sitl.gcs.ScriptedGcs on ``port``, where the fc sends): wait
+    for the fc's sim time (DEBUG_VECT SIM_T) to reach each ``at_s`` and send the step as
+    COMMAND_LONG; returns the acks."""
+    from tools.sitl.gcs import ScriptedGcs
+    gcs = ScriptedGcs(port=port)
     sim_t = -1.0
     h = chi = v = None
     acks = []
     deadline = time.monotonic() + 3600.0
-    for (channel, cmd, params, band, label), t_at in zip(STEPS, at_s):
-        while sim_t < t_at and time.monotonic() < deadline:
-            m = conn.recv_match(blocking=True, timeout=1.0)
-            if m is None:
-                continue
-            if m.get_type() == "DEBUG_VECT" and m.name == "SIM_T" and math.isfinite(m.x):
-                sim_t = m.x
-            elif m.get_type() == "VFR_HUD":
-                h, v = m.alt, m.airspeed
-            elif m.get_type() == "NAV_CONTROLLER_OUTPUT":
-                chi = math.radians(m.nav_bearing)
-        p = list(params(h, chi, v)) + [0.0] * 7
-        conn.mav.command_long_send(1, 1, cmd, 0, *p[:7])
-        ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=10.0)
-        acks.append({"label": label, "sim_t_s": sim_t, "params": p[:2],
-                     "result": None if ack is None else ack.result})
-        log(f"guided_hil: t={sim_t:.2f} s {label} {p[:2]} -> ack "
-            f"{None if ack is None else ack.result}")
-    conn.close()
+    try:
+        for (channel, cmd, params, band, label), t_at in zip(STEPS, at_s):
+            while sim_t < t_at and time.monotonic() < deadline:
+                m = gcs.wait(("DEBUG_VECT", "VFR_HUD", "NAV_CONTROLLER_OUTPUT"), 1.0)
+                if m is None:
+                    continue
+                if m.get_type() == "DEBUG_VECT" and m.name == "SIM_T" and math.isfinite(m.x):
+                    sim_t = m.x
+                elif m.get_type() == "VFR_HUD":
+                    h, v = m.alt, m.airspeed
+                elif m.get_type() == "NAV_CONTROLLER_OUTPUT":
+                    chi = math.radians(m.nav_bearing)
+            p = list(params(h, chi, v)) + [0.0] * 7
+            ack = gcs.command(cmd, *p[:7], timeout_s=10.0)
+            acks.append({"label": label, "sim_t_s": sim_t, "params": p[:2],
+                         "result": None if ack is None else ack.result})
+            log(f"guided_hil: t={sim_t:.2f} s {label} {p[:2]} -> ack "
+                f"{None if ack is None else ack.result}")
+    finally:
+        gcs.close()
     return acks
 
 
 def run_steps(out: Path, at_s: list[float], duration_s: float, seed: int, variant: str) -> dict:
-    from tools.hil.procs import free_udp_port
+    from tools.sitl.procs import free_udp_port
     port = free_udp_port()
     cmd = [sys.executable, "-m", "tools.hil", "run", "--scenario", "cruise", "--flight-mode",
            "GUIDED", "--variant", variant, "--duration", repr(duration_s), "--seed", str(seed),

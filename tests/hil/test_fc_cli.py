@@ -10,7 +10,8 @@ import sys
 
 import pytest
 
-from tests.fc_harness import REPO, FcProcess, GcsClient, free_udp_port
+from tests.fc_harness import REPO, FcProcess, free_udp_port
+from tools.sitl.gcs import ScriptedGcs
 
 pytestmark = pytest.mark.hil
 
@@ -57,9 +58,9 @@ def test_corrupt_parameter_file_is_kept_aside_and_reported(tmp_path):
     params.write_text("SLW_K1 2\nthis line is not a parameter\n")
     gcs_port = free_udp_port()
     with FcProcess(str(tmp_path / "run"), "--params", str(params), gcs_ports=(gcs_port,)) as fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         try:
-            text = gcs.wait("STATUSTEXT", 10, lambda m: "corrupt" in m.text)
+            text = gcs.wait("STATUSTEXT", 10, cond=lambda m: "corrupt" in m.text)
             assert text is not None and text.severity == 2     # MAV_SEVERITY_CRITICAL
         finally:
             gcs.close()
@@ -75,7 +76,7 @@ def test_corrupt_parameter_file_is_kept_aside_and_reported(tmp_path):
 def test_several_gcs_outputs_and_sigterm(tmp_path):
     ports = (free_udp_port(), free_udp_port())
     with FcProcess(str(tmp_path), gcs_ports=ports) as fc:
-        clients = [GcsClient(p) for p in ports]
+        clients = [ScriptedGcs(port=p) for p in ports]
         try:
             for c in clients:
                 assert c.wait("HEARTBEAT", 10) is not None

@@ -14,27 +14,22 @@ from tests.fc_harness import mavlink as ML
 pytestmark = pytest.mark.hil
 
 
-def _drain(gcs):
-    while gcs.conn.recv_match(blocking=False) is not None:
-        pass
-
-
 def test_data_loss_gives_failsafe_then_recovery(flying):
     fc, gcs, loop = flying
     loop.run(299)
     t_stop = time.monotonic()          # the fc's last valid frame is not earlier than this
     loop.run(1)
     assert loop.outputs[-1] != (1500, 1500, 1500), "the law should be flying"
-    _drain(gcs)
-    text = gcs.wait("STATUSTEXT", 5, lambda m: "FAILSAFE" in m.text)
+    gcs.drain()
+    text = gcs.wait("STATUSTEXT", 5, cond=lambda m: "FAILSAFE" in m.text)
     t_fs = time.monotonic()
     assert text is not None, "no FAILSAFE STATUSTEXT after plant data stopped"
     assert t_fs - t_stop >= FS_TIMEOUT_S                 # never before the configured time
     print(f"failsafe reported {t_fs - t_stop:.3f} s after the last frame "
           f"(FS_TIMEOUT_S {FS_TIMEOUT_S})")
-    hb = gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 3)
+    hb = gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode & 0xFFFF == 3)
     assert hb is not None and hb.system_status == ML.MAV_STATE_CRITICAL
-    st = gcs.wait("SYS_STATUS", 3, lambda m: not m.onboard_control_sensors_health
+    st = gcs.wait("SYS_STATUS", 3, cond=lambda m: not m.onboard_control_sensors_health
                   & ML.MAV_SYS_STATUS_AHRS)
     assert st is not None, "SYS_STATUS must report the sensor link unhealthy"
     # a mode change is refused while the data is lost
@@ -47,7 +42,7 @@ def test_data_loss_gives_failsafe_then_recovery(flying):
     recovered = []
 
     def _watch():
-        m = gcs.conn.recv_match(type="STATUSTEXT", blocking=False)
+        m = gcs.wait("STATUSTEXT", 0)
         if m is not None and "data back" in m.text:
             recovered.append(m.text)
         return bool(recovered)
@@ -58,14 +53,14 @@ def test_data_loss_gives_failsafe_then_recovery(flying):
     assert recovered and "COORDINATED" in recovered[0]
     loop.run(20)
     assert loop.outputs[-1] != (1500, 1500, 1500)
-    assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 1) is not None
+    assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode & 0xFFFF == 1) is not None
 
 
 def test_gcs_flood_and_garbage_do_not_stop_the_loop(flying):
     fc, gcs, loop = flying
     target = ("127.0.0.1", fc.gcs_bind_port)
     junk_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    req = gcs.conn.mav.param_request_list_encode(1, 1).pack(gcs.conn.mav)
+    req = gcs.mav.param_request_list_encode(1, 1).pack(gcs.mav)
     stop = threading.Event()
     sent = [0]
 
@@ -87,9 +82,9 @@ def test_gcs_flood_and_garbage_do_not_stop_the_loop(flying):
     loop.plant.send_raw(b"\x00\x01\x02not mavlink")
     loop.plant.send_raw(b"\xfd" * 64)
     loop.run(50)
-    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_PLANT" and m.value >= 2)
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, cond=lambda m: m.name == "REJ_PLANT" and m.value >= 2)
     assert rej is not None
-    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_GCS" and m.value > 0)
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, cond=lambda m: m.name == "REJ_GCS" and m.value > 0)
     assert rej is not None
 
 

@@ -60,15 +60,16 @@ class AttitudeLaw:
 
 @pytest.mark.hil
 def test_injected_law_plumbing_and_law_fault_failsafe(tmp_path):
-    from tests.fc_harness import FcProcess, GcsClient, ScriptedPlant, free_udp_port, level_meas
+    from tests.fc_harness import FcProcess, ScriptedPlant, free_udp_port, level_meas
     from tests.fc_harness import mavlink as ML
+    from tools.sitl.gcs import ScriptedGcs
 
     with open(os.path.join(tmp_path, "params.parm"), "w") as f:
         f.write("FS_TIMEOUT_S 30\nCMD_ALPHA_DEG 2\n")
     gcs_port = free_udp_port()
     with FcProcess(str(tmp_path), "--law-module", "tests.hil.test_fc_law_injection", "--arm",
                    "--flight-mode", "COORDINATED", gcs_ports=(gcs_port,)) as fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         plant = ScriptedPlant(fc.plant_port)
         try:
             assert gcs.wait("HEARTBEAT", 10) is not None
@@ -80,8 +81,7 @@ def test_injected_law_plumbing_and_law_fault_failsafe(tmp_path):
 
             ans = step()
             assert (ans.servo1_raw, ans.servo2_raw, ans.servo3_raw) == (1550, 1550, 1500)
-            gcs.conn.mav.param_set_send(1, 1, b"FAKE_GAIN", 2.0, ML.MAV_PARAM_TYPE_REAL32)
-            reply = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_id == "FAKE_GAIN")
+            reply = gcs.param_set("FAKE_GAIN", 2.0)
             assert reply.param_value == 2.0
             ans = step()
             assert ans.servo1_raw == 1600                    # 2 * 2 deg = 4 deg = 100 us
@@ -90,9 +90,9 @@ def test_injected_law_plumbing_and_law_fault_failsafe(tmp_path):
             for _ in range(6):                               # reaches the law at the next slow tick
                 ans = step()
             assert (ans.servo1_raw, ans.servo2_raw, ans.servo3_raw) == (1500, 1500, 1500)
-            text = gcs.wait("STATUSTEXT", 5, lambda m: "law fault" in m.text)
+            text = gcs.wait("STATUSTEXT", 5, cond=lambda m: "law fault" in m.text)
             assert text is not None and text.severity == ML.MAV_SEVERITY_CRITICAL
-            assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode & 0xFFFF == 3) is not None
+            assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode & 0xFFFF == 3) is not None
         finally:
             plant.close()
             gcs.close()

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.fc_harness import FcProcess, GcsClient, ScriptedPlant, level_meas, mavlink
+from tests.fc_harness import FcProcess, ScriptedPlant, level_meas, mavlink
+from tools.sitl.gcs import ScriptedGcs
 from tools.sitl.procs import repo_env as _env
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -173,7 +174,7 @@ def _gps_input(mav, stamp_us: int, lat_deg: float, lon_deg: float, alt_m: float)
 @pytest.mark.hil
 def test_fc_without_gnss_keeps_flying_then_publishes_the_first_fix(tmp_path):
     with FcProcess(str(tmp_path)) as fc:
-        gcs = GcsClient(fc.gcs_ports[0])
+        gcs = ScriptedGcs(port=fc.gcs_ports[0])
         plant = ScriptedPlant(fc.plant_port)
         try:
             # GIVEN a plant without GNSS (an older plant): frames answered, no position
@@ -203,7 +204,7 @@ def test_fc_without_gnss_keeps_flying_then_publishes_the_first_fix(tmp_path):
                 reply = plant.recv_servo(5.0)
                 assert reply is not None and reply.time_usec == stamp
             # THEN the fix, the position and home reach the ground station
-            raw = gcs.wait("GPS_RAW_INT", 5.0, lambda m: m.fix_type == 3)
+            raw = gcs.wait("GPS_RAW_INT", 5.0, cond=lambda m: m.fix_type == 3)
             assert raw is not None and raw.satellites_visible == 12
             assert 349_000_100 <= raw.lat <= 349_010_000 and raw.lon == -1_179_000_000
             assert raw.vel == 65535                 # 2200 m/s does not fit u16 cm/s: unknown
@@ -218,7 +219,7 @@ def test_fc_without_gnss_keeps_flying_then_publishes_the_first_fix(tmp_path):
             home = gcs.wait("HOME_POSITION", 5.0)
             assert home is not None and home.latitude == int(round((34.9 + 1e-5) * 1e7))
             status = gcs.wait("SYS_STATUS", 5.0,
-                              lambda m: m.onboard_control_sensors_health & gps_bit)
+                              cond=lambda m: m.onboard_control_sensors_health & gps_bit)
             assert status is not None
         finally:
             plant.close()

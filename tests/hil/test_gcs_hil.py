@@ -13,7 +13,8 @@ import time
 
 import pytest
 
-from tests.fc_harness import ClosedLoop, FcProcess, GcsClient, free_udp_port, mavlink as ML
+from tests.fc_harness import ClosedLoop, FcProcess, free_udp_port, mavlink as ML
+from tools.sitl.gcs import ScriptedGcs
 
 pytestmark = pytest.mark.hil
 
@@ -28,7 +29,7 @@ def vehicle(tmp_path_factory):
         f.write("FS_TIMEOUT_S 30\n")
     fc = FcProcess(out, gcs_ports=(gcs_port,))
     with fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         loop = ClosedLoop(fc.plant_port)
         try:
             assert gcs.wait("HEARTBEAT", 10) is not None, "no heartbeat from the fc"
@@ -37,16 +38,6 @@ def vehicle(tmp_path_factory):
         finally:
             loop.close()
             gcs.close()
-
-
-def _param(gcs, name, timeout=5.0):
-    gcs.conn.mav.param_request_read_send(1, 1, name.encode(), -1)
-    return gcs.wait("PARAM_VALUE", timeout, lambda m: m.param_id == name)
-
-
-def _set(gcs, name, value, timeout=5.0):
-    gcs.conn.mav.param_set_send(1, 1, name.encode(), value, ML.MAV_PARAM_TYPE_REAL32)
-    return gcs.wait("PARAM_VALUE", timeout, lambda m: m.param_id == name)
 
 
 def test_heartbeat_identifies_a_fixed_wing_generic_autopilot(vehicle):
@@ -61,7 +52,7 @@ def test_full_parameter_list_has_consistent_count_and_indices(vehicle):
     _, gcs, _ = vehicle
     from fc.params import build_table
     expected = build_table().names
-    gcs.conn.mav.param_request_list_send(1, 1)
+    gcs.mav.param_request_list_send(1, 1)
     seen = {}
     while len(seen) < len(expected):
         m = gcs.wait("PARAM_VALUE", 5)
@@ -75,21 +66,21 @@ def test_full_parameter_list_has_consistent_count_and_indices(vehicle):
 
 def test_read_by_name_and_by_index(vehicle):
     _, gcs, _ = vehicle
-    by_name = _param(gcs, "FS_TIMEOUT_S")
+    by_name = gcs.param_get("FS_TIMEOUT_S")
     assert by_name is not None and by_name.param_value == pytest.approx(30.0)   # from the file
-    gcs.conn.mav.param_request_read_send(1, 1, b"", by_name.param_index)
-    by_index = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_index == by_name.param_index)
+    gcs.mav.param_request_read_send(1, 1, b"", by_name.param_index)
+    by_index = gcs.wait("PARAM_VALUE", 5, cond=lambda m: m.param_index == by_name.param_index)
     assert by_index.param_id == "FS_TIMEOUT_S"
 
 
 def test_refused_set_sends_old_value_and_statustext(vehicle):
     _, gcs, _ = vehicle
-    old = _param(gcs, "CMD_MU_DEG").param_value
-    reply = _set(gcs, "CMD_MU_DEG", 500.0)
+    old = gcs.param_get("CMD_MU_DEG").param_value
+    reply = gcs.param_set("CMD_MU_DEG", 500.0)
     assert reply.param_value == old
-    text = gcs.wait("STATUSTEXT", 5, lambda m: "CMD_MU_DEG" in m.text)
+    text = gcs.wait("STATUSTEXT", 5, cond=lambda m: "CMD_MU_DEG" in m.text)
     assert text is not None and "outside" in text.text
-    reply = _set(gcs, "CMD_MU_DEG", float("nan"))
+    reply = gcs.param_set("CMD_MU_DEG", float("nan"))
     assert reply.param_value == old
 
 
@@ -97,10 +88,10 @@ def test_trim_parameter_takes_effect_in_manual_output(vehicle):
     _, gcs, loop = vehicle
     ack = gcs.command(ML.MAV_CMD_DO_SET_MODE, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 0)
     assert ack.result == ML.MAV_RESULT_ACCEPTED
-    assert _set(gcs, "TRIM_RUD_DEG", 2.0).param_value == pytest.approx(2.0)
+    assert gcs.param_set("TRIM_RUD_DEG", 2.0).param_value == pytest.approx(2.0)
     loop.run(5)
     assert loop.outputs[-1][2] == 1550            # 2 deg = 50 us above trim (wire.md 3)
-    assert _set(gcs, "TRIM_RUD_DEG", 0.0).param_value == 0.0
+    assert gcs.param_set("TRIM_RUD_DEG", 0.0).param_value == 0.0
     loop.run(5)
     assert loop.outputs[-1] == (1500, 1500, 1500)
 
@@ -117,11 +108,11 @@ def test_commands_get_acks_and_answers(vehicle):
     assert ack.result == ML.MAV_RESULT_ACCEPTED and gcs.wait("AUTOPILOT_VERSION", 5)
     ack = gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, ML.MAVLINK_MSG_ID_ATTITUDE, 50_000)
     assert ack.result == ML.MAV_RESULT_ACCEPTED
-    mi = gcs.wait("MESSAGE_INTERVAL", 5, lambda m: m.message_id == ML.MAVLINK_MSG_ID_ATTITUDE)
+    mi = gcs.wait("MESSAGE_INTERVAL", 5, cond=lambda m: m.message_id == ML.MAVLINK_MSG_ID_ATTITUDE)
     assert mi.interval_us == 50_000
-    gcs.conn.mav.mission_request_list_send(1, 1)
+    gcs.mav.mission_request_list_send(1, 1)
     assert gcs.wait("MISSION_COUNT", 5).count == 0
-    gcs.conn.mav.request_data_stream_send(1, 1, ML.MAV_DATA_STREAM_EXTRA2, 4, 1)
+    gcs.mav.request_data_stream_send(1, 1, ML.MAV_DATA_STREAM_EXTRA2, 4, 1)
     assert gcs.wait("VFR_HUD", 5) is not None
 
 
@@ -138,24 +129,24 @@ def test_mode_arm_and_attitude_command_are_followed(vehicle):
     _, gcs, loop = vehicle
     assert gcs.command(ML.MAV_CMD_DO_SET_MODE, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 1).result == 0
     assert gcs.command(ML.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == ML.MAV_RESULT_ACCEPTED
-    hb = gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode & 0xFFFF == 1
+    hb = gcs.wait("HEARTBEAT", 5, cond=lambda m: m.custom_mode & 0xFFFF == 1
                   and m.base_mode & ML.MAV_MODE_FLAG_SAFETY_ARMED)
     assert hb is not None
     ack = gcs.command(ML.MAV_CMD_USER_1, 5.0, 0.0, 4.0)
     assert ack.result == ML.MAV_RESULT_ACCEPTED
-    assert _param(gcs, "CMD_ALPHA_DEG").param_value == pytest.approx(5.0)
+    assert gcs.param_get("CMD_ALPHA_DEG").param_value == pytest.approx(5.0)
     loop.run(int(6.0 / loop.sim.frame_dt_s))
     alpha = math.degrees(loop.truth("alpha_rad"))
     mu = math.degrees(loop.truth("mu_rad"))
     beta = math.degrees(loop.truth("beta_rad"))
     print(f"after 6 s: alpha {alpha:.3f} beta {beta:.3f} mu {mu:.3f} deg")
     assert abs(alpha - 5.0) < 0.5 and abs(mu - 4.0) < 1.0 and abs(beta) < 1.0
-    dv = gcs.wait("DEBUG_VECT", 5, lambda m: m.name == "CMD_DEG" and abs(m.x - 5.0) < 1e-4)
+    dv = gcs.wait("DEBUG_VECT", 5, cond=lambda m: m.name == "CMD_DEG" and abs(m.x - 5.0) < 1e-4)
     assert dv is not None and dv.z == pytest.approx(4.0)
     # out-of-limit attitude command: refused, nothing changes
     assert gcs.command(ML.MAV_CMD_USER_1, 80.0, float("nan"), float("nan")).result == \
         ML.MAV_RESULT_DENIED
-    assert _param(gcs, "CMD_ALPHA_DEG").param_value == pytest.approx(5.0)
+    assert gcs.param_get("CMD_ALPHA_DEG").param_value == pytest.approx(5.0)
 
 
 def test_law_parameter_takes_effect_and_mode_switch_in_flight(vehicle):
@@ -165,16 +156,16 @@ def test_law_parameter_takes_effect_and_mode_switch_in_flight(vehicle):
     gcs.command(ML.MAV_CMD_USER_1, 8.0, 0.0, -10.0)     # a large step: the surfaces work hard
     loop.run(200)
     assert max(abs(u - 1500) for pwm in loop.outputs[-200:] for u in pwm) > 60
-    assert _set(gcs, "ACT_MAX", 2.0).param_value == pytest.approx(2.0)
+    assert gcs.param_set("ACT_MAX", 2.0).param_value == pytest.approx(2.0)
     loop.outputs.clear()
     loop.run(200)
     assert max(abs(u - 1500) for pwm in loop.outputs[20:] for u in pwm) <= 50   # 2 deg
-    assert _set(gcs, "ACT_MAX", 20.0).param_value == pytest.approx(20.0)
+    assert gcs.param_set("ACT_MAX", 20.0).param_value == pytest.approx(20.0)
     # SET_MODE message (not a command): UNCOORDINATED while flying; CO_ENABLE follows
-    gcs.conn.mav.set_mode_send(1, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 2)
-    assert gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode & 0xFFFF == 2) is not None
-    assert _param(gcs, "CO_ENABLE").param_value == 0.0
-    assert _set(gcs, "CO_ENABLE", 1.0).param_value == 0.0           # mode-driven: refused
+    gcs.mav.set_mode_send(1, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 2)
+    assert gcs.wait("HEARTBEAT", 5, cond=lambda m: m.custom_mode & 0xFFFF == 2) is not None
+    assert gcs.param_get("CO_ENABLE").param_value == 0.0
+    assert gcs.param_set("CO_ENABLE", 1.0).param_value == 0.0           # mode-driven: refused
     gcs.command(ML.MAV_CMD_USER_1, 5.0, 0.0, 0.0)
     loop.run(int(4.0 / loop.sim.frame_dt_s))
     assert abs(math.degrees(loop.truth("alpha_rad")) - 5.0) < 0.5
@@ -188,21 +179,22 @@ def test_qgroundcontrol_connect_sequence_completes(vehicle):
         assert ack is not None and ack.result == ML.MAV_RESULT_UNSUPPORTED
     for mission_type in (ML.MAV_MISSION_TYPE_MISSION, ML.MAV_MISSION_TYPE_FENCE,
                          ML.MAV_MISSION_TYPE_RALLY):
-        gcs.conn.mav.mission_request_list_send(1, 0, mission_type)
-        mc = gcs.wait("MISSION_COUNT", 5, lambda m, t=mission_type: m.mission_type == t)
+        gcs.mav.mission_request_list_send(1, 0, mission_type)
+        mc = gcs.wait("MISSION_COUNT", 5, cond=lambda m, t=mission_type: m.mission_type == t)
         assert mc is not None and mc.count == 0
-    gcs.conn.mav.param_request_list_send(1, 0)         # to component 0 (all), as QGC does
-    first = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_index == 0)
+    gcs.mav.param_request_list_send(1, 0)         # to component 0 (all), as QGC does
+    first = gcs.wait("PARAM_VALUE", 5, cond=lambda m: m.param_index == 0)
     assert first is not None
-    gcs.conn.mav.command_int_send(1, 1, 0, ML.MAV_CMD_DO_REPOSITION, 0, 0, 0, 0, 0, 0, 0, 0, 0)
-    ack = gcs.wait("COMMAND_ACK", 5, lambda m: m.command == ML.MAV_CMD_DO_REPOSITION)
+    gcs.mav.command_int_send(1, 1, 0, ML.MAV_CMD_DO_REPOSITION, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+    ack = gcs.wait("COMMAND_ACK", 5, cond=lambda m: m.command == ML.MAV_CMD_DO_REPOSITION)
     assert ack.result == ML.MAV_RESULT_UNSUPPORTED
     # a request addressed to another vehicle is not ours to answer
-    gcs.conn.mav.command_long_send(7, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
-    assert gcs.wait("COMMAND_ACK", 1.0, lambda m: m.command == ML.MAV_CMD_REQUEST_MESSAGE) is None
+    gcs.mav.command_long_send(7, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
+    assert gcs.wait("COMMAND_ACK", 1.0,
+                    cond=lambda m: m.command == ML.MAV_CMD_REQUEST_MESSAGE) is None
     ack = gcs.command(ML.MAV_CMD_GET_MESSAGE_INTERVAL, ML.MAVLINK_MSG_ID_HEARTBEAT)
     assert ack.result == ML.MAV_RESULT_ACCEPTED
-    mi = gcs.wait("MESSAGE_INTERVAL", 5, lambda m: m.message_id == 0)
+    mi = gcs.wait("MESSAGE_INTERVAL", 5, cond=lambda m: m.message_id == 0)
     assert mi.interval_us == 1_000_000
 
 
@@ -211,8 +203,7 @@ def test_stream_rates_follow_set_message_interval(vehicle):
     att = ML.MAVLINK_MSG_ID_ATTITUDE
     assert gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, att, -1).result == ML.MAV_RESULT_ACCEPTED
     gcs.wait("HEARTBEAT", 3)                       # let what was in flight arrive
-    while gcs.conn.recv_match(blocking=False) is not None:
-        pass
+    gcs.drain()
     assert gcs.wait("ATTITUDE", 1.5) is None       # disabled
     assert gcs.command(ML.MAV_CMD_SET_MESSAGE_INTERVAL, att, 20_000).result == \
         ML.MAV_RESULT_ACCEPTED                     # 50 Hz

@@ -1,17 +1,15 @@
 """HIL tier: the ground-station session of issue 12 (modes, per-link rates, STATUSTEXT, INT32).
 
-The fc runs as a process without a plant (nothing here needs one); each ground station is a
-plain UDP socket with pymavlink's ``development`` codec, which knows the standard-modes
-messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345) that QGroundControl
-and MAVSDK use. A station either listens where the fc sends (a ``--gcs`` output) or sends to
+The fc runs as a process without a plant (nothing here needs one); each ground station is the
+harness's scripted one (tools/sitl/gcs.py) with pymavlink's ``development`` codec, which knows
+the standard-modes messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345)
+that QGroundControl and MAVSDK use. A station either listens where the fc sends (a ``--gcs`` output) or sends to
 the fc's bind port from its own port (a peer).
 """
 from __future__ import annotations
 
 import math
 import os
-import select
-import socket
 import struct
 import time
 
@@ -21,6 +19,7 @@ os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import development as MD  # noqa: E402
 
 from tests.fc_harness import FcProcess, free_udp_port  # noqa: E402
+from tools.sitl.gcs import ScriptedGcs  # noqa: E402
 
 pytestmark = pytest.mark.hil
 
@@ -32,68 +31,12 @@ MODES = {"MANUAL": 0x00010000, "COORDINATED": 0x00070001, "UNCOORDINATED": 0x000
 STANDARD = {"CRUISE": 3, "MISSION": 6}
 
 
-class _Null:
-    def write(self, _b):
-        return None
-
-
-class Station:
-    """A ground station on one UDP socket: ``bind_port`` (listen where the fc sends) or None
-    (an ephemeral port; it talks to the fc's bind port and the fc answers it as a peer)."""
-
-    def __init__(self, fc: FcProcess, bind_port: int | None = None, sysid: int = 255) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", bind_port or 0))
-        self.fc_addr = ("127.0.0.1", fc.gcs_bind_port)
-        self.tx = MD.MAVLink(_Null(), srcSystem=sysid, srcComponent=190)
-        self.rx = MD.MAVLink(_Null())
-        self.rx.robust_parsing = True
-        self.log: list = []          # (monotonic s, message) of everything received
-        self.mark = 0                # ``wait`` looks at what arrived since the last send
-
-    def send(self, msg) -> None:
-        self.mark = len(self.log)
-        self.sock.sendto(msg.pack(self.tx), self.fc_addr)
-        self.tx.seq = (self.tx.seq + 1) % 256
-
-    def pump(self, duration_s: float) -> None:
-        """Receive for ``duration_s``, appending to ``log``."""
-        deadline = time.monotonic() + duration_s
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return
-            r, _, _ = select.select([self.sock], [], [], left)
-            if r:
-                data, _ = self.sock.recvfrom(65536)
-                now = time.monotonic()
-                for m in self.rx.parse_buffer(data) or []:
-                    self.log.append((now, m))
-
-    def wait(self, mtype: str, timeout_s: float = 5.0, cond=None):
-        """First message of ``mtype`` since the last send satisfying ``cond``, or None."""
-        start = self.mark
-        deadline = time.monotonic() + timeout_s
-        while True:
-            for _, m in self.log[start:]:
-                if m.get_type() == mtype and (cond is None or cond(m)):
-                    return m
-            start = len(self.log)
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return None
-            self.pump(min(left, 0.05))
-
-    def command(self, command: int, *params: float, timeout_s: float = 5.0):
-        p = list(params) + [0.0] * (7 - len(params))
-        self.send(MD.MAVLink_command_long_message(1, 1, command, 0, *p))
-        return self.wait("COMMAND_ACK", timeout_s, lambda m: m.command == command)
-
-    def count(self, mtype: str, t0: float, t1: float) -> int:
-        return sum(1 for t, m in self.log if t0 <= t < t1 and m.get_type() == mtype)
-
-    def close(self) -> None:
-        self.sock.close()
+def station(fc: FcProcess, bind_port: int | None = None, sysid: int = 255) -> ScriptedGcs:
+    """The scripted ground station with the ``development`` codec: listening where the fc sends
+    (``bind_port``, a ``--gcs`` output) or, without one, a peer talking to the fc's bind port
+    from an ephemeral port (the fc answers it once it has heard it)."""
+    peer = None if bind_port else ("127.0.0.1", fc.gcs_bind_port)
+    return ScriptedGcs(port=bind_port or 0, sysid=sysid, vehicle=peer, dialect=MD)
 
 
 @pytest.fixture()
@@ -117,42 +60,44 @@ def test_modes_are_named_by_available_modes_and_current_mode(fc):
     """QGroundControl's standard-modes requests: every mode with its name and custom_mode;
     CURRENT_MODE follows a change; SET_MODE with the advertised value and DO_SET_MODE with the
     hyfc number both set the mode; HEARTBEAT custom_mode has PX4's main mode byte."""
-    gcs = Station(fc, fc.out_port)
+    gcs = station(fc, fc.out_port)
     try:
         hb = gcs.wait("HEARTBEAT", 10)
         assert hb is not None and hb.custom_mode == MODES["MANUAL"]
         assert (hb.custom_mode >> 16) & 0xFF == 1                     # PX4 MANUAL main mode
+        t_asked = time.monotonic()
         ack = gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AVAILABLE_MODES, 0)
         assert ack.result == MD.MAV_RESULT_ACCEPTED
         got = {}
-        deadline = time.monotonic() + 3.0
-        while len(got) < len(MODES) and time.monotonic() < deadline:
-            gcs.pump(0.05)
-            for _, m in gcs.log[gcs.mark:]:
-                if m.get_type() == "AVAILABLE_MODES":
-                    assert m.number_modes == len(MODES)
-                    assert m.standard_mode == STANDARD.get(m.mode_name, 0), m
-                    got[m.mode_index] = (m.mode_name, m.custom_mode)
+        while len(got) < len(MODES):
+            m = gcs.wait("AVAILABLE_MODES", 3.0, t_asked, cond=lambda m: m.mode_index not in got)
+            if m is None:
+                break
+            assert m.number_modes == len(MODES)
+            assert m.standard_mode == STANDARD.get(m.mode_name, 0), m
+            got[m.mode_index] = (m.mode_name, m.custom_mode)
         assert {name: cm for name, cm in got.values()} == MODES
         assert sorted(got) == list(range(1, len(MODES) + 1))
         # one mode by index (a GCS re-requests what it missed)
+        t_asked = time.monotonic()
         gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AVAILABLE_MODES, 3)
-        m = gcs.wait("AVAILABLE_MODES", 3)
+        m = gcs.wait("AVAILABLE_MODES", 3, t_asked)
         assert m.mode_index == 3 and m.mode_name == "UNCOORDINATED"
         assert gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AVAILABLE_MODES,
                            9).result == MD.MAV_RESULT_DENIED
         # SET_MODE with the advertised custom_mode (QGroundControl's way)
-        gcs.send(MD.MAVLink_set_mode_message(1, MD.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+        gcs.mav.send(MD.MAVLink_set_mode_message(1, MD.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                                              MODES["UNCOORDINATED"]))
-        cur = gcs.wait("CURRENT_MODE", 3, lambda m: m.custom_mode == MODES["UNCOORDINATED"])
+        cur = gcs.wait("CURRENT_MODE", 3,
+                       cond=lambda m: m.custom_mode == MODES["UNCOORDINATED"])
         assert cur is not None and cur.intended_custom_mode == MODES["UNCOORDINATED"]
-        assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode == MODES["UNCOORDINATED"])
+        assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode == MODES["UNCOORDINATED"])
         # DO_SET_MODE with the hyfc number (``long DO_SET_MODE 1 1``) and with the wire value
         assert gcs.command(MD.MAV_CMD_DO_SET_MODE, 1, 1).result == MD.MAV_RESULT_ACCEPTED
-        assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode == MODES["COORDINATED"])
+        assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode == MODES["COORDINATED"])
         assert gcs.command(MD.MAV_CMD_DO_SET_MODE, 1, MODES["FAILSAFE"]).result == \
             MD.MAV_RESULT_ACCEPTED
-        assert gcs.wait("HEARTBEAT", 3, lambda m: m.custom_mode == MODES["FAILSAFE"])
+        assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode == MODES["FAILSAFE"])
         # neither a number nor a wire value: refused; no standard modes yet
         assert gcs.command(MD.MAV_CMD_DO_SET_MODE, 1, 0x00070009).result == MD.MAV_RESULT_DENIED
         assert gcs.command(MD.MAV_CMD_DO_SET_STANDARD_MODE, 3).result == MD.MAV_RESULT_FAILED
@@ -165,72 +110,74 @@ def test_a_rate_request_changes_only_the_link_that_asked(fc):
     """Station A listens on the configured output; station B is a peer. B turns ATTITUDE off,
     then asks 50 Hz (SET_MESSAGE_INTERVAL) and VFR_HUD off (REQUEST_DATA_STREAM): A keeps the
     default 10 Hz ATTITUDE and 4 Hz VFR_HUD throughout."""
-    a = Station(fc, fc.out_port)
-    b = Station(fc, None, sysid=254)
+    a = station(fc, fc.out_port)
+    b = station(fc, sysid=254)
     try:
         assert a.wait("HEARTBEAT", 10) is not None
-        b.send(MD.MAVLink_heartbeat_message(MD.MAV_TYPE_GCS, MD.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+        b.mav.heartbeat_send(MD.MAV_TYPE_GCS, MD.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         assert b.wait("HEARTBEAT", 5) is not None                     # the fc answers B now
         att = MD.MAVLINK_MSG_ID_ATTITUDE
+        t_asked = time.monotonic()
         ack = b.command(MD.MAV_CMD_SET_MESSAGE_INTERVAL, att, -1)
         assert ack.result == MD.MAV_RESULT_ACCEPTED
-        mi = b.wait("MESSAGE_INTERVAL", 3, lambda m: m.message_id == att)
+        mi = b.wait("MESSAGE_INTERVAL", 3, t_asked, cond=lambda m: m.message_id == att)
         assert mi.interval_us == -1
-        b.pump(0.5)                                                   # what was in flight
-        t0 = time.monotonic()
-        for s in (a, b):
-            s.pump(0.0)
-        _pump_both(a, b, 2.0)
-        t1 = time.monotonic()
-        assert b.count("ATTITUDE", t0, t1) == 0
-        assert b.count("HEARTBEAT", t0, t1) >= 1                      # the link is alive
-        assert a.count("ATTITUDE", t0, t1) >= 15                      # 10 Hz default
+        time.sleep(0.5)                                               # what was in flight
+        t0, t1 = _window(2.0)
+        assert _count(b, "ATTITUDE", t0, t1) == 0
+        assert _count(b, "HEARTBEAT", t0, t1) >= 1                    # the link is alive
+        assert _count(a, "ATTITUDE", t0, t1) >= 15                    # 10 Hz default
         # B: 50 Hz ATTITUDE, VFR_HUD off by the legacy stream request
         assert b.command(MD.MAV_CMD_SET_MESSAGE_INTERVAL, att, 20_000).result == \
             MD.MAV_RESULT_ACCEPTED
-        b.send(MD.MAVLink_request_data_stream_message(1, 1, MD.MAV_DATA_STREAM_EXTRA2, 0, 0))
-        b.pump(0.5)
-        t0 = time.monotonic()
-        _pump_both(a, b, 2.0)
-        t1 = time.monotonic()
-        n_b, n_a = b.count("ATTITUDE", t0, t1), a.count("ATTITUDE", t0, t1)
+        b.mav.send(MD.MAVLink_request_data_stream_message(1, 1, MD.MAV_DATA_STREAM_EXTRA2, 0, 0))
+        time.sleep(0.5)
+        t0, t1 = _window(2.0)
+        n_b, n_a = _count(b, "ATTITUDE", t0, t1), _count(a, "ATTITUDE", t0, t1)
         print(f"ATTITUDE in 2 s: B (50 Hz asked) {n_b}, A (default 10 Hz) {n_a}")
         assert n_b >= 60 and 14 <= n_a <= 26
-        assert b.count("VFR_HUD", t0, t1) == 0 and a.count("VFR_HUD", t0, t1) >= 6
+        assert _count(b, "VFR_HUD", t0, t1) == 0 and _count(a, "VFR_HUD", t0, t1) >= 6
         # A's own answer to GET_MESSAGE_INTERVAL is the default
+        t_asked = time.monotonic()
         a.command(MD.MAV_CMD_GET_MESSAGE_INTERVAL, att)
-        assert a.wait("MESSAGE_INTERVAL", 3, lambda m: m.message_id == att).interval_us == 100_000
+        mi = a.wait("MESSAGE_INTERVAL", 3, t_asked, cond=lambda m: m.message_id == att)
+        assert mi.interval_us == 100_000
     finally:
         a.close()
         b.close()
 
 
-def _pump_both(a: Station, b: Station, duration_s: float) -> None:
-    deadline = time.monotonic() + duration_s
-    while time.monotonic() < deadline:
-        a.pump(0.01)
-        b.pump(0.01)
+def _window(duration_s: float) -> tuple[float, float]:
+    """A measurement window of ``duration_s`` from now (monotonic s); returns at its end. The
+    stations keep receiving meanwhile (their receive threads)."""
+    t0 = time.monotonic()
+    time.sleep(duration_s)
+    return t0, time.monotonic()
+
+
+def _count(gcs: ScriptedGcs, mtype: str, t0: float, t1: float) -> int:
+    return len(gcs.messages(mtype, t0, t1))
 
 
 # ------------------------------------------------------------------------- point 4: STATUSTEXT
 def test_a_refusal_flood_gives_bounded_statustext_and_log_with_a_summary(fc):
     """600 refused requests in about a second (out-of-range sets with distinct values, unknown
     modes, bad arming): a bounded number of STATUSTEXT and fc.log lines, then summaries."""
-    gcs = Station(fc, fc.out_port)
+    gcs = station(fc, fc.out_port)
     try:
         assert gcs.wait("HEARTBEAT", 10) is not None
         t0 = time.monotonic()
         for i in range(200):
-            gcs.send(MD.MAVLink_param_set_message(1, 1, b"CMD_MU_DEG", 100.0 + i,
+            gcs.mav.send(MD.MAVLink_param_set_message(1, 1, b"CMD_MU_DEG", 100.0 + i,
                                                   MD.MAV_PARAM_TYPE_REAL32))
-            gcs.send(MD.MAVLink_command_long_message(1, 1, MD.MAV_CMD_DO_SET_MODE, 0, 1, 42,
+            gcs.mav.send(MD.MAVLink_command_long_message(1, 1, MD.MAV_CMD_DO_SET_MODE, 0, 1, 42,
                                                      0, 0, 0, 0, 0))
-            gcs.send(MD.MAVLink_command_long_message(1, 1, MD.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+            gcs.mav.send(MD.MAVLink_command_long_message(1, 1, MD.MAV_CMD_COMPONENT_ARM_DISARM, 0,
                                                      1, 0, 0, 0, 0, 0, 0))
-            gcs.pump(0.004)          # ~1.2 s of flood; the fc reads it all (8 per wake-up)
-        gcs.pump(5.0)                # the burst ends: summaries within ~2-3 s
-        texts = [m.text for t, m in gcs.log if t >= t0 and m.get_type() == "STATUSTEXT"]
-        acks = sum(1 for t, m in gcs.log if t >= t0 and m.get_type() == "COMMAND_ACK")
+            time.sleep(0.004)        # ~1.2 s of flood; the fc reads it all (8 per wake-up)
+        time.sleep(5.0)              # the burst ends: summaries within ~2-3 s
+        texts = [m.text for m in gcs.messages("STATUSTEXT", t0)]
+        acks = len(gcs.messages("COMMAND_ACK", t0))
     finally:
         gcs.close()
     assert fc.stop() == 0
@@ -249,16 +196,17 @@ def test_a_refusal_flood_gives_bounded_statustext_and_log_with_a_summary(fc):
 
 def test_a_long_statustext_arrives_in_chunks_that_reassemble(fc):
     """Setting CO_ENABLE is refused with a 76-character reason: two chunks, one id."""
-    gcs = Station(fc, fc.out_port)
+    gcs = station(fc, fc.out_port)
     try:
         assert gcs.wait("HEARTBEAT", 10) is not None
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_ENABLE", 0.0, MD.MAV_PARAM_TYPE_INT32))
-        first = gcs.wait("STATUSTEXT", 5, lambda m: m.chunk_seq == 0 and m.id != 0)
+        gcs.mav.send(MD.MAVLink_param_set_message(1, 1, b"CO_ENABLE", 0.0, MD.MAV_PARAM_TYPE_INT32))
+        first = gcs.wait("STATUSTEXT", 5, cond=lambda m: m.chunk_seq == 0 and m.id != 0)
         assert first is not None
         chunks = {0: first.text}
         while len(chunks[max(chunks)]) == 50:
             k = max(chunks) + 1
-            m = gcs.wait("STATUSTEXT", 3, lambda m, k=k: m.id == first.id and m.chunk_seq == k)
+            m = gcs.wait("STATUSTEXT", 3,
+                         cond=lambda m, k=k: m.id == first.id and m.chunk_seq == k)
             assert m is not None and m.chunk_seq == max(chunks) + 1
             chunks[m.chunk_seq] = m.text
     finally:
@@ -271,27 +219,28 @@ def test_a_long_statustext_arrives_in_chunks_that_reassemble(fc):
 
 # -------------------------------------------------------------------------- point 5: parameters
 def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
-    gcs = Station(fc, fc.out_port)
+    gcs = station(fc, fc.out_port)
     try:
         assert gcs.wait("HEARTBEAT", 10) is not None
+        t_asked = time.monotonic()
         ack = gcs.command(MD.MAV_CMD_REQUEST_MESSAGE, MD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-        av = gcs.wait("AUTOPILOT_VERSION", 3)
+        av = gcs.wait("AUTOPILOT_VERSION", 3, t_asked)
         assert ack.result == 0
         assert av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
         assert not av.capabilities & MD.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
-        gcs.send(MD.MAVLink_param_request_read_message(1, 1, b"CO_FAC_EQ", -1))
-        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
+        gcs.mav.send(MD.MAVLink_param_request_read_message(1, 1, b"CO_FAC_EQ", -1))
+        pv = gcs.wait("PARAM_VALUE", 3, cond=lambda m: m.param_id == "CO_FAC_EQ")
         assert pv.param_type == MD.MAV_PARAM_TYPE_INT32 and _int_of(pv) == 19
-        gcs.send(MD.MAVLink_param_request_read_message(1, 1, b"FS_TIMEOUT_S", -1))
-        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "FS_TIMEOUT_S")
+        gcs.mav.send(MD.MAVLink_param_request_read_message(1, 1, b"FS_TIMEOUT_S", -1))
+        pv = gcs.wait("PARAM_VALUE", 3, cond=lambda m: m.param_id == "FS_TIMEOUT_S")
         assert pv.param_type == MD.MAV_PARAM_TYPE_REAL32 and pv.param_value == pytest.approx(0.5)
         # set an integer bytewise (MAVSDK, QGroundControl) and as a plain REAL32 (MAVProxy)
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", _bytewise(14),
+        gcs.mav.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", _bytewise(14),
                                               MD.MAV_PARAM_TYPE_INT32))
-        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
+        pv = gcs.wait("PARAM_VALUE", 3, cond=lambda m: m.param_id == "CO_FAC_EQ")
         assert _int_of(pv) == 14
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"CO_FAC_EQ", 19.0, MD.MAV_PARAM_TYPE_REAL32))
-        pv = gcs.wait("PARAM_VALUE", 3, lambda m: m.param_id == "CO_FAC_EQ")
+        gcs.mav.param_set_send(1, 1, b"CO_FAC_EQ", 19.0, MD.MAV_PARAM_TYPE_REAL32)
+        pv = gcs.wait("PARAM_VALUE", 3, cond=lambda m: m.param_id == "CO_FAC_EQ")
         assert _int_of(pv) == 19
         # refusals: PARAM_ERROR then PARAM_VALUE with the old value, at once
         for name, value, ptype, code in (
@@ -303,18 +252,18 @@ def test_integer_options_are_int32_bytewise_and_refusals_answered_at_once(fc):
                 (b"CO_ENABLE", _bytewise(0), MD.MAV_PARAM_TYPE_INT32,
                  MD.MAV_PARAM_ERROR_READ_ONLY)):
             t0 = time.monotonic()
-            gcs.send(MD.MAVLink_param_set_message(1, 1, name, value, ptype))
-            err = gcs.wait("PARAM_ERROR", 2, lambda m, n=name: m.param_id == n.decode())
-            pv = gcs.wait("PARAM_VALUE", 2, lambda m, n=name: m.param_id == n.decode())
+            gcs.mav.send(MD.MAVLink_param_set_message(1, 1, name, value, ptype))
+            err = gcs.wait("PARAM_ERROR", 2, cond=lambda m, n=name: m.param_id == n.decode())
+            pv = gcs.wait("PARAM_VALUE", 2, cond=lambda m, n=name: m.param_id == n.decode())
             dt = time.monotonic() - t0
             assert err is not None and err.error == code, (name, err)
             assert pv is not None and dt < 1.0, (name, dt)
             old = {b"CO_FAC_EQ": 19, b"FS_TIMEOUT_S": 0.5, b"CO_ENABLE": 1}[name]
             got = _int_of(pv) if pv.param_type == MD.MAV_PARAM_TYPE_INT32 else pv.param_value
             assert got == pytest.approx(old), name
-        gcs.send(MD.MAVLink_param_set_message(1, 1, b"NO_SUCH_PARAM", 1.0,
+        gcs.mav.send(MD.MAVLink_param_set_message(1, 1, b"NO_SUCH_PARAM", 1.0,
                                               MD.MAV_PARAM_TYPE_REAL32))
-        err = gcs.wait("PARAM_ERROR", 2, lambda m: m.param_id == "NO_SUCH_PARAM")
+        err = gcs.wait("PARAM_ERROR", 2, cond=lambda m: m.param_id == "NO_SUCH_PARAM")
         assert err is not None and err.error == MD.MAV_PARAM_ERROR_DOES_NOT_EXIST
         assert math.isfinite(err.param_index)
     finally:

@@ -8,7 +8,8 @@ import sys
 
 import pytest
 
-from tests.fc_harness import REPO, FcProcess, GcsClient, free_udp_port, mavlink as ML
+from tests.fc_harness import REPO, FcProcess, free_udp_port, mavlink as ML
+from tools.sitl.gcs import ScriptedGcs
 
 pytestmark = pytest.mark.hil
 
@@ -23,7 +24,7 @@ def signed_fc(tmp_path):
     gcs_port = free_udp_port()
     out = str(tmp_path / "run")
     with FcProcess(out, "--signing-key-file", str(key_file), gcs_ports=(gcs_port,)) as fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         try:
             assert gcs.wait("HEARTBEAT", 10) is not None
             yield fc, gcs
@@ -31,34 +32,26 @@ def signed_fc(tmp_path):
             gcs.close()
 
 
-def _read(gcs, name):
-    gcs.conn.mav.param_request_read_send(1, 1, name.encode(), -1)
-    return gcs.wait("PARAM_VALUE", 5, lambda m: m.param_id == name)
-
-
 def test_unsigned_writes_are_rejected_and_counted_signed_accepted(signed_fc):
     fc, gcs = signed_fc
     # read-only requests work unsigned
-    assert _read(gcs, "TRIM_RUD_DEG").param_value == 0.0
+    assert gcs.param_get("TRIM_RUD_DEG").param_value == 0.0
     # unsigned PARAM_SET: no effect
-    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 3.0, ML.MAV_PARAM_TYPE_REAL32)
-    assert gcs.wait("PARAM_VALUE", 1.0, lambda m: m.param_id == "TRIM_RUD_DEG") is None
-    assert _read(gcs, "TRIM_RUD_DEG").param_value == 0.0
+    assert gcs.param_set("TRIM_RUD_DEG", 3.0, timeout_s=1.0) is None
+    assert gcs.param_get("TRIM_RUD_DEG").param_value == 0.0
     # unsigned commands (arm, mode) get no ACK and change nothing
-    gcs.conn.mav.command_long_send(1, 1, ML.MAV_CMD_DO_SET_MODE, 0, 1, 1, 0, 0, 0, 0, 0)
+    gcs.mav.command_long_send(1, 1, ML.MAV_CMD_DO_SET_MODE, 0, 1, 1, 0, 0, 0, 0, 0)
     assert gcs.wait("COMMAND_ACK", 1.0) is None
-    gcs.conn.mav.set_mode_send(1, 1, 2)
-    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, lambda m: m.name == "REJ_SIGN" and m.value >= 3)
+    gcs.mav.set_mode_send(1, 1, 2)
+    rej = gcs.wait("NAMED_VALUE_FLOAT", 8, cond=lambda m: m.name == "REJ_SIGN" and m.value >= 3)
     assert rej is not None, "rejected unsigned input must be visible in telemetry"
     assert gcs.wait("HEARTBEAT", 3).custom_mode & 0xFFFF == 0
     # a wrong key is as bad as none
-    gcs.conn.setup_signing(hashlib.sha256(b"wrong").digest(), sign_outgoing=True)
-    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 4.0, ML.MAV_PARAM_TYPE_REAL32)
-    assert gcs.wait("PARAM_VALUE", 1.0, lambda m: m.param_id == "TRIM_RUD_DEG") is None
+    gcs.setup_signing(hashlib.sha256(b"wrong").digest(), sign_outgoing=True)
+    assert gcs.param_set("TRIM_RUD_DEG", 4.0, timeout_s=1.0) is None
     # the right key: accepted
-    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
-    gcs.conn.mav.param_set_send(1, 1, b"TRIM_RUD_DEG", 3.0, ML.MAV_PARAM_TYPE_REAL32)
-    reply = gcs.wait("PARAM_VALUE", 5, lambda m: m.param_id == "TRIM_RUD_DEG")
+    gcs.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
+    reply = gcs.param_set("TRIM_RUD_DEG", 3.0)
     assert reply is not None and reply.param_value == 3.0
     assert gcs.command(ML.MAV_CMD_DO_SET_MODE, 1, 2).result == ML.MAV_RESULT_ACCEPTED
     # outgoing frames are signed
@@ -86,20 +79,13 @@ def test_signed_mission_upload_unsigned_download(signed_fc):
     """With signing on, an unsigned MISSION_COUNT is rejected (no upload starts); a signed
     upload is stored; an unsigned download (REQUEST_LIST, REQUEST_INT) reads it back."""
     _, gcs = signed_fc
-    item = ML.MAVLink_mission_item_int_message(1, 1, 0, ML.MAV_FRAME_GLOBAL,
-                                               ML.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
-                                               352000000, -1178839000, 28000.0, 0)
-    gcs.conn.mav.mission_count_send(1, 1, 1, 0)
-    assert gcs.wait(["MISSION_REQUEST_INT", "MISSION_ACK"], 1.5) is None
-    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
-    gcs.conn.mav.mission_count_send(1, 1, 1, 0)
-    assert gcs.wait("MISSION_REQUEST_INT", 5).seq == 0
-    gcs.conn.mav.send(item)
-    assert gcs.wait("MISSION_ACK", 5).type == ML.MAV_MISSION_ACCEPTED
-    gcs.conn.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=False)
-    gcs.conn.mav.signing.sign_outgoing = False
-    gcs.conn.mav.mission_request_list_send(1, 1, 0)
-    assert gcs.wait("MISSION_COUNT", 5).count == 1
-    gcs.conn.mav.mission_request_int_send(1, 1, 0, 0)
-    got = gcs.wait("MISSION_ITEM_INT", 5)
+    item = {"frame": ML.MAV_FRAME_GLOBAL, "command": ML.MAV_CMD_NAV_WAYPOINT, "param1": 0.0,
+            "param2": 0.0, "param3": 0.0, "param4": 0.0, "x": 352000000, "y": -1178839000,
+            "z": 28000.0, "autocontinue": 1}
+    assert gcs.send_mission([item], timeout_s=1.5) == (None, [])
+    gcs.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=True)
+    ack, asked = gcs.send_mission([item], timeout_s=5.0)
+    assert asked == [0] and ack.type == ML.MAV_MISSION_ACCEPTED
+    gcs.setup_signing(hashlib.sha256(PASSPHRASE).digest(), sign_outgoing=False)
+    (got,) = gcs.download_mission()
     assert got is not None and got.x == 352000000 and got.z == 28000.0

@@ -13,7 +13,8 @@ import os
 import numpy as np
 import pytest
 
-from tests.fc_harness import ClosedLoop, FcProcess, GcsClient, free_udp_port, mavlink as ML
+from tests.fc_harness import ClosedLoop, FcProcess, free_udp_port, mavlink as ML
+from tools.sitl.gcs import ScriptedGcs
 
 pytestmark = pytest.mark.hil
 
@@ -61,7 +62,7 @@ def _mode(gcs, mode):
 def test_guided_changes_from_a_ground_station_are_followed(tmp_path):
     fc, gcs_port = _vehicle(tmp_path, "--flight-mode", "GUIDED")
     with fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         loop = ClosedLoop(fc.plant_port, scenario="cruise", seed=1)
         rec = _Rec(loop)
         try:
@@ -80,12 +81,12 @@ def test_guided_changes_from_a_ground_station_are_followed(tmp_path):
                                  (ML.MAV_CMD_DO_CHANGE_ALTITUDE, (20000.0, 0), "GE_QBAR")):
                 ack = gcs.command(cmd, *p)
                 assert ack is not None and ack.result == ML.MAV_RESULT_DENIED, (cmd, ack)
-                assert gcs.wait("STATUSTEXT", 5, lambda m, w=word: w in m.text) is not None
+                assert gcs.wait("STATUSTEXT", 5, cond=lambda m, w=word: w in m.text) is not None
             t_cmd = loop.truth("t_s")
             loop.run(20 * FRAME_HZ, rec)                                 # 20 s of sim time
             # THEN NAV_CONTROLLER_OUTPUT reports the targets, VFR_HUD a throttle
             # (messages queued before the flight may still carry the 500 m of the start)
-            nav = gcs.wait("NAV_CONTROLLER_OUTPUT", 5, lambda m: 0.0 < m.alt_error < 500.0)
+            nav = gcs.wait("NAV_CONTROLLER_OUTPUT", 5, cond=lambda m: 0.0 < m.alt_error < 500.0)
             assert nav is not None and nav.nav_bearing == 10
             hud = gcs.wait("VFR_HUD", 5)
             assert hud is not None and 0 < hud.throttle <= 100
@@ -116,7 +117,7 @@ def test_mode_changes_in_flight_have_no_transient(tmp_path):
     the law runs on)."""
     fc, gcs_port = _vehicle(tmp_path, "--flight-mode", "COORDINATED")
     with fc:
-        gcs = GcsClient(gcs_port)
+        gcs = ScriptedGcs(port=gcs_port)
         loop = ClosedLoop(fc.plant_port, scenario="cruise", seed=1)
         rec = _Rec(loop)
         switches = []
@@ -127,7 +128,7 @@ def test_mode_changes_in_flight_have_no_transient(tmp_path):
                 _mode(gcs, mode)
                 switches.append(loop.truth("t_s"))
                 loop.run(4 * FRAME_HZ, rec)
-            hb = gcs.wait("HEARTBEAT", 5, lambda m: m.custom_mode & 0xFFFF == CRUISE)
+            hb = gcs.wait("HEARTBEAT", 5, cond=lambda m: m.custom_mode & 0xFFFF == CRUISE)
             assert hb is not None
         finally:
             loop.close()

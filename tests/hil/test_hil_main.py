@@ -5,8 +5,8 @@ processes over loopback UDP (docs/hil.md).
   shape, tracking converges, the run directory holds every log and plot;
 - two lockstep runs with the same seed give identical summaries (wall-clock keys aside);
 - ``report`` rebuilds the same summary from the logs alone;
-- a short realtime run with a live pymavlink ground-station client connected: the controller's
-  telemetry matches the plant's truth within the sensor noise;
+- a short realtime run with a live ground station connected (the scripted one,
+  tools/sitl/gcs.py, as an extra ``--gcs-out``): the controller's telemetry matches the plant's truth within the sensor noise;
 - a process killed mid-run ends the run with a clear error and leaves no process behind.
 """
 from __future__ import annotations
@@ -16,10 +16,8 @@ import math
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -30,6 +28,7 @@ from tools.hil import rundata
 from tools.hil.cli import format_table
 from tools.hil.rundata import strip_wall_clock
 from tools.hil.runner import parse_progress, shaping_params
+from tools.sitl.gcs import ScriptedGcs
 from tools.sitl.procs import repo_env as _env
 
 
@@ -160,53 +159,9 @@ def test_same_seed_gives_identical_summary(lockstep_run, tmp_path):
         assert a[k] == b[k]
 
 
-class _GcsClient:
-    """A live pymavlink ground station (mavutil udpin) recording the controller's telemetry."""
-
-    def __init__(self):
-        os.environ["MAVLINK20"] = "1"
-        from pymavlink import mavutil
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            s.bind(("127.0.0.1", 0))
-            self.port = s.getsockname()[1]
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}",
-                                               dialect="ardupilotmega", source_system=254)
-        self.aoa = []          # (sim time s, AOA deg, SSA deg)
-        self.base_minus_sim_s = None
-        self.heartbeats = 0
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-
-    def _loop(self):
-        last_hb = 0.0
-        while not self.stop.is_set():
-            m = self.conn.recv_match(blocking=True, timeout=0.2)
-            now = time.monotonic()
-            if now - last_hb > 1.0 and self.heartbeats:
-                self.conn.mav.heartbeat_send(6, 8, 0, 0, 4)   # GCS, INVALID: as MAVProxy
-                last_hb = now
-            if m is None or m.get_srcSystem() != 1:
-                continue
-            t = m.get_type()
-            if t == "HEARTBEAT":
-                self.heartbeats += 1
-            elif t == "DEBUG_VECT" and m.name == "SIM_T" and math.isfinite(m.x):
-                # real time: the time base is the controller's boot time; SIM_T maps it
-                # (NaN until the controller has a plant frame)
-                self.base_minus_sim_s = m.time_usec / 1e6 - m.x
-            elif t == "AOA_SSA" and self.base_minus_sim_s is not None:
-                self.aoa.append((m.time_usec / 1e6 - self.base_minus_sim_s, m.AOA, m.SSA))
-
-    def close(self):
-        self.stop.set()
-        self.thread.join(timeout=5)
-        self.conn.close()
-
-
 @pytest.mark.hil
 def test_realtime_run_with_live_gcs_telemetry_matches_truth(tmp_path):
-    client = _GcsClient()
+    client = ScriptedGcs(heartbeat=True)     # an operator's: heartbeats, as MAVProxy
     try:
         out = tmp_path / "rt"
         r = _hil("run", "--scenario", "paper", "--mode", "realtime", "--variant", "coordinated",
@@ -220,13 +175,13 @@ def test_realtime_run_with_live_gcs_telemetry_matches_truth(tmp_path):
     assert summary["mode"] == "realtime"
     assert run["sim_time_s"] == pytest.approx(3.0, abs=0.05)
     assert run["status"] == "ok"
-    assert client.heartbeats >= 2
-    assert len(client.aoa) >= 15, "expected ~10 Hz AOA_SSA telemetry for 3 s"
+    assert client.tel.heartbeats >= 2
+    assert len(client.tel.aoa) >= 15, "expected ~10 Hz AOA_SSA telemetry for 3 s"
     from plant_sim.truthlog import load
     truth = load(str(out / "coordinated" / "truth.npz"))
     # stamp 0 = the controller has no plant frame yet (its measurement is still empty);
     # after the plant stops, the last frame is repeated: keep one sample per stamp
-    recs = np.asarray(client.aoa)
+    recs = client.tel.aoa.array()     # (sim time s, AOA deg, SSA deg)
     _, first = np.unique(recs[:, 0], return_index=True)
     recs = recs[np.sort(first)]
     t = recs[:, 0]

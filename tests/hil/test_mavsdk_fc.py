@@ -11,6 +11,7 @@ import time
 import pytest
 
 from tests.fc_harness import FcProcess, free_udp_port, mavlink as ML
+from tools.sitl.gcs import ScriptedGcs
 
 pytestmark = pytest.mark.hil
 
@@ -49,22 +50,14 @@ def test_mavsdk_reads_the_flight_mode(mavsdk_fc):
     fc, system = mavsdk_fc
     telemetry = Telemetry(system)
     assert _wait_mode(telemetry, FlightMode.MANUAL) == FlightMode.MANUAL
-    # change the mode from a second ground station (a pymavlink peer) and watch MAVSDK follow
-    from pymavlink import mavutil
-    peer = mavutil.mavlink_connection(f"udpout:127.0.0.1:{fc.gcs_bind_port}", source_system=250,
-                                      dialect="ardupilotmega")
+    # change the mode from a second ground station (the scripted one, a peer of the fc's bind
+    # port) and watch MAVSDK follow
+    peer = ScriptedGcs(vehicle=("127.0.0.1", fc.gcs_bind_port))
     try:
         for number, want in ((1, FlightMode.STABILIZED), (2, FlightMode.STABILIZED),
                              (3, FlightMode.MANUAL)):
-            peer.mav.command_long_send(1, 1, ML.MAV_CMD_DO_SET_MODE, 0, 1, number, 0, 0, 0, 0, 0)
-            ack = None
-            deadline = time.monotonic() + 5.0
-            while time.monotonic() < deadline:   # MAVSDK's own commands are answered too
-                ack = peer.recv_match(type="COMMAND_ACK", blocking=True, timeout=1)
-                if ack is not None and ack.command == ML.MAV_CMD_DO_SET_MODE:
-                    break
-            assert ack is not None and ack.command == ML.MAV_CMD_DO_SET_MODE
-            assert ack.result == ML.MAV_RESULT_ACCEPTED
+            ack = peer.command(ML.MAV_CMD_DO_SET_MODE, 1, number)
+            assert ack is not None and ack.result == ML.MAV_RESULT_ACCEPTED
             assert _wait_mode(telemetry, want) == want, number
     finally:
         peer.close()

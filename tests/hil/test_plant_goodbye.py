@@ -86,7 +86,7 @@ def test_goodbye_ends_at_info_but_a_silent_loss_still_fails_safe(flying):
     loop.run(200)
     assert loop.outputs[-1] != (1500, 1500, 1500), "the law should be flying"
     loop.plant.send_raw(_goodbye_bytes())
-    m = gcs.wait("STATUSTEXT", 5, lambda m: "plant ended its run" in m.text)
+    m = gcs.wait("STATUSTEXT", 5, cond=lambda m: "plant ended its run" in m.text)
     assert m is not None and m.severity == ML.MAV_SEVERITY_INFO
     # two heartbeats later (>= 1 s, FS_TIMEOUT_S is 0.3 s): no failsafe, still COORDINATED
     texts, hbs = _texts_over_heartbeats(gcs, 2)
@@ -95,10 +95,10 @@ def test_goodbye_ends_at_info_but_a_silent_loss_still_fails_safe(flying):
 
     # the plant is back (later stamps), then stops without a goodbye: a real loss
     loop.run(50)
-    m = gcs.wait("STATUSTEXT", 5, lambda m: "FAILSAFE" in m.text)
+    m = gcs.wait("STATUSTEXT", 5, cond=lambda m: "FAILSAFE" in m.text)
     assert m is not None and "plant data lost" in m.text
     assert m.severity == ML.MAV_SEVERITY_CRITICAL
-    assert gcs.wait("HEARTBEAT", 3, lambda m: (m.custom_mode & 0xFFFF) == 3) is not None
+    assert gcs.wait("HEARTBEAT", 3, cond=lambda m: (m.custom_mode & 0xFFFF) == 3) is not None
     assert fc.stop() == 0
     log = open(os.path.join(fc.out, "fc.log")).read().splitlines()
     ended = [ln for ln in log if "plant ended its run" in ln and "STATUSTEXT" not in ln]
@@ -112,5 +112,5 @@ def test_a_goodbye_from_another_system_is_not_one(flying):
     fc, gcs, loop = flying
     loop.run(100)
     loop.plant.send_raw(_goodbye_bytes(sysid=3))
-    m = gcs.wait("STATUSTEXT", 5, lambda m: "FAILSAFE" in m.text or "ended" in m.text)
+    m = gcs.wait("STATUSTEXT", 5, cond=lambda m: "FAILSAFE" in m.text or "ended" in m.text)
     assert m is not None and "plant data lost" in m.text

@@ -121,9 +121,10 @@ def violations(modules: dict[str, Path]) -> list[str]:
             bad.append(f"{name}: no rule in ALLOWED for this package (add one)")
             continue
         pkg, allowed = rule
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
         for target, line, _top in imports_of(name, path, modules):
             if not any(_within(target, ok) for ok in (pkg,) + allowed):
-                bad.append(f"{path.relative_to(ROOT)}:{line}: {pkg} must not import {target}")
+                bad.append(f"{where}:{line}: {pkg} must not import {target}")
     return bad
 
 
@@ -187,3 +188,16 @@ def test_import_direction(modules):
 def test_no_import_cycles(modules):
     found = cycles(modules)
     assert not found, "module-level import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_tools_never_import_tests(modules, tmp_path):
+    """tools/ (the harness above all: one scripted ground station, tools/sitl/gcs.py) must not
+    import tests/: no rule of ``ALLOWED`` lets it, and a harness module that did is reported,
+    deferred import or not."""
+    for pkg, allowed in ALLOWED.items():
+        if _within(pkg, "tools"):
+            assert not any(_within(ok, "tests") or _within("tests", ok) for ok in allowed), pkg
+    fake = tmp_path / "gcs_fake.py"
+    fake.write_text("def station():\n    from tests.fc_harness import FcProcess\n")
+    bad = violations({**modules, "tools.sitl.gcs_fake": fake})
+    assert any("tools.sitl must not import tests.fc_harness" in b for b in bad), bad

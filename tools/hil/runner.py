@@ -248,7 +248,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     driver = None
     try:
         from tools.sitl.gcs import ScriptedGcs
-        gcs = ScriptedGcs()
+        gcs = ScriptedGcs(heartbeat=True, record=False)
         fc_argv = cfg.fc_argv0() + ["--mode", cfg.mode,
                    "--plant-bind", f"127.0.0.1:{plant_port}",
                    "--gcs-bind", f"127.0.0.1:{gcs_bind_port}",

@@ -1,6 +1,6 @@
-"""The scripted ground station of the SITL harness: the main job's (tools.hil) and the
-reliability rig's (tools.sitl.rig, ``record=True``, no heartbeats); tools.hil's only MAVLink
-import.
+"""The one scripted ground station of the SITL harness: the main job's (tools.hil, with
+heartbeats), the reliability rig's (tools.sitl.rig) and the HIL tests' (tests/); tools.hil's
+only MAVLink import.
 
 A small MAVLink 2 ground station (system id 250, component 190) on its own non-blocking UDP
 socket, using pymavlink's generated ``ardupilotmega`` codec (docs/architecture.md section 1).
@@ -14,16 +14,20 @@ lockstep, the controller's time since boot in real time; the ``DEBUG_VECT`` name
 In lockstep runs it only listens (the controller is armed and fed its timeline on its command
 line, docs/hil.md), except with ``--flight-mode MISSION``: it uploads the mission (a QGC WPL 110
 file, :func:`read_wpl`, :meth:`ScriptedGcs.upload_mission`) and selects MISSION, as an
-operator would, and records the mission's progress (MISSION_CURRENT, MISSION_ITEM_REACHED). Every message it sends carries the next sequence number of its one codec
-(heartbeat thread and commands share it under a lock).
+operator would, and records the mission's progress (MISSION_CURRENT, MISSION_ITEM_REACHED).
+Every message it sends carries the next sequence number of its one codec (heartbeat thread
+and commands share it under a lock).
 
-It records what it receives (ATTITUDE, heartbeats) and what it sent, with the vehicle's time
-stamps, so a run can be checked against the plant's truth; with ``record`` it also keeps every
-message (bounded), the NAMED_VALUE_FLOAT counters and STATUSTEXTs for the rig's waits, and it
-can sign (MAVLink 2 signing key).
+It records what it receives (ATTITUDE, AOA_SSA, heartbeats, mission progress) and what it
+sent, with the vehicle's time stamps, so a run can be checked against the plant's truth, and
+logs every message (bounded) for the waits of the rig and the tests: the next message of a
+type, a command's COMMAND_ACK, a parameter's PARAM_VALUE, the mission protocol, STATUSTEXTs
+and NAMED_VALUE_FLOAT counters. It can sign (MAVLink 2 signing key, changeable at any time).
 """
 from __future__ import annotations
 
+import bisect
+import functools
 import itertools
 import math
 import os
@@ -50,8 +54,10 @@ MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_USER_1 = mavlink.MAV_CMD_USER_1   # fc/gcs.py CMD_ATTITUDE
 #: telemetry records kept (the newest; about 7 h of ATTITUDE at the fc's default 10 Hz)
 RECORD_ROWS = 1 << 18
-#: high-rate streams left out of ``ScriptedGcs.msgs`` (``record``)
+#: high-rate streams left out of the message log unless ``record`` (they fill ``Telemetry``)
 RECORD_SKIP = ("ATTITUDE", "AOA_SSA", "VFR_HUD", "DEBUG_VECT", "SERVO_OUTPUT_RAW")
+#: messages the log keeps at least (the newest; it drops this many when it holds twice as many)
+LOG_KEEP = 10000
 
 
 class GcsError(RuntimeError):
@@ -98,8 +104,6 @@ class Telemetry:
     base_mode: int = 0
     custom_mode: int = -1
     statustext: deque = field(default_factory=lambda: deque(maxlen=1000))
-    param_values: dict = field(default_factory=dict)  # name -> last PARAM_VALUE value
-    acks: list = field(default_factory=list)          # (command, result)
     home: tuple | None = None                         # HOME_POSITION lat, lon deg, alt m
     mission_requests: list = field(default_factory=list)   # MISSION_REQUEST(_INT) seq
     mission_acks: list = field(default_factory=list)       # MISSION_ACK type
@@ -117,7 +121,7 @@ _LINK_IDS = itertools.count()
 
 class _ToVehicle:
     """The codec's output file: what ``mav.send`` / ``mav.*_send`` writes goes to the vehicle
-    (once it has been heard), so callers can use pymavlink's generated senders directly."""
+    (once it has been heard, or to ``vehicle`` before), so callers can use pymavlink's generated senders directly."""
 
     def __init__(self, gcs: "ScriptedGcs"):
         self.gcs = gcs
@@ -131,49 +135,92 @@ class _ToVehicle:
                 pass
 
 
+@functools.cache
+def _codec_class(dialect):
+    """The station's codec class over ``dialect`` (a pymavlink v20 dialect module): every
+    message it sends, from any thread and whether through ``send`` or a generated ``*_send``,
+    is packed, numbered and written under one lock."""
+
+    class Codec(dialect.MAVLink):
+        def __init__(self, out, lock: threading.Lock, **ids):
+            super().__init__(out, **ids)
+            self._lock = lock
+
+        def send(self, mavmsg, force_mavlink1: bool = False) -> None:
+            with self._lock:
+                super().send(mavmsg, force_mavlink1=force_mavlink1)
+
+    return Codec
+
+
+def _matcher(match, cond):
+    """``match`` (a message type, a list of types or a predicate on the message) and ``cond``
+    (None or a predicate) as one predicate."""
+    if callable(match):
+        first = match
+    else:
+        types = (match,) if isinstance(match, str) else tuple(match)
+        first = lambda m: m.get_type() in types  # noqa: E731
+    return first if cond is None else (lambda m: first(m) and cond(m))
+
+
 class ScriptedGcs:
-    """A ground station on 127.0.0.1:``port`` (0 = any free port; see ``self.port``).
+    """The scripted ground station on 127.0.0.1:``port`` (0 = any free port; see ``self.port``):
+    the main job's, the reliability rig's and the tests'.
 
     Parameters
     ----------
     sysid, compid : its MAVLink ids (default 250/190, a Mission Planner-like GCS).
-    key : MAVLink 2 signing key (32 bytes): outgoing messages are signed, incoming unsigned
-        ones are refused by the codec.
-    heartbeat : send a GCS HEARTBEAT every second (an operator's ground station does; the
-        reliability rig's recorder does not).
-    record : also keep every message received (``msgs``: (monotonic s, message), without the
-        high-rate streams), the latest NAMED_VALUE_FLOAT values (``named``) and STATUSTEXTs
-        (``texts``: (monotonic s, severity, text)), for ``wait`` / ``find`` / ``wait_named``.
+    key : MAVLink 2 signing key (32 bytes), see :meth:`setup_signing`.
+    heartbeat : send a GCS HEARTBEAT every second, as an operator's ground station does (the
+        main job); the rig and the tests do not, so the vehicle hears only what they send.
+    record : keep every message received in the log, the high-rate streams (RECORD_SKIP)
+        included; without it those go only to the telemetry rings (``tel``).
+    vehicle : (host, port) to send to before the vehicle has been heard: a peer ground
+        station talking to the fc's ``--gcs-bind`` port (default None: listen where the fc
+        sends, a ``--gcs`` output, and answer whoever the vehicle's messages come from).
+    dialect : the pymavlink v20 dialect of the codec (default ``ardupilotmega``; e.g.
+        ``development`` for the standard-modes messages AVAILABLE_MODES and CURRENT_MODE).
 
-    ``conn`` is the object itself and ``mav`` its codec, so ``gcs.conn.mav.param_set_send(...)``
-    works as with a pymavlink connection.
+    Every message the vehicle (system 1) sends is logged in arrival order with its monotonic
+    receive time (the newest LOG_KEEP at least). :meth:`wait` reads the log either as a
+    stream (the next unread message, as pymavlink's ``recv_match``) or from a receive time
+    (``since``), :meth:`messages` lists a receive-time window; :meth:`command`,
+    :meth:`param_get`, :meth:`param_set`, :meth:`send_mission` and :meth:`download_mission`
+    wait for the answer to what they sent, received after the send (the operator's
+    ``set_param``, ``arm``, ``set_mode``, ``set_command_deg``, ``upload_mission`` are built on
+    them). ``named`` holds the latest NAMED_VALUE_FLOAT values and ``texts`` the STATUSTEXTs
+    ((monotonic s, severity, text)).
+
+    ``mav`` is its codec (``gcs.mav.param_set_send(...)`` goes to the vehicle once it has been
+    heard) and ``conn`` the object itself, as with a pymavlink connection.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, sysid: int = GCS_SYSID,
-                 compid: int = GCS_COMPID, key: bytes | None = None, heartbeat: bool = True,
-                 record: bool = False):
+                 compid: int = GCS_COMPID, key: bytes | None = None, heartbeat: bool = False,
+                 record: bool = True, vehicle: tuple[str, int] | None = None,
+                 dialect=mavlink):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((host, port))
         self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
-        self.mav = mavlink.MAVLink(_ToVehicle(self), srcSystem=sysid, srcComponent=compid)
+        self.mav = _codec_class(dialect)(_ToVehicle(self), threading.Lock(), srcSystem=sysid,
+                                         srcComponent=compid)
         self.mav.robust_parsing = True
-        if key is not None:           # as pymavlink's mavutil setup_signing(key, sign_outgoing)
-            self.mav.signing.secret_key = key
-            self.mav.signing.sign_outgoing = True
-            self.mav.signing.link_id = next(_LINK_IDS)     # one per link, as mavutil does
-            self.mav.signing.timestamp = int((time.time() - 1420070400) * 100 * 1000)
+        if key is not None:
+            self.setup_signing(key)
         self.conn = self
-        self.vehicle_addr: tuple[str, int] | None = None
+        self.vehicle_addr: tuple[str, int] | None = vehicle
         self.tel = Telemetry()
         self.sent: list[tuple[float, str, float]] = []  # (vehicle sim time s, what, value)
         self.record = record
-        self.msgs: list = []            # (monotonic time, message), with ``record``
+        self._log: list[tuple[float, object]] = []      # (monotonic receive time s, message)
+        self._log_base = 0                               # log index of _log[0]
+        self._cursor = 0                                 # log index of the next unread message
         self.named: dict[str, float] = {}
         self.texts: list[tuple[float, int, str]] = []
         self._cond = threading.Condition()
         self.cv = self._cond
-        self._tx_lock = threading.Lock()
         self._stop = threading.Event()
         #: set to make every pending and later wait_for() raise GcsError at once
         self.abort = threading.Event()
@@ -183,6 +230,16 @@ class ScriptedGcs:
         if heartbeat:
             self._hb_thread = threading.Thread(target=self._hb_loop, name="gcs-hb", daemon=True)
             self._hb_thread.start()
+
+    def setup_signing(self, key: bytes, sign_outgoing: bool = True) -> None:
+        """MAVLink 2 signing with ``key`` (32 bytes), as pymavlink's ``mavutil`` does it: the
+        codec then refuses unsigned and wrongly signed incoming messages, and signs what it
+        sends if ``sign_outgoing``. Callable again at any time (a new key, a new link id)."""
+        s = self.mav.signing
+        s.secret_key = key
+        s.sign_outgoing = sign_outgoing
+        s.link_id = next(_LINK_IDS) & 0xFF            # one per link, as mavutil does
+        s.timestamp = int((time.time() - 1420070400) * 100 * 1000)
 
     # ---- receive ---------------------------------------------------------------------------
     def _rx_loop(self) -> None:
@@ -206,8 +263,7 @@ class ScriptedGcs:
                 with self._cond:
                     self.vehicle_addr = addr
                     self._handle(m)
-                    if self.record:
-                        self._keep(m)
+                    self._keep(m)
                     self._cond.notify_all()
 
     def _keep(self, m) -> None:
@@ -217,10 +273,11 @@ class ScriptedGcs:
             self.named[m.name] = m.value
         elif t == "STATUSTEXT":
             self.texts.append((now, m.severity, m.text))
-        if t not in RECORD_SKIP:
-            self.msgs.append((now, m))
-            if len(self.msgs) > 20000:
-                del self.msgs[:10000]
+        if self.record or t not in RECORD_SKIP:
+            self._log.append((now, m))
+            if len(self._log) > 2 * LOG_KEEP:
+                del self._log[:LOG_KEEP]
+                self._log_base += LOG_KEEP
 
     def _handle(self, m) -> None:
         t = m.get_type()
@@ -242,11 +299,6 @@ class ScriptedGcs:
             tel.base_mode = m.base_mode
             tel.custom_mode = m.custom_mode
             tel.last_heartbeat = m
-        elif t == "PARAM_VALUE":
-            name = m.param_id.rstrip("\x00") if isinstance(m.param_id, str) else m.param_id
-            tel.param_values[name] = wire_number(m.param_value, m.param_type)
-        elif t == "COMMAND_ACK":
-            tel.acks.append((m.command, m.result))
         elif t == "STATUSTEXT":
             tel.statustext.append(m.text)
         elif t == "HOME_POSITION":
@@ -262,6 +314,7 @@ class ScriptedGcs:
         elif t == "MISSION_ITEM_REACHED":
             tel.mission_reached.append((_nan_if_none(tel.sim_t_s), m.seq))
 
+    # ---- waits -----------------------------------------------------------------------------
     def wait_for(self, pred, timeout_s: float, what: str):
         """Wait (bounded) until ``pred(self.tel)`` is true; GcsError naming ``what`` otherwise."""
         deadline = time.monotonic() + timeout_s
@@ -274,31 +327,93 @@ class ScriptedGcs:
                     raise GcsError(f"{what} not seen within {timeout_s:.0f} s")
                 self._cond.wait(timeout=min(remaining, 0.2))
 
-    def wait(self, pred, timeout_s: float, since: float = 0.0):
-        """First recorded message after ``since`` (monotonic s) satisfying ``pred(m)``; None at
-        the timeout (needs ``record``)."""
+    def _end(self) -> int:
+        """The log index the next message received will get."""
+        with self._cond:
+            return self._log_base + len(self._log)
+
+    def _index_at(self, since: float) -> int:
+        """The log index of the first message kept that was received at or after ``since``."""
+        k = bisect.bisect_left(self._log, since, key=lambda row: row[0])
+        return self._log_base + k
+
+    def _scan(self, start: int, pred, timeout_s: float, until: float = math.inf):
+        """(log index, message) of the first message at log index >= ``start`` received by
+        ``until`` (monotonic s) satisfying ``pred``, waiting up to ``timeout_s`` for it to
+        arrive; None at the timeout."""
         deadline = time.monotonic() + timeout_s
+        i = start
         with self._cond:
             while True:
-                for t, m in self.msgs:
-                    if t >= since and pred(m):
-                        return m
+                i = max(i, self._log_base)
+                while i < self._log_base + len(self._log):
+                    t, m = self._log[i - self._log_base]
+                    if t > until:
+                        return None
+                    if pred(m):
+                        return i, m
+                    i += 1
                 left = deadline - time.monotonic()
                 if left <= 0:
                     return None
                 self._cond.wait(min(left, 0.2))
 
-    def find(self, pred, since: float = 0.0, until: float = math.inf):
-        """First recorded message received in [since, until] satisfying ``pred`` (no wait)."""
+    def _take(self, hit):
+        """The message of a ``_scan`` hit, marking it and what came before it read."""
+        if hit is None:
+            return None
+        self._cursor = max(self._cursor, hit[0] + 1)
+        return hit[1]
+
+    def wait(self, match, timeout_s: float = 10.0, since: float | None = None, *, cond=None):
+        """The first message matching ``match`` (a type such as ``"HEARTBEAT"``, a list of
+        types, or a predicate on the message) and ``cond`` (a predicate, optional); None at the
+        timeout (s; 0 looks once).
+
+        Without ``since`` the log is read as a stream: the search starts at the first unread
+        message and the message returned, and every one before it, count as read (``drain``
+        marks all read). With ``since`` (monotonic s) it starts at the first message received
+        at or after that time and marks nothing read."""
+        if callable(since):
+            raise TypeError("wait(): the third argument is ``since`` (monotonic s); pass a "
+                            "predicate as cond=")
+        pred = _matcher(match, cond)
+        if since is None:
+            return self._take(self._scan(self._cursor, pred, timeout_s))
         with self._cond:
-            for t, m in self.msgs:
-                if since <= t <= until and pred(m):
-                    return m
-        return None
+            start = self._index_at(since)
+        hit = self._scan(start, pred, timeout_s)
+        return None if hit is None else hit[1]
+
+    def drain(self) -> None:
+        """Mark every message received so far read (the next stream ``wait`` sees only later
+        ones)."""
+        self._cursor = self._end()
+
+    def find(self, pred, since: float = 0.0, until: float = math.inf):
+        """First message received in [since, until] (monotonic s) satisfying ``pred``, without
+        waiting; None if there is none."""
+        with self._cond:
+            start = self._index_at(since)
+        hit = self._scan(start, pred, 0.0, until)
+        return None if hit is None else hit[1]
+
+    def messages(self, match, since: float = 0.0, until: float = math.inf, *,
+                 cond=None) -> list:
+        """Every message kept that was received in [since, until] (monotonic s) and matches
+        ``match`` and ``cond`` (as :meth:`wait`), oldest first, without waiting."""
+        pred, out = _matcher(match, cond), []
+        with self._cond:
+            i = self._index_at(since)
+            while (hit := self._scan(i, pred, 0.0, until)) is not None:
+                out.append(hit[1])
+                i = hit[0] + 1
+        return out
 
     def wait_text(self, needle: str, timeout_s: float, since: float = 0.0) -> str | None:
-        m = self.wait(lambda m: m.get_type() == "STATUSTEXT" and needle in m.text, timeout_s,
-                      since)
+        """The first STATUSTEXT containing ``needle`` received since ``since``; None at the
+        timeout."""
+        m = self.wait("STATUSTEXT", timeout_s, since, cond=lambda m: needle in m.text)
         return None if m is None else m.text
 
     def wait_named(self, name: str, pred, timeout_s: float) -> float | None:
@@ -316,150 +431,173 @@ class ScriptedGcs:
 
     def heartbeat_mode(self, timeout_s: float = 3.0, since: float = 0.0):
         """custom_mode of the vehicle's first HEARTBEAT after ``since``; None at the timeout."""
-        m = self.wait(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1,
-                      timeout_s, since)
+        m = self.wait("HEARTBEAT", timeout_s, since)
         return None if m is None else m.custom_mode
 
     # ---- send ------------------------------------------------------------------------------
-    def _send(self, msg) -> None:
-        if self.vehicle_addr is None:
-            return
-        with self._tx_lock:            # one codec, one sequence: heartbeat thread and commands
-            buf = msg.pack(self.mav)
-            self.mav.seq = (self.mav.seq + 1) & 0xFF
-            try:
-                self.sock.sendto(buf, self.vehicle_addr)
-            except OSError:
-                pass
+    def _reply(self, send, match, cond, timeout_s: float):
+        """Call ``send()`` and return the first message matching ``match`` and ``cond``
+        received after it (marked read, as a stream ``wait`` would); None at the timeout."""
+        start = self._end()
+        send()
+        return self._take(self._scan(start, _matcher(match, cond), timeout_s))
 
     def _hb_loop(self) -> None:
         while not self._stop.wait(1.0):
-            self._send(mavlink.MAVLink_heartbeat_message(
-                mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                mavlink.MAV_STATE_ACTIVE, 3))
+            if self.vehicle_addr is None:
+                continue                  # nobody to send to yet (no sequence number used)
+            self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                    mavlink.MAV_STATE_ACTIVE)
 
     def _record(self, what: str, value: float) -> None:
         t = self.tel.sim_time_s()
         self.sent.append((math.nan if t is None else t, what, float(value)))
 
+    def command(self, command: int, *params: float, timeout_s: float = 5.0, tries: int = 1,
+                target_system: int = VEHICLE_SYSID):
+        """COMMAND_LONG (params 1..7, missing ones 0) to the vehicle, sent up to ``tries``
+        times (confirmation 0, 1, ...; ``timeout_s / tries`` apart, as MAVProxy retries) until
+        a COMMAND_ACK for it arrives; that COMMAND_ACK, None at the timeout."""
+        p = list(params) + [0.0] * (7 - len(params))
+        for confirmation in range(tries):
+            ack = self._reply(lambda: self.mav.command_long_send(
+                target_system, VEHICLE_COMPID, command, confirmation, *p),
+                "COMMAND_ACK", lambda m: m.command == command, timeout_s / tries)
+            if ack is not None:
+                return ack
+        return None
+
+    def _command_result(self, what: str, command: int, *params: float) -> int:
+        """``command`` as the scripted operator sends it (3 tries in 3 s); its MAV_RESULT,
+        recorded in ``sent``. GcsError naming ``what`` if no COMMAND_ACK comes."""
+        ack = self.command(command, *params, timeout_s=3.0, tries=3)
+        if ack is None:
+            raise GcsError(f"no COMMAND_ACK for {what} (command {command})")
+        self._record(f"COMMAND_{command}", ack.result)
+        return ack.result
+
+    def _refused(self, what: str, result: int) -> GcsError:
+        texts = "; ".join(list(self.tel.statustext)[-3:])
+        return GcsError(f"{what} refused (MAV_RESULT {result}){': ' + texts if texts else ''}")
+
+    def param_get(self, name: str, timeout_s: float = 5.0):
+        """PARAM_REQUEST_READ of ``name``; the PARAM_VALUE answering it, None at the timeout."""
+        return self._reply(lambda: self.mav.param_request_read_send(
+            VEHICLE_SYSID, VEHICLE_COMPID, name.encode(), -1),
+            "PARAM_VALUE", lambda m: m.param_id == name, timeout_s)
+
+    def param_set(self, name: str, value: float, timeout_s: float = 5.0):
+        """One PARAM_SET of ``name`` (REAL32); the PARAM_VALUE echo (the value the vehicle
+        kept, which a refused set leaves unchanged), None at the timeout."""
+        return self._reply(lambda: self.mav.param_set_send(
+            VEHICLE_SYSID, VEHICLE_COMPID, name.encode(), float(value),
+            mavlink.MAV_PARAM_TYPE_REAL32),
+            "PARAM_VALUE", lambda m: m.param_id == name, timeout_s)
+
     def set_param(self, name: str, value: float, timeout_s: float = 5.0) -> None:
-        """PARAM_SET with retries (as MAVProxy: up to 3 tries, 1 s apart) until echoed."""
-        pid = name.encode()
+        """PARAM_SET with retries (as MAVProxy: up to 3 tries, 1 s apart) until echoed;
+        GcsError if never echoed or echoed with another value."""
         for _ in range(3):
-            with self._cond:
-                self.tel.param_values.pop(name, None)
-            self._send(mavlink.MAVLink_param_set_message(
-                VEHICLE_SYSID, VEHICLE_COMPID, pid, float(value), mavlink.MAV_PARAM_TYPE_REAL32))
-            try:
-                self.wait_for(lambda tel: name in tel.param_values, min(1.0, timeout_s),
-                              f"PARAM_VALUE {name}")
-            except GcsError:
+            m = self.param_set(name, value, min(1.0, timeout_s))
+            if m is None:
                 continue
-            got = self.tel.param_values[name]
+            got = wire_number(m.param_value, m.param_type)
             if abs(got - value) > 1e-5 * max(1.0, abs(value)):
                 raise GcsError(f"vehicle refused {name} = {value} (kept {got})")
             self._record(name, value)
             return
         raise GcsError(f"no PARAM_VALUE for {name} after 3 tries")
 
-    def command_long(self, command: int, *params: float, timeout_s: float = 3.0) -> int:
-        """COMMAND_LONG with up to 3 tries; returns the COMMAND_ACK result."""
-        p = list(params) + [0.0] * (7 - len(params))
-        for confirmation in range(3):
-            n0 = len(self.tel.acks)
-            self._send(mavlink.MAVLink_command_long_message(
-                VEHICLE_SYSID, VEHICLE_COMPID, command, confirmation, *p))
-            try:
-                self.wait_for(lambda tel: any(c == command for c, _ in tel.acks[n0:]),
-                              timeout_s / 3, f"COMMAND_ACK for command {command}")
-            except GcsError:
-                continue
-            result = next(r for c, r in self.tel.acks[n0:] if c == command)
-            self._record(f"COMMAND_{command}", result)
-            return result
-        raise GcsError(f"no COMMAND_ACK for command {command}")
-
-    def command(self, command: int, *params: float, timeout_s: float = 5.0):
-        """One COMMAND_LONG (no retry); the COMMAND_ACK message, None at the timeout (needs
-        ``record``)."""
-        p = list(params) + [0.0] * (7 - len(params))
-        since = time.monotonic()
-        self.mav.command_long_send(VEHICLE_SYSID, VEHICLE_COMPID, command, 0, *p)
-        return self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
-                         timeout_s, since)
-
     def arm(self, timeout_s: float = 15.0) -> None:
         """Arm; a refusal (e.g. the vehicle has no valid plant data yet) is retried, as an
         operator would, each time new telemetry arrives, until ``timeout_s``."""
         deadline = time.monotonic() + timeout_s
         while True:
-            r = self.command_long(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+            r = self._command_result("arming", MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
             if r == mavlink.MAV_RESULT_ACCEPTED:
                 return
             if r != mavlink.MAV_RESULT_DENIED or time.monotonic() > deadline:
-                texts = "; ".join(list(self.tel.statustext)[-3:])
-                raise GcsError(f"arming refused (MAV_RESULT {r}){': ' + texts if texts else ''}")
+                raise self._refused("arming", r)
             n = len(self.tel.aoa)
             self.wait_for(lambda tel: len(tel.aoa) > n, 5.0, "telemetry after a refused arm")
 
     def set_mode(self, custom_mode: int) -> None:
-        r = self.command_long(MAV_CMD_DO_SET_MODE,
-                              float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(custom_mode))
+        """Select the flight mode ``custom_mode`` (DO_SET_MODE); GcsError unless ACCEPTED."""
+        r = self._command_result(f"mode {custom_mode}", MAV_CMD_DO_SET_MODE,
+                                 float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED),
+                                 float(custom_mode))
         if r != mavlink.MAV_RESULT_ACCEPTED:
-            raise GcsError(f"mode {custom_mode} refused (MAV_RESULT {r})")
+            raise self._refused(f"mode {custom_mode}", r)
 
     def set_command_deg(self, alpha_deg: float = math.nan, beta_deg: float = math.nan,
                         mu_deg: float = math.nan) -> None:
         """Attitude command in deg (NaN keeps the current value), confirmed by COMMAND_ACK."""
-        r = self.command_long(MAV_CMD_USER_1, alpha_deg, beta_deg, mu_deg)
+        r = self._command_result("attitude command", MAV_CMD_USER_1, alpha_deg, beta_deg,
+                                 mu_deg)
         if r != mavlink.MAV_RESULT_ACCEPTED:
-            raise GcsError(f"attitude command refused (MAV_RESULT {r})")
+            raise self._refused("attitude command", r)
         for what, v in zip(("alpha_deg", "beta_deg", "mu_deg"), (alpha_deg, beta_deg, mu_deg)):
             if math.isfinite(v):
                 self._record(what, v)
 
-    def upload_mission(self, items: list[dict], timeout_s: float = 20.0) -> None:
-        """Upload ``items`` (:func:`read_wpl`) with the mission protocol: MISSION_COUNT, then
-        each MISSION_REQUEST(_INT) answered with its MISSION_ITEM_INT, until MISSION_ACK. The
-        COUNT is sent again if no request comes within 2 s (3 tries). GcsError unless
-        ACCEPTED."""
+    # ---- mission protocol ------------------------------------------------------------------
+    def send_mission(self, items: list[dict], timeout_s: float = 20.0, skip: int | None = None):
+        """The mission protocol's upload of ``items`` (:func:`read_wpl`): MISSION_COUNT (sent
+        again if neither a request nor an ACK comes within 2 s, 3 tries), then each
+        MISSION_REQUEST(_INT) answered with its MISSION_ITEM_INT (never item ``skip``: a lost
+        item, for tests), until MISSION_ACK or ``timeout_s``. Returns (the MISSION_ACK or
+        None, the item numbers the vehicle asked for, in order)."""
         deadline = time.monotonic() + timeout_s
+        asking = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+        m = None
         for _ in range(3):
-            with self._cond:
-                n_req, n_ack = len(self.tel.mission_requests), len(self.tel.mission_acks)
-            self._send(mavlink.MAVLink_mission_count_message(
-                VEHICLE_SYSID, VEHICLE_COMPID, len(items), mavlink.MAV_MISSION_TYPE_MISSION))
-            try:
-                self.wait_for(lambda tel: len(tel.mission_requests) > n_req
-                              or len(tel.mission_acks) > n_ack, 2.0, "MISSION_REQUEST")
+            m = self._reply(lambda: self.mav.mission_count_send(
+                VEHICLE_SYSID, VEHICLE_COMPID, len(items), mavlink.MAV_MISSION_TYPE_MISSION),
+                asking, None, min(2.0, max(0.0, deadline - time.monotonic())))
+            if m is not None or time.monotonic() >= deadline:
                 break
-            except GcsError:
-                continue
-        else:
-            raise GcsError("no MISSION_REQUEST after 3 MISSION_COUNTs")
-        while True:
-            with self._cond:
-                if len(self.tel.mission_acks) > n_ack:
-                    result = self.tel.mission_acks[n_ack]
-                    break
-                todo = self.tel.mission_requests[n_req:]
-                n_req = len(self.tel.mission_requests)
-            for seq in todo:
-                if 0 <= seq < len(items):
-                    it = items[seq]
-                    self._send(mavlink.MAVLink_mission_item_int_message(
-                        VEHICLE_SYSID, VEHICLE_COMPID, seq, it["frame"], it["command"], 0,
-                        it["autocontinue"], it["param1"], it["param2"], it["param3"],
-                        it["param4"], it["x"], it["y"], it["z"],
-                        mavlink.MAV_MISSION_TYPE_MISSION))
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise GcsError("mission upload: no MISSION_ACK")
-            self.wait_for(lambda tel: len(tel.mission_requests) > n_req
-                          or len(tel.mission_acks) > n_ack, left, "MISSION_REQUEST or MISSION_ACK")
-        if result != mavlink.MAV_MISSION_ACCEPTED:
-            raise GcsError(f"mission refused (MAV_MISSION_RESULT {result})")
+        asked: list[int] = []
+        while m is not None and m.get_type() != "MISSION_ACK":
+            asked.append(m.seq)
+            if m.seq != skip and 0 <= m.seq < len(items):
+                it = items[m.seq]
+                self.mav.mission_item_int_send(
+                    VEHICLE_SYSID, VEHICLE_COMPID, m.seq, it["frame"], it["command"], 0,
+                    it["autocontinue"], it["param1"], it["param2"], it["param3"], it["param4"],
+                    it["x"], it["y"], it["z"], mavlink.MAV_MISSION_TYPE_MISSION)
+            m = self.wait(asking, max(0.0, deadline - time.monotonic()))
+        return m, asked
+
+    def upload_mission(self, items: list[dict], timeout_s: float = 20.0) -> None:
+        """:meth:`send_mission`, as the scripted operator does it: GcsError unless the vehicle
+        ACCEPTED the mission."""
+        ack, _ = self.send_mission(items, timeout_s)
+        if ack is None:
+            raise GcsError("mission upload: no MISSION_ACK")
+        if ack.type != mavlink.MAV_MISSION_ACCEPTED:
+            raise GcsError(f"mission refused (MAV_MISSION_RESULT {ack.type})")
         self._record("mission_items", len(items))
+
+    def download_mission(self, timeout_s: float = 5.0) -> list | None:
+        """The vehicle's mission (MISSION_REQUEST_LIST, then MISSION_REQUEST_INT per item,
+        then MISSION_ACK): its MISSION_ITEM_INT messages, None if an answer did not come
+        within ``timeout_s`` (each)."""
+        count = self._reply(lambda: self.mav.mission_request_list_send(
+            VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_TYPE_MISSION),
+            "MISSION_COUNT", None, timeout_s)
+        if count is None:
+            return None
+        got = []
+        for seq in range(count.count):
+            item = self._reply(lambda s=seq: self.mav.mission_request_int_send(
+                VEHICLE_SYSID, VEHICLE_COMPID, s, mavlink.MAV_MISSION_TYPE_MISSION),
+                "MISSION_ITEM_INT", lambda m, s=seq: m.seq == s, timeout_s)
+            if item is None:
+                return None
+            got.append(item)
+        self.mav.mission_ack_send(VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_ACCEPTED,
+                                  mavlink.MAV_MISSION_TYPE_MISSION)
+        return got
 
     # ---- records ---------------------------------------------------------------------------
     def telemetry_arrays(self) -> dict:
