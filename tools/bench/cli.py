@@ -434,6 +434,18 @@ def part_inproc(rep: Report, quick: bool) -> None:
             f"{_f(x, '.0f')}x real time per wall second ({_f(xc, '.0f')}x per CPU second)",
             f">= 500x per core: {_ok(xc >= 500)} (CPU time; wall {_ok(x >= 500)})", peer, ratio,
             "inproc")
+    from tools.bench.inproc_parts import closed_loop_parts
+    q = closed_loop_parts(quick)
+    rep.details["closed_loop_parts"] = q
+    for key in ("plant_us", "truth_row_us", "law_us", "record_us", "sum_us"):
+        rep.fig(f"closed_loop_part_{key}", q[key])
+    whole_us = q["frame_dt_s"] / x * 1e6 if x and x > 0 else float("nan")
+    rep.row("7 in-process loop per frame, each part alone in numba (plant advance = 2 RK4 "
+            "steps / truth row the law reads / law slow+fast / recording)",
+            f"{q['plant_us']:.2f} + {q['truth_row_us']:.2f} + {q['law_us']:.2f} + "
+            f"{q['record_us']:.2f} = {q['sum_us']:.2f} us (whole loop {whole_us:.2f} us)",
+            "", "", f"ceiling of 'share of the plant alone': {q['plant_share_ceiling'] * 100:.0f} %"
+            f" ({q['ceiling_without_truth_row'] * 100:.0f} % with a free truth row)", "inproc")
 
 
 def memory_rows(rep: Report) -> None:

@@ -172,9 +172,19 @@ def _base_scenario(name_or_path: str):
 
 
 def dispersed_scenario(cfg: CampaignConfig, values: dict):
-    """The scenario of a case: the campaign's scenario with the case's values applied."""
-    from tools.montecarlo import apply
-    return apply.apply(_base_scenario(cfg.scenario), values)
+    """The scenario of a case: the campaign's scenario with the case's values applied.
+
+    The last one is kept: a case's variants fly the same dispersed scenario, and applying the
+    values (a TOML round trip through the plant's own validation) is a few per cent of a
+    case. The Scenario is not modified by the flights (plant_sim.sim.PlantSim reads it)."""
+    key = (cfg.scenario, tuple(sorted((k, float(v)) for k, v in values.items())))
+    if _last_dispersed[0] != key:
+        from tools.montecarlo import apply
+        _last_dispersed[:] = [key, apply.apply(_base_scenario(cfg.scenario), values)]
+    return _last_dispersed[1]
+
+
+_last_dispersed: list = [None, None]
 
 
 def _closed_loop_flight(cfg: CampaignConfig, values: dict, variant: str, sim_seed: int,
