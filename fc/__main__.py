@@ -111,12 +111,14 @@ def _run(args, out: str, log: logging.Logger) -> int:
 
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
+    t_build = time.perf_counter()
     try:
         fc = FlightController(cfg, log)
     except (OSError, ValueError, KeyError, ImportError) as exc:
         print(f"fc: {exc}", file=sys.stderr)
         return 2
     log.info("fc started: %s", cfg)
+    _log_kernel_cache(log, time.perf_counter() - t_build)
     log.info("plant link bound at %s:%d, GCS link bound at %s:%d", *fc.plant.endpoint.address,
              *fc.gcs.endpoint.address)
     # the start-up heap frozen before READY: the first frames must not wait for that pass
@@ -128,6 +130,22 @@ def _run(args, out: str, log: logging.Logger) -> int:
         fc.close()
     log.info("fc stopped (signal %s)", stopping[0] if stopping else None)
     return 0
+
+
+def _log_kernel_cache(log: logging.Logger, build_s: float) -> None:
+    """Say whether the law's, estimator's and guidance's numba kernels came from the cache
+    (a start of about 1 s) or had to be compiled (10-15 s; ``python -m tools.precompile``,
+    run once after install, fills the cache: README, docs/fc.md "Start-up")."""
+    from hyfc_wire.numba_cache import kernel_stats
+    loaded, compiled = kernel_stats(("fc",))
+    if compiled:
+        log.info("numba cache cold or stale: %d kernel specialisations compiled at start "
+                 "(%d loaded), controller built in %.1f s; run `python -m tools.precompile` "
+                 "(hyfc-precompile) once after installing or changing the code",
+                 compiled, loaded, build_s)
+    else:
+        log.info("numba cache warm: %d kernels loaded, controller built in %.2f s",
+                 loaded, build_s)
 
 
 if __name__ == "__main__":
