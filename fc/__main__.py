@@ -96,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, out: str, log: logging.Logger) -> int:
     from fc.app import FcConfig, FlightController
     from fc.scheduler import freeze_heap
+    from hyfc_wire.numba_cache import cache_report
 
     cfg = FcConfig(mode=args.mode, plant_bind=args.plant_bind, plant_sysid=args.plant_sysid,
                    gcs=args.gcs or [("127.0.0.1", 14550)], gcs_bind=args.gcs_bind,
@@ -118,7 +119,9 @@ def _run(args, out: str, log: logging.Logger) -> int:
         print(f"fc: {exc}", file=sys.stderr)
         return 2
     log.info("fc started: %s", cfg)
-    _log_kernel_cache(log, time.perf_counter() - t_build)
+    # were the law's, estimator's and guidance's kernels in numba's cache (about 1 s), or
+    # compiled (10-15 s; ``python -m tools.precompile`` fills the cache once: docs/fc.md)?
+    log.info(cache_report(("fc",), time.perf_counter() - t_build))
     log.info("plant link bound at %s:%d, GCS link bound at %s:%d", *fc.plant.endpoint.address,
              *fc.gcs.endpoint.address)
     # the start-up heap frozen before READY: the first frames must not wait for that pass
@@ -130,22 +133,6 @@ def _run(args, out: str, log: logging.Logger) -> int:
         fc.close()
     log.info("fc stopped (signal %s)", stopping[0] if stopping else None)
     return 0
-
-
-def _log_kernel_cache(log: logging.Logger, build_s: float) -> None:
-    """Say whether the law's, estimator's and guidance's numba kernels came from the cache
-    (a start of about 1 s) or had to be compiled (10-15 s; ``python -m tools.precompile``,
-    run once after install, fills the cache: README, docs/fc.md "Start-up")."""
-    from hyfc_wire.numba_cache import kernel_stats
-    loaded, compiled = kernel_stats(("fc",))
-    if compiled:
-        log.info("numba cache cold or stale: %d kernel specialisations compiled at start "
-                 "(%d loaded), controller built in %.1f s; run `python -m tools.precompile` "
-                 "(hyfc-precompile) once after installing or changing the code",
-                 compiled, loaded, build_s)
-    else:
-        log.info("numba cache warm: %d kernels loaded, controller built in %.2f s",
-                 loaded, build_s)
 
 
 if __name__ == "__main__":

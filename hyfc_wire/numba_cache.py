@@ -12,7 +12,8 @@ Only the default cache location (``__pycache__`` next to the module) is handled;
 NUMBA_CACHE_DIR set, clear that directory after changing the code.
 
 ``kernel_stats(packages)`` says how the loaded kernels got their machine code (from the cache or
-compiled in this process): the fc logs it at start, ``python -m tools.precompile`` prints it.
+compiled in this process): ``cache_report`` is the line the fc and the plant log at start,
+``python -m tools.precompile`` prints the counts.
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["drop_stale", "kernel_stats", "package_files"]
+__all__ = ["cache_report", "drop_stale", "kernel_stats", "package_files"]
 
 
 def _cache_files(module_file: Path) -> list[Path]:
@@ -78,3 +79,14 @@ def kernel_stats(packages: tuple[str, ...]) -> tuple[int, int]:
                 hits += sum(st.cache_hits.values())
                 misses += sum(st.cache_misses.values())
     return hits, misses
+
+
+def cache_report(packages: tuple[str, ...], warm_up_s: float) -> str:
+    """The start-up log line of a process whose kernels (``packages``) were just warmed up in
+    ``warm_up_s``: loaded from the cache, or compiled (then how to avoid it next time)."""
+    loaded, compiled = kernel_stats(packages)
+    if compiled:
+        return (f"numba cache cold or stale: {compiled} kernel specialisations compiled at "
+                f"start ({loaded} loaded), warm-up {warm_up_s:.1f} s; run `python -m "
+                f"tools.precompile` (hyfc-precompile) once after installing or changing the code")
+    return f"numba cache warm: {loaded} kernels loaded, warm-up {warm_up_s:.2f} s"

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
 from plant_sim.link import PlantLink
@@ -90,7 +91,9 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     out = Path(cfg.out_dir)
     sim = PlantSim(sc, seed=cfg.seed)
     stats = RunStats()
+    t_warm = time.perf_counter()
     sim.warm_up()       # the numba kernels loaded (or compiled) before the first frame is due
+    log.info(cache_report(("plant_sim",), time.perf_counter() - t_warm))
 
     text, ok = trim_report(sc)
     for line in text.splitlines():
