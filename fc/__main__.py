@@ -96,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, out: str, log: logging.Logger) -> int:
     from fc.app import FcConfig, FlightController
     from fc.scheduler import freeze_heap
+    from hyfc_wire.numba_cache import cache_report
 
     cfg = FcConfig(mode=args.mode, plant_bind=args.plant_bind, plant_sysid=args.plant_sysid,
                    gcs=args.gcs or [("127.0.0.1", 14550)], gcs_bind=args.gcs_bind,
@@ -111,12 +112,16 @@ def _run(args, out: str, log: logging.Logger) -> int:
 
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
+    t_build = time.perf_counter()
     try:
         fc = FlightController(cfg, log)
     except (OSError, ValueError, KeyError, ImportError) as exc:
         print(f"fc: {exc}", file=sys.stderr)
         return 2
     log.info("fc started: %s", cfg)
+    # were the law's, estimator's and guidance's kernels in numba's cache (about 1 s), or
+    # compiled (10-15 s; ``python -m tools.precompile`` fills the cache once: docs/fc.md)?
+    log.info(cache_report(("fc",), time.perf_counter() - t_build))
     log.info("plant link bound at %s:%d, GCS link bound at %s:%d", *fc.plant.endpoint.address,
              *fc.gcs.endpoint.address)
     # the start-up heap frozen before READY: the first frames must not wait for that pass

@@ -164,6 +164,10 @@ class GcsLink:
         self.links: dict[tuple, _Streams] = {}         # peers that asked for their own rates
         self._rx_addr: tuple | None = None             # source of the message being handled
         self.next_heartbeat = 0.0
+        # the earliest wall-clock time a stream or the heartbeat is due on any link (a call of
+        # ``service`` before it, with nothing queued, sends nothing); 0.0 = walk the schedules
+        # (recomputed after each walk, reset when a received message may have changed them)
+        self.wall_due = 0.0
         # parameter answers: single reads/announcements queue (bounded) ahead of the list
         # download, which is a cursor: a repeated PARAM_REQUEST_LIST restarts it and can never
         # push out a pending read (a flood of list requests cannot starve a real GCS)
@@ -375,6 +379,7 @@ class GcsLink:
                 if m.get_srcSystem() == self.v.sysid:
                     continue  # our own echo or a clash: never obey it
                 self.rx_msgs += 1
+                self.wall_due = 0.0     # a new peer or rate request: schedules walked again
                 self._tlog_write(bytes(m.get_msgbuf()))
                 if addr not in self.peers and len(self.peers) >= MAX_PEERS:
                     self._expire_peers(now_s, force=True)
@@ -879,7 +884,13 @@ class GcsLink:
         if self.home is None and self.v.plant.gps_samples:
             self._gnss()                   # home = the first fix, taken when it arrives
         self._service_log()
-        self.mission_send(self.mission.tick(now_s))
+        mission_out = self.mission.tick(now_s)
+        if mission_out:
+            self.mission_send(mission_out)
+        if (now_s < self.wall_due and not self.oneshot and not self.text_queue
+                and not self.param_queue and self.list_next < 0
+                and self.v.modes.mode == self.last_mode_sent):
+            return 0                       # nothing due, nothing queued: most frames
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
@@ -918,7 +929,19 @@ class GcsLink:
         sent = self._streams(self.default, now_s, sent)
         for link in list(self.links.values()):
             sent = self._streams(link, now_s, sent)
+        self.wall_due = self._next_wall_due()
         return sent
+
+    def _next_wall_due(self) -> float:
+        """The earliest wall-clock time the heartbeat or an enabled stream of any schedule is
+        due (a stream left due by ``max_tx`` makes it the past: the next call walks again)."""
+        due = self.next_heartbeat
+        for link in (self.default, *self.links.values()):
+            next_due = link.next_due
+            for msg_id, iv in link.intervals.items():
+                if iv >= 0.0 and next_due[msg_id] < due:
+                    due = next_due[msg_id]
+        return due
 
     def _streams(self, link: _Streams, now_s: float, sent: int) -> int:
         """Send the streamed messages of one schedule that are due; returns ``sent`` updated."""

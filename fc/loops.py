@@ -31,12 +31,17 @@ from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, fr
                           try_realtime)
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 
-__all__ = ["HOLD_AFTER_S", "Housekeeping", "RunLoops"]
+__all__ = ["GCS_POLL_S", "HOLD_AFTER_S", "Housekeeping", "RunLoops"]
 
 #: Real time: with no new plant frame for this long (wall clock, 5 frame periods at 500 Hz) the
 #: law is not stepped and the last surface command is held until data comes back or FAILSAFE
 #: takes over; stepping it on a frozen estimate winds it up (docs/reliability.md, promise 2).
 HOLD_AFTER_S = 0.01
+#: Real time: the loops wait on the plant socket only, so the ground-station socket is read
+#: (a non-blocking ``recvfrom``) at most this often (wall clock, s), and on every call while
+#: the previous read found datagrams (a burst is drained at the tick rate). A ground station
+#: is served within 2.5 frames at 500 Hz; lockstep reads it when its ``select`` says so.
+GCS_POLL_S = 0.005
 
 
 @dataclass
@@ -59,10 +64,19 @@ class Housekeeping:
     relocks_seen: int = 0
     chore: int = 0                  # which of the 1 Hz chores the next call does
     next_1hz: float = 0.0           # wall clock of the next round of 1 Hz chores
+    next_gcs_poll: float = 0.0      # wall clock of the next GCS read when readiness is unknown
 
-    def __call__(self, now_s: float) -> None:
-        """Ground station, failsafe, 1 Hz chores. Bounded work per call."""
-        self.gcs.poll(now_s)
+    def __call__(self, now_s: float, gcs_ready: bool | None = None) -> None:
+        """Ground station, failsafe, 1 Hz chores. Bounded work per call.
+
+        ``gcs_ready``: whether the caller's ``select`` found the GCS socket readable (lockstep);
+        None when the caller does not wait on it (real time): then the socket is read at most
+        every GCS_POLL_S, and on every call while the last read found datagrams."""
+        if gcs_ready is None:
+            if now_s >= self.next_gcs_poll:
+                self.next_gcs_poll = now_s if self.gcs.poll(now_s) else now_s + GCS_POLL_S
+        elif gcs_ready:
+            self.gcs.poll(now_s)
         if self.plant.counters.goodbyes != self.goodbyes_seen:
             self._plant_said_goodbye()
         self.mode_ctl.check_data(now_s)
@@ -159,20 +173,31 @@ class RunLoops:
         fds = [plant_fd, gcs_fd]
         mono = time.monotonic
         while not stop():
-            # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits
+            # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits.
+            # It also says whether the GCS socket has datagrams: read it only then (a read
+            # that finds nothing costs 2.5 us, docs/performance.md)
             try:
-                select.select(fds, [], [], 0.01)
+                ready = select.select(fds, [], [], 0.01)[0]
             except InterruptedError:
-                pass
+                ready = fds                 # unknown: read both
+            gcs_ready = gcs_fd in ready
             now_s = mono()
-            for _ in range(16):   # frames per wake-up: bounded
+            n = 0
+            while n < 16:   # frames per wake-up: bounded
                 stamp = self.plant.read_frame(self.intake.scratch)
                 if stamp < 0:
                     break
                 t0 = time.perf_counter_ns()
                 self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
                 self.counters.add_exec(time.perf_counter_ns() - t0)
-            self.housekeeping(now_s)
+                # housekeeping after every frame, also when several arrived together: the
+                # .tlog's sim-paced streams fall due on a frame's stamp, so the log does not
+                # depend on how the frames were batched (the GCS is read once per wake-up)
+                self.housekeeping(now_s, gcs_ready)
+                gcs_ready = False
+                n += 1
+            if not n:
+                self.housekeeping(now_s, gcs_ready)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
         """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),

@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
 from plant_sim.link import PlantLink
 from plant_sim.scenario import Scenario
-from plant_sim.sensors import M_N
 from plant_sim.sim import PlantSim
 from plant_sim.trim import trim_report
 from plant_sim.truthlog import TruthWriter
@@ -91,14 +91,9 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     out = Path(cfg.out_dir)
     sim = PlantSim(sc, seed=cfg.seed)
     stats = RunStats()
-    # warm the numba kernels (cache load) before the first frame is due
-    m = np.zeros(M_N)
-    row0 = np.zeros(sim.TRUTH_N)
-    sim.measure(m)
-    sim.truth_row(row0)
-    sim.step_frame(sim.trim_rad.copy())
-    sim.frame(sim.trim_rad.copy(), row0)
-    sim.reset()
+    t_warm = time.perf_counter()
+    sim.warm_up()       # the numba kernels loaded (or compiled) before the first frame is due
+    log.info(cache_report(("plant_sim",), time.perf_counter() - t_warm))
 
     text, ok = trim_report(sc)
     for line in text.splitlines():

@@ -184,6 +184,17 @@ class PlantSim:
         if hasattr(self, "gnss"):
             self.gnss.reset()
 
+    def warm_up(self) -> None:
+        """Call every kernel the plant process uses once (compiled, or loaded from numba's
+        cache, now rather than at the first frame), then reset."""
+        m = np.zeros(M_N)
+        row = np.zeros(self.TRUTH_N)
+        self.measure(m)
+        self.truth_row(row)
+        self.step_frame(self.trim_rad.copy())
+        self.frame(self.trim_rad.copy(), row)
+        self.reset()
+
     def initial_throttle(self) -> float:
         """Engine model: the scenario's ``speed.throttle_initial``, or (if -1) the throttle
         whose thrust balances drag and gravity along the path at the current state:

@@ -89,6 +89,10 @@ def test_tlog_streams_time_base_and_sequence(lockstep_run):
     # streams at their rates of sim time
     n_att = sum(1 for m in msgs if m["meta"]["type"] == "ATTITUDE")
     assert n_att == pytest.approx(FLIGHT_S * ATT_HZ, abs=2)
+    # ... written at the frame whose stamp makes them due (every 0.1 s of sim time exactly),
+    # also when the fc read several plant frames at one wake-up
+    att_ms = [m["data"]["time_boot_ms"] for m in msgs if m["meta"]["type"] == "ATTITUDE"]
+    assert [t for t in att_ms if t % 100] == []
     n_gpi = sum(1 for m in msgs if m["meta"]["type"] == "GLOBAL_POSITION_INT")
     assert n_gpi == pytest.approx(FLIGHT_S * 10, abs=2)
     # one time base: every time field = record stamp - epoch, and monotone per message type

@@ -23,6 +23,7 @@ import os
 import select
 import shutil
 import socket
+import subprocess
 import sys
 import tempfile
 import threading
@@ -357,20 +358,28 @@ def realtime(fast_hz: float, wall_s: float, keep: str | None = None,
         s.close()
 
 
-def startup(cold: bool, keep: str | None = None) -> dict:
+def startup(cold: bool, keep: str | None = None, precompiled: bool = False) -> dict:
     """Process start to the first SERVO_OUTPUT_RAW: ``python -m fc`` (lockstep) is started and
     a sensor frame is sent every 2 ms until the first answer. ``cold``: NUMBA_CACHE_DIR points
-    to an empty directory, so every kernel compiles."""
+    to an empty directory, so every kernel compiles; with ``precompiled`` ``python -m
+    tools.precompile`` fills it first (its wall time in ``precompile_s``, not in the start)."""
     from fc.link import UdpEndpoint
     from tools.bench.standin import FrameCodec
-    s = Session(keep, "startup-cold" if cold else "startup-warm")
+    s = Session(keep, ("startup-precompiled" if precompiled else "startup-cold") if cold
+                else "startup-warm")
     ep = UdpEndpoint("127.0.0.1", 0)
     try:
         env = dict(os.environ)
+        extra = {}
         if cold:
             cache = s.dir / "numba_cache"
             cache.mkdir()
             env["NUMBA_CACHE_DIR"] = str(cache)
+            if precompiled:
+                t_pre = time.perf_counter()
+                subprocess.run([PY, "-m", "tools.precompile"], env=env, check=True,
+                               stdout=subprocess.DEVNULL, timeout=READY_TIMEOUT_S * 2)
+                extra["precompile_s"] = time.perf_counter() - t_pre
         port = free_udp_port()
         codec = FrameCodec()
         meas = np.zeros(14)
@@ -394,8 +403,9 @@ def startup(cold: bool, keep: str | None = None) -> dict:
                 got = ep.recv()
                 if got is not None and codec.servo(got[0]) is not None:
                     t1 = time.perf_counter()
-                    return {"cold": cold, "first_servo_s": t1 - t0,
-                            "cpu_s_at_first_servo": _cpu_s(fc.pid)}
+                    return {"cold": cold, "precompiled": precompiled,
+                            "first_servo_s": t1 - t0,
+                            "cpu_s_at_first_servo": _cpu_s(fc.pid), **extra}
             if fc.poll() is not None:
                 raise RuntimeError(fc.death_message())
         raise RuntimeError(f"no SERVO_OUTPUT_RAW within {READY_TIMEOUT_S:.0f} s of start")

@@ -100,7 +100,8 @@ class _Rig:
         st = fc.plant.read_frame(fc.meas_scratch)
         if st >= 0:
             fc.loops.lockstep_frame(st, mono())
-        fc.loops.housekeeping(mono())
+        # no GCS traffic here: the lockstep loop's select finds its socket not readable
+        fc.loops.housekeeping(mono(), False)
 
     def close(self) -> None:
         from fc.scheduler import release_heap

@@ -144,3 +144,61 @@ def test_limiter_reports_a_repeat_that_goes_on_every_hold_s():
         assert not lim.allow(float(k), 4, "refused: Y")
         out += lim.summaries(float(k) + 0.5)
     assert out == [(4, "refused: Y (30 suppressed)"), (4, "refused: Y (30 suppressed)")]
+
+
+def _settle(link: GcsLink, now_s: float) -> float:
+    """Call ``service`` until everything due at start is sent (``max_tx`` per call); returns
+    the time of the last call."""
+    for _ in range(50):
+        if link.service(now_s) == 0:
+            return now_s
+        now_s += 1e-4
+    raise AssertionError("the start-up streams never drained")
+
+
+def test_service_walks_the_schedules_only_when_something_is_due():
+    out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    out.bind(("127.0.0.1", 0))
+    link = GcsLink(_Vehicle(), ("127.0.0.1", free_udp_port()), [out.getsockname()])
+    walks = []
+    walk = link._streams
+    link._streams = lambda sched, now_s, sent: (walks.append(now_s), walk(sched, now_s, sent))[1]
+    try:
+        now = _settle(link, 100.0)
+        due = link.wall_due
+        assert now < due <= now + min(STREAM_DEFAULTS_S.values())
+        n_walks = len(walks)
+        # GIVEN nothing due and nothing queued: no walk, nothing sent
+        assert link.service(due - 1e-6) == 0 and len(walks) == n_walks
+        # WHEN the earliest stream falls due: walked and sent
+        assert link.service(due) >= 1 and len(walks) == n_walks + 1
+    finally:
+        out.close()
+        link.close()
+
+
+def test_a_peer_rate_request_is_served_at_once_not_at_the_next_due_time():
+    out_port = free_udp_port()
+    link = GcsLink(_Vehicle(), ("127.0.0.1", free_udp_port()), [("127.0.0.1", out_port)])
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    peer.settimeout(2.0)
+    try:
+        now = _settle(link, 100.0)
+        assert link.wall_due > now + 1e-3
+        # GIVEN a peer asking for ATTITUDE at 50 Hz (its own schedule, due now; no reply queued)
+        tx = ML.MAVLink(_Null(), srcSystem=255, srcComponent=190)
+        peer.sendto(tx.request_data_stream_encode(1, 1, ML.MAV_DATA_STREAM_EXTRA1, 50, 1)
+                    .pack(tx), link.endpoint.address)
+        t = now + 1e-5
+        for _ in range(100):                   # the datagram is on loopback: read it
+            if link.poll(t):
+                break
+        # WHEN serviced before the old schedules' next due time: the peer's streams go out
+        assert link.service(t + 1e-5) >= 1
+        rx = ML.MAVLink(_Null())
+        msgs = rx.parse_buffer(peer.recv(2048)) or []
+        assert msgs and msgs[0].get_srcSystem() == 1
+    finally:
+        peer.close()
+        link.close()
