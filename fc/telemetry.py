@@ -36,8 +36,9 @@ class TickOutput:
 
     cmd_active: np.ndarray                  # the law's command, rad: CMD_* or the guidance's
     delta_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))  # surfaces L, R, rudder
-    pwm_us: list = field(default_factory=lambda: [1500, 1500, 1500, 0])  # servo4: throttle,
-                                                                        # 0 = no output
+    #: servo1..4 [us] (int64[4], written in place by fc.link.pwm_map); servo4: throttle,
+    #: 0 = no output
+    pwm_us: np.ndarray = field(default_factory=lambda: np.array([1500, 1500, 1500, 0], np.int64))
 
 
 @dataclass
