@@ -91,8 +91,6 @@ _DEG2RAD = math.pi / 180.0     # what CPython's math.radians multiplies by
 # Payload offsets (wire order, little endian), checked against the codec's structs in
 # tests/unit/wire/test_frame_kernels.py: ATTITUDE <Iffffff, AOA_SSA <Qff, VFR_HUD <ffffhH,
 # GPS_INPUT <QIiifffffffffHHBBBH, SERVO_OUTPUT_RAW <IHHHHHHHHBHHHHHHHH.
-_PWM_UP = DEFLECTION_LIMIT_RAD
-_TRIM = float(PWM_TRIM_US)
 
 
 def _crc_table() -> np.ndarray:
@@ -245,9 +243,9 @@ def _to_pwm(rad):
     if not math.isfinite(rad):
         return PWM_TRIM_US
     if rad >= 0.0:
-        us = PWM_TRIM_US + rad / _PWM_UP * (PWM_MAX_US - PWM_TRIM_US)
+        us = PWM_TRIM_US + rad / DEFLECTION_LIMIT_RAD * (PWM_MAX_US - PWM_TRIM_US)
     else:
-        us = PWM_TRIM_US + rad / _PWM_UP * (PWM_TRIM_US - PWM_MIN_US)
+        us = PWM_TRIM_US + rad / DEFLECTION_LIMIT_RAD * (PWM_TRIM_US - PWM_MIN_US)
     r = np.rint(us)
     if r < PWM_MIN_US:
         return PWM_MIN_US
