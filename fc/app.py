@@ -25,8 +25,7 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import (M_N, PlantLink, UdpEndpoint, deflection_to_pwm, load_signing_key,
-                     mavlink)
+from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, pwm_map
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.mode_control import ModeControl
@@ -125,7 +124,7 @@ class FlightController:
                                       params_path, self.log)
         self.settings = self.param_svc.settings
         self.out = TickOutput(self.settings.cmd_rad)
-        self.pwm_us = self.out.pwm_us           # VehicleView (the same list)
+        self.pwm_us = self.out.pwm_us           # VehicleView (the same array)
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -256,13 +255,11 @@ class FlightController:
                 self.out.delta_rad[:] = self.settings.trim_rad
         else:
             self.out.delta_rad[:] = self.settings.trim_rad
-        d = self.out.delta_rad
-        self.pwm_us[0] = deflection_to_pwm(d[0])
-        self.pwm_us[1] = deflection_to_pwm(d[1])
-        self.pwm_us[2] = deflection_to_pwm(d[2])
-        # throttle only while the guidance flies (its last command held with the law); 0 = no
-        # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        self.pwm_us[3] = self.guid.throttle_pwm() if self.modes.guidance_active else 0
+        # servo1..3 from the surfaces (compiled, deflection_to_pwm's rounding); throttle only
+        # while the guidance flies (its last command held with the law); 0 = no output
+        # otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
+        pwm_map(self.out.delta_rad,
+                self.guid.throttle_pwm() if self.modes.guidance_active else 0, self.pwm_us)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)

@@ -4,7 +4,9 @@ Everything that touches MAVLink in the fc goes through here (docs/architecture.m
 the codec, the UDP endpoint, the measurement and GNSS layouts, the PWM map and the lean framing
 are the contract package's (hyfc_wire, shared with the plant and re-exported here for the fc);
 this module adds the datagram decoder that never raises, the signing key and the plant link
-(sensor frames in, SERVO_OUTPUT_RAW out, docs/wire.md). ``fc/gcs.py`` takes its codec
+(sensor frames in, SERVO_OUTPUT_RAW out, docs/wire.md). The plant link's per-frame path is
+compiled (``hyfc_wire.frame_kernels``): the datagram is received into a preallocated buffer
+and decoded there, the answer framed into another one. ``fc/gcs.py`` takes its codec
 (``new_codec``, ``mavlink``) from this module.
 """
 from __future__ import annotations
@@ -18,7 +20,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
-from hyfc_wire.framing import LeanFramer, SensorDecoder, ServoPacker
+from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
+                                     GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
+                                     GR_VN, SERVO_FRAME_MAX_B, decode_sensor, pwm_map,
+                                     servo_frame)
+from hyfc_wire.frame_kernels import GR_ALT_M as GR_ALT
+from hyfc_wire.framing import LeanFramer
 from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
                               G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_ALT,
                               M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P, M_PITCH, M_Q,
@@ -31,7 +38,7 @@ from hyfc_wire.udp import MAX_DATAGRAM_B, UdpEndpoint, parse_hostport  # noqa: F
 __all__ = [
     "mavlink", "mavlink_dev", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink",
     "LinkCounters", "LeanFramer",
-    "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "load_signing_key",
+    "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "pwm_map", "load_signing_key",
     "parse_hostport",
     "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
     "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",
@@ -86,26 +93,26 @@ def load_signing_key(path: str) -> bytes:
 
 
 def _lean_self_check(link: "PlantLink") -> bool:
-    """True if the lean decoder gives exactly the general parser's result on a codec-built
-    frame (field order, truncation, CRC_EXTRA of this pymavlink); else the link keeps the
-    general parser only."""
+    """True if the compiled decoder gives exactly the general parser's result on a
+    codec-built frame, and the compiled framing the codec's SERVO_OUTPUT_RAW bytes (field
+    order, truncation, CRC_EXTRA of this pymavlink); else the link keeps the general parser
+    and the codec's framing only."""
     try:
         tx = new_codec(link.plant_sysid)
         buf = tx.attitude_encode(1234, 0.1, -0.2, 0.3, 0.01, -0.02, 0.0).pack(tx)
         buf += tx.aoa_ssa_encode(1_234_567, 2.5, 0.0).pack(tx)
         buf += tx.vfr_hud_encode(2200.0, 2190.0, 45, 0, 25000.0, -1.5).pack(tx)
-        lean = link._lean
         for extra in (b"", tx.gps_input_encode(1_234_567, 0, 0, 0, 0, 3, 349054321, -1178839876,
                                                 21000.5, 1.0, 1.0, 2199.5, -3.25, 1.5, 0.1, 1.5,
                                                 3.0, 12, 0).pack(tx)):
             a = np.full(M_N, -1.0)
             b = np.full(M_N, -2.0)
-            link._lean = None
+            link._fast = False
             try:
                 sa = link._decode(buf + extra, a)
                 ga = link.gps.copy()
             finally:
-                link._lean = lean
+                link._fast = True
             link.gps[:] = 0.0
             sb = link._decode(buf + extra, b)
             if not (sa == sb == 1_234_567 and bool(np.array_equal(a, b))
@@ -114,17 +121,30 @@ def _lean_self_check(link: "PlantLink") -> bool:
         link.gps[:] = 0.0
         link.gps_samples = 0
         link.counters.gnss = 0
+        pwm = np.zeros(4, np.int64)
+        for d in ((0.0, 0.1, -0.1), (0.35, -0.35, math.nan), (1e-3, -2e-3, 0.2)):
+            pwm_map(np.array(d), 0, pwm)     # (also compiles/loads it before the first tick)
+            if pwm.tolist() != [deflection_to_pwm(x) for x in d] + [0]:
+                return False
         c = new_codec(link.sysid, link.compid)
         for seq, args in ((0, (0, 1500, 1500, 1500, 0)), (7, (123456, 1000, 2000, 1500, 1420)),
                           (255, (0xFFFFFFFF, 0, 0, 0, 0)), (3, (256, 0, 0, 0, 2000))):
             c.seq = seq
             ref = c.servo_output_raw_encode(args[0], 0, args[1], args[2], args[3],
                                             args[4], 0, 0, 0, 0).pack(c)
-            if link._packer.pack(seq, *args) != ref:
+            n = servo_frame(link._tx_u8, seq, link.sysid, link.compid, args[0],
+                            np.array(args[1:], np.int64))
+            if bytes(link._tx[:n]) != ref:
                 return False
         return True
     except Exception:  # noqa: BLE001 - any surprise: stay on the general parser
         return False
+
+
+def _pwm4(pwm_us) -> np.ndarray:
+    """servo1..4 as int64[4] (servo4 0 = no output when ``pwm_us`` has three values)."""
+    v = [int(x) for x in pwm_us[:4]]
+    return np.array(v + [0] * (4 - len(v)), np.int64)
 
 
 @dataclass(slots=True)
@@ -179,18 +199,26 @@ class PlantLink:
     gps: np.ndarray = None
     gps_samples: int = 0
     _tx_codec: mavlink.MAVLink = None
-    _lean: SensorDecoder | None = None
-    _packer: ServoPacker | None = None
+    #: the compiled decoder and framing are in use (their start-up self-check passed)
+    _fast: bool = True
+    _rx: bytearray = None           # the received datagram (recv_into), and as uint8
+    _rx_u8: np.ndarray = None
+    _gps_raw: np.ndarray = None     # decode_sensor's raw GPS_INPUT fields (GR_*)
+    _tx: bytearray = None           # the SERVO_OUTPUT_RAW frame being sent, and as uint8
+    _tx_u8: np.ndarray = None
+    _tx_mv: memoryview = None
 
     def __post_init__(self) -> None:
         self.gps = np.zeros(G_N)
         self.codec = new_codec(self.sysid, self.compid)
         self._tx_codec = new_codec(self.sysid, self.compid)
-        self._lean = SensorDecoder()
-        self._packer = ServoPacker(self.sysid, self.compid)
-        if not _lean_self_check(self):
-            self._lean = None
-            self._packer = None
+        self._rx = bytearray(MAX_DATAGRAM_B)
+        self._rx_u8 = np.frombuffer(self._rx, np.uint8)
+        self._gps_raw = np.zeros(GR_N)
+        self._tx = bytearray(SERVO_FRAME_MAX_B)
+        self._tx_u8 = np.frombuffer(self._tx, np.uint8)
+        self._tx_mv = memoryview(self._tx)
+        self._fast = _lean_self_check(self)
 
     def read_frame(self, meas_out: np.ndarray) -> int:
         """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
@@ -198,11 +226,12 @@ class PlantLink:
         Returns the frame stamp in us (u64) or -1 when no acceptable datagram is waiting.
         At most 64 datagrams are read per call (bounded work).
         """
+        rx = self._rx
         for _ in range(64):
-            got = self.endpoint.recv()
+            got = self.endpoint.recv_into(rx)
             if got is None:
                 return -1
-            data, addr = got
+            n, addr = got
             self.counters.datagrams += 1
             relock = False
             if self.peer is not None and addr != self.peer:
@@ -210,7 +239,7 @@ class PlantLink:
                     self.counters.rejected_addr += 1
                     continue
                 relock = True
-            stamp = self._decode(data, meas_out)
+            stamp = self._decode_rx(n, meas_out)
             if stamp < 0:
                 continue
             if self.peer is None or relock:
@@ -225,17 +254,31 @@ class PlantLink:
         return -1
 
     def _decode(self, data: bytes, meas_out: np.ndarray) -> int:
-        if self._lean is not None:      # the common case, same result as below
-            stamp = self._lean.decode(data, self.plant_sysid, meas_out)
+        """Decode the datagram ``data`` into ``meas_out``: its stamp (us), or -1 (counted)."""
+        n = len(data)
+        if n > len(self._rx):
+            return self._decode_general(data, meas_out)
+        self._rx[:n] = data
+        return self._decode_rx(n, meas_out)
+
+    def _decode_rx(self, n: int, meas_out: np.ndarray) -> int:
+        """``_decode`` of the first ``n`` bytes of the receive buffer: the compiled decoder in
+        the common case; anything it rejects (its code says why) goes to the codec's general
+        parser, which counts what it rejects: the same result, only the cost changes."""
+        if self._fast:
+            stamp = decode_sensor(self._rx_u8, n, self.plant_sysid, meas_out, self._gps_raw)
             if stamp >= 0:
-                g = self._lean.gps
-                if g is not None:
-                    # GPS_INPUT <QIiifffffffffHHBBBH: time_usec time_week_ms lat lon alt hdop
-                    # vdop vn ve vd speed_acc horiz_acc vert_acc ignore_flags time_week gps_id
-                    # fix_type satellites_visible yaw (wire order)
-                    self._store_gps(stamp, g[2], g[3], g[4], g[7], g[8], g[9], g[16], g[17],
-                                    g[11], g[12], g[10])
+                g = self._gps_raw
+                if g[GR_PRESENT]:
+                    self._store_gps(stamp, int(g[GR_LAT_E7]), int(g[GR_LON_E7]), g[GR_ALT],
+                                    g[GR_VN], g[GR_VE], g[GR_VD], int(g[GR_FIX]),
+                                    int(g[GR_SATS]), g[GR_HACC_M], g[GR_VACC_M],
+                                    g[GR_SACC_M_S])
                 return stamp
+        return self._decode_general(bytes(self._rx[:n]), meas_out)
+
+    def _decode_general(self, data: bytes, meas_out: np.ndarray) -> int:
+        """The codec's general parser: any datagram, every rejection counted."""
         msgs, n_bad = decode_datagram(self.codec, data)
         if n_bad:
             self.counters.rejected_bad += 1
@@ -328,11 +371,13 @@ class PlantLink:
         """
         if self.peer is None:
             return False
-        s4 = pwm_us[3] if len(pwm_us) > 3 else 0
-        if self._packer is not None:    # same bytes as the codec's pack (self-checked)
-            buf = self._packer.pack(self._tx_codec.seq, stamp_us & 0xFFFFFFFF,
-                                    pwm_us[0], pwm_us[1], pwm_us[2], s4)
+        if self._fast:                  # same bytes as the codec's pack (self-checked)
+            if type(pwm_us) is not np.ndarray or len(pwm_us) != 4:
+                pwm_us = _pwm4(pwm_us)
+            buf = self._tx_mv[:servo_frame(self._tx_u8, self._tx_codec.seq, self.sysid,
+                                           self.compid, stamp_us & 0xFFFFFFFF, pwm_us)]
         else:
+            s4 = pwm_us[3] if len(pwm_us) > 3 else 0
             buf = self._tx_codec.servo_output_raw_encode(
                 stamp_us & 0xFFFFFFFF, 0, pwm_us[0], pwm_us[1], pwm_us[2], s4, 0, 0, 0,
                 0).pack(self._tx_codec)

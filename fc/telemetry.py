@@ -14,8 +14,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-from fc.estimator import E_N, Estimator
+from fc.estimator import Estimator
 from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
@@ -30,14 +31,52 @@ EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", 
             "h_m", "gamma_rad")
 
 
+@njit(cache=True)
+def fill_row(r, t_s, wall_s, stamp_us, mode, armed, healthy, masks, est, cmd, delta,
+             lateness_ns, exec_ns, status, n_status, throttle, limits, tgt):
+    """One internals-log row (the columns of :meth:`Telemetry.columns`, in order) into ``r``
+    (float64[ncol]) in one compiled call: masks int64[2] (invalid, stale), est float64[E_N],
+    cmd/delta float64[3] (rad), status float64[>= n_status] (the law's), tgt float64[>= 3]
+    (the guidance's targets); lateness and execution time in ns, logged in us."""
+    r[0] = t_s
+    r[1] = wall_s
+    r[2] = np.float64(stamp_us)
+    r[3] = np.float64(mode)
+    r[4] = 1.0 if armed else 0.0
+    r[5] = 1.0 if healthy else 0.0
+    r[6] = np.float64(masks[0])
+    r[7] = np.float64(masks[1])
+    k = 8
+    for i in range(est.shape[0]):
+        r[k + i] = est[i]
+    k += est.shape[0]
+    for i in range(3):
+        r[k + i] = cmd[i]
+        r[k + 3 + i] = delta[i]
+    r[k + 6] = lateness_ns * 1e-3
+    r[k + 7] = exec_ns * 1e-3
+    k += 8
+    for i in range(min(n_status, status.shape[0])):
+        r[k + i] = status[i]
+    k += n_status
+    r[k] = throttle
+    r[k + 1] = np.float64(limits)
+    for i in range(3):
+        r[k + 2 + i] = tgt[i]
+
+
+_NO_STATUS = np.zeros(0)
+
+
 @dataclass
 class TickOutput:
     """The newest fast tick's output."""
 
     cmd_active: np.ndarray                  # the law's command, rad: CMD_* or the guidance's
     delta_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))  # surfaces L, R, rudder
-    pwm_us: list = field(default_factory=lambda: [1500, 1500, 1500, 0])  # servo4: throttle,
-                                                                        # 0 = no output
+    #: servo1..4 [us] (int64[4], written in place by fc.link.pwm_map); servo4: throttle,
+    #: 0 = no output
+    pwm_us: np.ndarray = field(default_factory=lambda: np.array([1500, 1500, 1500, 0], np.int64))
 
 
 @dataclass
@@ -82,6 +121,19 @@ class Telemetry:
     status_names: list
     guid: GuidanceRunner
     _named: list = field(default_factory=list)     # as of the last refresh()
+    #: the law's status record as the row kernel reads it: the law's own array, or None when
+    #: that is not a contiguous float64 array (then converted per row); empty without one
+    _status: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        st = getattr(self.law, "status", None) if self.status_names else _NO_STATUS
+        ok = (isinstance(st, np.ndarray) and st.dtype == np.float64 and st.ndim == 1
+              and st.flags.c_contiguous)
+        self._status = st if ok else None
+        # compile / load the row kernel now, for each command array the tick may log
+        row = np.zeros(len(self.columns()))
+        for cmd in {id(c): c for c in (self.out.cmd_active, self.guid.cmd_rad)}.values():
+            self._fill(row, 0.0, 0, 0, 0, cmd)
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
@@ -161,25 +213,17 @@ class Telemetry:
                 exec_ns: int) -> None:
         """One internals-log row of the newest tick (dropped when the log is full)."""
         r = ilog.row()
-        if r is None:
-            return
-        r[0] = meas[0]
-        r[1] = time.monotonic()
-        r[2] = float(stamp_us)
-        r[3] = float(self.modes.mode)
-        r[4] = 1.0 if self.modes.armed else 0.0
-        r[5] = 1.0 if self.est.healthy else 0.0
-        r[6] = float(self.est.masks[0])
-        r[7] = float(self.est.masks[1])
-        r[8:8 + E_N] = self.est.est
-        k = 8 + E_N
-        r[k:k + 3] = self.out.cmd_active
-        r[k + 3:k + 6] = self.out.delta_rad
-        r[k + 6] = lateness_ns * 1e-3
-        r[k + 7] = exec_ns * 1e-3
-        ns = len(self.status_names)
-        if ns:
-            r[k + 8:k + 8 + ns] = self.law.status[:ns]
-        r[k + 8 + ns] = self.guid.throttle() if self.modes.guidance_active else math.nan
-        r[k + 9 + ns] = float(self.guid.limits)
-        r[k + 10 + ns:k + 13 + ns] = self.guid.g.tgt[0:3]
+        if r is not None:
+            self._fill(r, meas[0], stamp_us, lateness_ns, exec_ns, self.out.cmd_active)
+
+    def _fill(self, r: np.ndarray, t_s: float, stamp_us: int, lateness_ns: int, exec_ns: int,
+              cmd: np.ndarray) -> None:
+        modes = self.modes
+        est = self.est
+        guid = self.guid
+        fill_row(r, t_s, time.monotonic(), stamp_us, int(modes.mode), modes.armed,
+                 est.healthy, est.masks, est.est, cmd, self.out.delta_rad, lateness_ns,
+                 exec_ns, self._status if self._status is not None
+                 else np.ascontiguousarray(self.law.status, np.float64), len(self.status_names),
+                 guid.throttle() if modes.guidance_active else math.nan, guid.limits,
+                 guid.g.tgt)

@@ -8,6 +8,7 @@ Modules (import the one you need; this package file imports none of them):
 - ``pwm``: deflection / throttle <-> PWM (docs/wire.md s. 3)
 - ``codec``: the MAVLink 2 ``ardupilotmega`` codec factory (the only pymavlink import here)
 - ``framing``: CRC-16/MCRF4XX and the lean framing of the wire's messages (same bytes as the codec)
+- ``frame_kernels``: the fc's frame path compiled (sensor decode, PWM map, SERVO_OUTPUT_RAW)
 - ``udp``: ``HOST:PORT`` parsing and the non-blocking UDP endpoint
 - ``timeline``: the ``[[command]]`` / ``[[target]]`` timeline reader (one reader, one meaning)
 - ``numba_cache``: drop numba on-disk caches that are older than their dependencies

@@ -10,7 +10,8 @@ codec if they ever differ (a pymavlink upgrade).
 - ``crc16``: the codec's CRC.
 - ``Packer``: one message type framed in place into a bytearray (the plant's sensor frames,
   the fc's SERVO_OUTPUT_RAW); ``SensorFramer`` packs the plant's whole sensor datagram.
-- ``SensorDecoder``: the fc's fast path for that datagram, straight into the ``M_*`` vector.
+- ``SensorDecoder``: that datagram straight into the ``M_*`` vector in Python (the fc uses the
+  compiled ``hyfc_wire.frame_kernels.decode_sensor``, same values).
 - ``ServoDecoder``: the plant's fast path for a one-frame SERVO_OUTPUT_RAW datagram.
 - ``LeanFramer``: any codec message object (the fc's flight log and ground-station streams).
 """
@@ -156,7 +157,9 @@ class SensorFramer:
 
 
 class SensorDecoder:
-    """Fast path for the one datagram the fc's plant link expects (docs/wire.md section 2).
+    """Fast path for the one datagram the fc's plant link expects (docs/wire.md section 2), in
+    Python; the fc's link uses the compiled ``hyfc_wire.frame_kernels.decode_sensor`` (same
+    acceptance and values, about 1 us instead of 4.7 us).
 
     Accepts only a datagram made of exactly ATTITUDE, AOA_SSA and VFR_HUD and at most one
     GPS_INPUT (any order, each once), unsigned MAVLink 2 with good CRCs, all from

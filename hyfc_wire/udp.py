@@ -34,6 +34,15 @@ _TIMESPEC = struct.Struct("=qq")                          # struct timespec on 6
 _ANC_B = socket.CMSG_SPACE(_TIMESPEC.size) if hasattr(socket, "CMSG_SPACE") else 64
 
 
+def _rx_stamp_ns(anc) -> int:
+    """The kernel receive stamp (CLOCK_REALTIME ns) in ``recvmsg``'s ancillary data, else 0."""
+    for level, kind, cdata in anc:
+        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(cdata) >= 16:
+            sec, nsec = _TIMESPEC.unpack_from(cdata)
+            return sec * 1_000_000_000 + nsec
+    return 0
+
+
 class UdpEndpoint:
     """A bound, non-blocking UDP socket. ``recv`` returns None when nothing is waiting."""
 
@@ -82,18 +91,28 @@ class UdpEndpoint:
         try:
             if self._stamped:
                 data, anc, _flags, addr = self.sock.recvmsg(MAX_DATAGRAM_B, _ANC_B)
-                self.rx_ns = 0
-                for level, kind, cdata in anc:
-                    if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS \
-                            and len(cdata) >= 16:
-                        sec, nsec = _TIMESPEC.unpack_from(cdata)
-                        self.rx_ns = sec * 1_000_000_000 + nsec
+                self.rx_ns = _rx_stamp_ns(anc)
                 return data, addr
             return self.sock.recvfrom(MAX_DATAGRAM_B)
         except (BlockingIOError, InterruptedError):
             return None
         except OSError:
             # e.g. ICMP port unreachable reported on a later recv (ECONNREFUSED)
+            return None
+
+    def recv_into(self, buf) -> tuple[int, tuple] | None:
+        """Like :meth:`recv`, into the writable buffer ``buf`` (a datagram longer than it is
+        cut, as ``recv`` cuts at MAX_DATAGRAM_B): ``(length, address)``, no allocation for the
+        data."""
+        try:
+            if self._stamped:
+                n, anc, _flags, addr = self.sock.recvmsg_into((buf,), _ANC_B)
+                self.rx_ns = _rx_stamp_ns(anc)
+                return n, addr
+            return self.sock.recvfrom_into(buf)
+        except (BlockingIOError, InterruptedError):
+            return None
+        except OSError:
             return None
 
     def send(self, data: bytes, addr: tuple) -> bool:

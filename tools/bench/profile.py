@@ -177,8 +177,8 @@ def replay(datagrams: list, flight_mode: str = "COORDINATED", baseline: bool = F
 # Each is found by ``_target`` below; a part the controller does not have is left out.
 PARTS = (
     ("read_frame", None, "recv + decode (plant.read_frame)"),
-    ("recv", "read_frame", "socket recv + kernel stamp (endpoint.recv)"),
-    ("decode", "read_frame", "decode ATTITUDE+AOA_SSA+VFR_HUD (plant._decode, lean decoder)"),
+    ("recv", "read_frame", "socket recv + kernel stamp (endpoint.recv_into)"),
+    ("decode", "read_frame", "decode ATTITUDE+AOA_SSA+VFR_HUD (plant._decode_rx, compiled)"),
     ("frame", None, "frame (loops.lockstep_frame)"),
     ("new_frame", "frame", "frame intake (intake.take)"),
     ("estimator", "new_frame", "estimator (est.update)"),
@@ -187,9 +187,9 @@ PARTS = (
     ("guidance", "fast_tick", "guidance (guid.tick)"),
     ("slow_step", "fast_tick", "law slow loop (law.slow_step)"),
     ("fast_step", "fast_tick", "law fast loop (law.fast_step)"),
-    ("pwm", "fast_tick", "PWM mapping (deflection_to_pwm x3)"),
+    ("pwm", "fast_tick", "PWM mapping x3 + throttle (pwm_map, compiled)"),
     ("send_servo", "frame", "SERVO_OUTPUT_RAW (plant.send_servo)"),
-    ("framing", "send_servo", "framing + CRC (lean packer)"),
+    ("framing", "send_servo", "framing + CRC (servo_frame, compiled)"),
     ("sendto", "send_servo", "socket send (endpoint.send)"),
     ("log_row", "frame", "internals log row (telemetry.log_row)"),
     ("housekeeping", None, "housekeeping (loops.housekeeping)"),
@@ -208,17 +208,18 @@ def _target(fc, name: str):
     """(object, attribute) to wrap for a part; attributes of modules are patched on the
     module (``fc.app``'s global), the rest on the instance (shadowing the class method)."""
     import fc.app as app
+    import fc.link as link_mod
     import fc.loops as loops_mod
     plant = fc.plant
     return {
-        "read_frame": (plant, "read_frame"), "recv": (plant.endpoint, "recv"),
-        "decode": (plant, "_decode"), "frame": (fc.loops, "lockstep_frame"),
+        "read_frame": (plant, "read_frame"), "recv": (plant.endpoint, "recv_into"),
+        "decode": (plant, "_decode_rx"), "frame": (fc.loops, "lockstep_frame"),
         "new_frame": (fc.intake, "take"), "estimator": (fc.est, "update"),
         "sync_mode": (fc.mode_ctl, "sync"), "fast_tick": (fc.loops, "tick"),
         "guidance": (fc.guid, "tick"), "slow_step": (fc.law, "slow_step"),
-        "fast_step": (fc.law, "fast_step"), "pwm": (app, "deflection_to_pwm"),
+        "fast_step": (fc.law, "fast_step"), "pwm": (app, "pwm_map"),
         "send_servo": (plant, "send_servo"),
-        "framing": (getattr(plant, "_packer", None), "pack"),
+        "framing": (link_mod, "servo_frame"),
         "sendto": (plant.endpoint, "send"), "log_row": (fc.telemetry, "log_row"),
         "housekeeping": (fc.loops, "housekeeping"), "gcs_poll": (fc.gcs, "poll"),
         "gcs_service": (fc.gcs, "service"), "tlog_streams": (fc.gcs, "_service_log"),

@@ -52,3 +52,30 @@ def test_full_buffers_drop_rows_and_count_them(tmp_path):
     assert log.row() is not None        # the chunk came back
     log.close()
     assert len(load(str(tmp_path))["a"]) == 5
+
+
+def test_row_kernel_puts_each_value_in_its_named_column():
+    # GIVEN the telemetry's column names for a law with three status values
+    from types import SimpleNamespace
+
+    from fc.telemetry import Telemetry, fill_row
+    cols = Telemetry.columns(SimpleNamespace(status_names=["s0", "s1", "s2"]))
+    est = np.arange(9.0) + 0.5
+    status = np.array([7.0, 8.0, 9.0, 99.0])       # longer than the names: only 3 logged
+    row = np.full(len(cols), np.nan)
+    # WHEN the compiled kernel fills a row
+    fill_row(row, 1.25, 123.5, 2_000_001, 2, True, False, np.array([5, 6], np.int64), est,
+             np.array([0.1, 0.2, 0.3]), np.array([-0.1, -0.2, -0.3]), 1500, 2_500_000, status,
+             3, 0.75, 4, np.array([21000.0, 1.5, 2200.0, 0.9]))
+    # THEN every column holds its value (the order is the columns' one)
+    got = dict(zip(cols, row.tolist()))
+    assert got["t_s"] == 1.25 and got["wall_s"] == 123.5 and got["stamp_us"] == 2_000_001.0
+    assert (got["mode"], got["armed"], got["est_healthy"]) == (2.0, 1.0, 0.0)
+    assert (got["est_invalid_mask"], got["est_stale_mask"]) == (5.0, 6.0)
+    assert [got["est_" + c] for c in ("alpha_rad", "gamma_rad")] == [0.5, 8.5]
+    assert (got["cmd_mu_rad"], got["delta_left_rad"]) == (0.3, -0.1)
+    assert (got["lateness_us"], got["exec_us"]) == (1.5, 2500.0)
+    assert [got["law_s0"], got["law_s2"]] == [7.0, 9.0]
+    assert (got["guid_throttle"], got["guid_limits"]) == (0.75, 4.0)
+    assert (got["guid_tgt_h_m"], got["guid_tgt_V_m_s"]) == (21000.0, 2200.0)
+    assert not np.isnan(row).any()

@@ -198,15 +198,14 @@ def test_fc_decodes_gps_input_on_both_paths():
     side = PlantSide(("127.0.0.1", 9), ("127.0.0.1", 0), PwmMap(1000, 1500, 2000, 0.35))
     fc = PlantLink(UdpEndpoint("127.0.0.1", 0), plant_sysid=2)
     try:
-        assert fc._lean is not None
+        assert fc._fast
         side.build_sensors(2_000_000, _meas(), 0.0, _sample())
         with_gps = bytes(side._out_mv[:side._out_len])
         side.build_sensors(2_002_000, _meas(), 0.0)
         without = bytes(side._out_mv[:side._out_len])
         results = []
         for lean in (True, False):
-            if not lean:
-                fc._lean = None
+            fc._fast = lean
             fc.gps[:] = 0.0
             meas = np.zeros(M_N)
             assert fc._decode(with_gps, meas) == 2_000_000
@@ -239,13 +238,11 @@ def test_fc_drops_a_non_finite_or_out_of_range_gnss_sample():
             frame = base + tx.gps_input_encode(1000, 0, 0, 0, 0, 3, lat, lon, alt, 1.0, 1.0, vn,
                                                0.0, 0.0, 0.1, 1.5, 3.0, 12, 0).pack(tx)
             for lean in (True, False):
-                lean_dec = fc._lean
-                if not lean:
-                    fc._lean = None
+                fc._fast = lean
                 try:
                     assert fc._decode(frame, np.zeros(M_N)) == 1000     # the frame still counts
                 finally:
-                    fc._lean = lean_dec
+                    fc._fast = True
         assert fc.gps_samples == 0 and fc.counters.gnss_rejected == 2 * len(bad)
         assert not fc.gps.any()
     finally:

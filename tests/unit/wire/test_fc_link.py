@@ -117,6 +117,26 @@ def test_servo_stamp_wraps_modulo_2_32():
     ep.close()
 
 
+def test_stamped_receive_into_the_buffer_gives_frame_and_kernel_stamp():
+    # GIVEN a plant link whose endpoint asks the kernel for receive stamps (real time)
+    import time
+    ep = UdpEndpoint("127.0.0.1", 0)
+    link = PlantLink(ep)
+    assert ep.enable_rx_timestamps()
+    plant = ScriptedPlant(ep.address[1])
+    t0 = time.time_ns()
+    plant.send_frame(level_meas(2.0, alpha_deg=4.0))
+    assert _wait_readable(ep.sock)
+    # WHEN the frame is read (recvmsg_into the link's buffer, decoded there)
+    meas = np.zeros(14)
+    # THEN it decodes, and its kernel stamp is the arrival time (wall clock ns)
+    assert link.read_frame(meas) == 2_000_000
+    assert meas[7] == pytest.approx(math.radians(4.0), rel=1e-6)
+    assert t0 <= link.frame_rx_ns <= time.time_ns()
+    plant.close()
+    ep.close()
+
+
 def test_signing_key_file_permissions(tmp_path):
     path = tmp_path / "key"
     path.write_text("s3cret\n")

@@ -12,7 +12,8 @@ import pytest
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
-from fc.link import PlantLink as FcPlantLink, UdpEndpoint, throttle_to_pwm  # noqa: E402
+from fc.link import PlantLink as FcPlantLink, UdpEndpoint, _pwm4, throttle_to_pwm  # noqa: E402
+from hyfc_wire.frame_kernels import servo_frame  # noqa: E402
 from plant_sim.link import PlantLink, PwmMap  # noqa: E402
 
 DEG = math.pi / 180.0
@@ -54,7 +55,7 @@ def _exchange(fc, plant, stamp_us, pwm):
 
 def test_servo4_round_trip_fc_to_plant(links):
     fc, plant = links
-    assert fc._packer is not None and plant.lean        # the lean paths are the ones tested
+    assert fc._fast and plant.lean        # the compiled and lean paths are the ones tested
     # GIVEN no throttle channel (the paper's 3-channel answer): the plant has no throttle
     assert _exchange(fc, plant, 2000, (1500, 1600, 1400))
     assert plant.cmd_throttle == -1.0
@@ -75,10 +76,16 @@ def test_servo4_bytes_match_codec_and_three_channels_are_unchanged(links):
     for seq, s4 in ((0, 0), (9, 1422), (200, 2000)):
         codec.seq = seq
         ref = codec.servo_output_raw_encode(123456, 0, 1500, 1510, 1490, s4, 0, 0, 0, 0).pack(codec)
-        assert fc._packer.pack(seq, 123456, 1500, 1510, 1490, s4) == ref
+        assert _framed(fc, seq, 123456, (1500, 1510, 1490, s4)) == ref
         assert plant.decode_servo(ref) == (1, 123456, 1500, 1510, 1490, s4)
     # servo4 = 0 truncates to the very bytes a 3-channel frame had before the throttle existed
-    assert fc._packer.pack(5, 77, 1500, 1500, 1500, 0) == fc._packer.pack(5, 77, 1500, 1500, 1500)
+    assert _framed(fc, 5, 77, (1500, 1500, 1500, 0)) == _framed(fc, 5, 77, (1500, 1500, 1500))
+
+
+def _framed(fc, seq, stamp_us, pwm_us) -> bytes:
+    """The SERVO_OUTPUT_RAW bytes the fc's compiled framing gives for ``send_servo``."""
+    n = servo_frame(fc._tx_u8, seq, fc.sysid, fc.compid, stamp_us, _pwm4(pwm_us))
+    return bytes(fc._tx_u8[:n])
 
 
 def test_general_parser_path_decodes_servo4(links):
