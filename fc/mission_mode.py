@@ -23,14 +23,18 @@ guidance's GE_MU_MAX.
 from __future__ import annotations
 
 import math
+from typing import Protocol
+
+import numpy as np
 
 from fc.control.layout import E_H, E_V
 from fc.guidance.waypoints import NavParams, WaypointNavigator, leg_geometry, local_ne
 from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
 from fc.link import mavlink as ML
-from fc.params import ParamDef
+from fc.params import ParamDef, ParamTable
+from fc.vehicle_view import PlantView
 
-__all__ = ["MissionFlight", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
+__all__ = ["MissionFlight", "MissionVehicle", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
 
 NAV_DIV = 5                 # navigator steps every NAV_DIV guidance steps
 GNSS_MAX_AGE_S = 1.0        # a GNSS sample older than this (plant time) is not a fix
@@ -48,6 +52,41 @@ MISSION_PARAMS: tuple[ParamDef, ...] = (
 )
 
 
+class _Home(Protocol):
+    home: tuple[float, float, float] | None     # (lat deg, lon deg, alt m): the first fix
+
+
+class _Estimate(Protocol):
+    est: np.ndarray                             # the state estimate, fc/control/layout.py E_*
+
+
+class _ModeChanges(Protocol):
+    changes: int                                # counts mode changes (fc/modes.py)
+
+
+class _NavOutput(Protocol):
+    nav_wp: tuple[float, float, float] | None   # (bearing rad, distance m, cross-track m)
+
+
+class MissionVehicle(Protocol):
+    """What MISSION mode reads of and asks the vehicle: exactly the members
+    :class:`MissionFlight` uses (fc/app.py ``FlightController`` implements it; a test's stub
+    can too). A member MissionFlight starts to use goes here first."""
+
+    plant: PlantView            # the newest GNSS sample (``plant.gps``, fc/link.py G_*)
+    meas_stamp_us: int          # plant time of the newest sensor frame, us
+    params: ParamTable          # the navigator's parameters (MISSION_PARAMS, GE_MU_*)
+    gcs: _Home
+    est: _Estimate
+    modes: _ModeChanges
+    guid: _NavOutput            # NAV_CONTROLLER_OUTPUT's waypoint, written here
+
+    def guidance_targets(self) -> tuple[float, float, float]: ...
+
+    def set_guidance_targets(self, h_m: float | None = None, chi_rad: float | None = None,
+                             V_m_s: float | None = None) -> str | None: ...
+
+
 class MissionFlight:
     """MISSION mode over a :class:`fc.mission.Mission` (``mission``)."""
 
@@ -59,12 +98,12 @@ class MissionFlight:
         self._refused: tuple | None = None     # the last refused targets (reported once)
 
     @staticmethod
-    def _fix(fc) -> bool:
+    def _fix(fc: MissionVehicle) -> bool:
         g = fc.plant.gps
         return (int(g[G_FIX]) >= ML.GPS_FIX_TYPE_3D_FIX
                 and fc.meas_stamp_us * 1e-6 - g[G_T_S] <= GNSS_MAX_AGE_S)
 
-    def entry_refusal(self, fc) -> str | None:
+    def entry_refusal(self, fc: MissionVehicle) -> str | None:
         """None if MISSION may be entered, else the reason."""
         if self.mission.count == 0:
             return "MISSION refused: no mission stored"
@@ -72,7 +111,7 @@ class MissionFlight:
             return "MISSION refused: no GNSS fix"
         return None
 
-    def _params(self, fc) -> None:
+    def _params(self, fc: MissionVehicle) -> None:
         """The navigator's parameters from the fc's table (SI)."""
         p, par = self.nav.p, fc.params
         if "WP_ACCEPT_M" in par:
@@ -82,7 +121,7 @@ class MissionFlight:
         if "GE_MU_MAX" in par:
             p.mu_max_rad = math.radians(par.get("GE_MU_MAX"))
 
-    def _start(self, fc) -> list:
+    def _start(self, fc: MissionVehicle) -> list:
         out = self.mission.restart() if self.mission.finished else []
         g = fc.plant.gps
         self._params(fc)
@@ -93,7 +132,7 @@ class MissionFlight:
         self._refused = None
         return out
 
-    def tick(self, fc) -> list:
+    def tick(self, fc: MissionVehicle) -> list:
         """One call per guidance step in MISSION. Returns outputs for ``mission_send``."""
         out = []
         if fc.modes.changes != self._changes_seen:
