@@ -174,7 +174,7 @@ def _drive_steps(port: int, at_s: list[float], log) -> list[dict]:
 
 
 def run_steps(out: Path, at_s: list[float], duration_s: float, seed: int, variant: str) -> dict:
-    from tools.hil.procs import free_udp_port
+    from tools.sitl.procs import free_udp_port
     port = free_udp_port()
     cmd = [sys.executable, "-m", "tools.hil", "run", "--scenario", "cruise", "--flight-mode",
            "GUIDED", "--variant", variant, "--duration", repr(duration_s), "--seed", str(seed),
