@@ -87,9 +87,11 @@ class RigConfig:
     flight_mode: str = "CRUISE"   # the mode it is armed in (CRUISE: the guidance holds the state)
 
     def fc_params(self) -> dict:
-        """``params`` with, in a guidance mode, the reference prefilter on (REF_PF_EN 1) unless
-        given: the guidance's 50 Hz commands are not steps to track (docs/guidance.md 2)."""
-        if self.flight_mode in GUIDANCE_MODES and "REF_PF_EN" not in self.params:
+        """``params`` with, when armed in a guidance mode, the reference prefilter on
+        (REF_PF_EN 1) unless given: the guidance's 50 Hz commands are not steps to track
+        (docs/guidance.md 2). Disarmed (``arm="no"``) the fc starts on its own file."""
+        if (self.arm != "no" and self.flight_mode in GUIDANCE_MODES
+                and "REF_PF_EN" not in self.params):
             return {"REF_PF_EN": 1.0, **self.params}
         return dict(self.params)
 
