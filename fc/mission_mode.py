@@ -18,7 +18,7 @@ current position, the targets start at the current altitude, course and speed, a
 mission starts over from item 0. The navigator's parameters are the fc's (:data:`MISSION_PARAMS`,
 appended to the fc's table, read at every navigator step): WP_ACCEPT_M (an item's param2
 overrides it), WP_XT_LEN_M, WP_XT_ANG_DEG; the bank used for turn anticipation is the
-guidance's GE_MU_MAX.
+guidance's GE_MU_MAX less GE_MU_MARGIN (the bank it commands).
 """
 from __future__ import annotations
 
@@ -118,8 +118,8 @@ class MissionFlight:
             p.accept_m = par.get("WP_ACCEPT_M")
             p.xt_len_m = par.get("WP_XT_LEN_M")
             p.chi_int_rad = math.radians(par.get("WP_XT_ANG_DEG"))
-        if "GE_MU_MAX" in par:
-            p.mu_max_rad = math.radians(par.get("GE_MU_MAX"))
+        if "GE_MU_MAX" in par:      # the bank the guidance commands: the limit less its margin
+            p.mu_max_rad = math.radians(par.get("GE_MU_MAX") - par.get("GE_MU_MARGIN"))
 
     def _start(self, fc: MissionVehicle) -> list:
         out = self.mission.restart() if self.mission.finished else []

@@ -17,13 +17,13 @@ The long run (by hand; not CI)::
     python -m tools.fuzz run --duration 600 --seed 1 [--rate 2000] [--out DIR]
                              [--targets fc-plant,fc-gcs,plant] [--corrupt 0.1]
 
-flies the paper scenario in real time (tools.sitl.rig.Rig) with the plant link corrupting 10 % of
-datagrams in flight both ways (so each process decodes mutated frames from its legitimate peer)
-and a fuzzer writing ``--rate`` datagrams/s to the fc's ground-station port and, from foreign
-addresses, to the fc's plant port and the plant's port. Every second it checks that both
-processes are alive; at the end both must exit 0. Any death is reported with the last inputs
-sent (written to ``OUT/last_inputs/``, ready to be added to the corpus). Prints the rejected-input
-counters of both processes.
+flies the cruise scenario in CRUISE in real time (tools.sitl.rig.Rig, its default) with the
+plant link corrupting 10 % of datagrams in flight both ways (so each process decodes mutated
+frames from its legitimate peer) and a fuzzer writing ``--rate`` datagrams/s to the fc's
+ground-station port and, from foreign addresses, to the fc's plant port and the plant's port.
+Every second it checks that both processes are alive; at the end both must exit 0. Any death
+is reported with the last inputs sent (written to ``OUT/last_inputs/``, ready to be added to
+the corpus). Prints the rejected-input counters of both processes.
 
     python -m tools.fuzz corpus --write tests/fuzz_corpus    # regenerate the recorded corpus
 """

@@ -13,24 +13,27 @@ atmosphere of fc.control.nominal):
   the dynamic-pressure ramps), rate-limited (GE_GAM_RATE); its rate gamma_c_dot through a
   first-order low-pass (GA_GDOT_TAU) as feed-forward;
 - flight path -> lift: e_gamma = gamma_c - gamma; the load factor asked for,
-  n = (g cos gamma + V (gamma_c_dot + K_gam e_gamma)) / (g cos mu), within [GE_NZ_MIN,
-  GE_NZ_MAX]; then the model-error correction gi = clip(K_gami int e_gamma, +-GI_MAX),
+  n = (g cos gamma + V (gamma_c_dot + K_gam e_gamma)) / (g cos mu), within [GE_NZ_MIN +
+  GE_NZ_MARGIN, GE_NZ_MAX - GE_NZ_MARGIN]; then the model-error correction gi = clip(K_gami int e_gamma, +-GI_MAX),
   a relative lift correction V gi / g (at 1 g, the gamma rate it is worth):
   C_L,req = (n m g (1 + V gi / g) - T_est sin(alpha)) / (qbar S) (T_est the engine
   model's thrust at the last throttle command; e_gamma integrated only within +-GA_GI_ZONE);
 - lift -> alpha (feed-forward): the nominal model's trimmed lift C_L,trim(alpha, Mach) =
   C_L0 + C_L,delta delta_trim with the symmetric elevon delta_trim that zeroes the nominal
-  pitching moment, inverted by Newton's method; alpha_c within [GE_ALPHA_MIN, GE_ALPHA_MAX],
-  rate-limited (GE_ALPHA_RATE);
+  pitching moment, inverted by Newton's method; alpha_c within [GE_ALPHA_MIN, GE_ALPHA_MAX]
+  less GE_ALPHA_MARGIN at each end, rate-limited (GE_ALPHA_RATE);
 - course -> bank (coordinated turn): chi_dot_c = clip(K_chi e_chi, +-CHIDOT_MAX), e_chi =
   wrap(chi_t - chi) through a first-order low-pass (GH_CHI_TAU),
-  mu_c = atan(V chi_dot_c cos(gamma) / g), |mu_c| <= min(GE_MU_MAX, acos(1 / GE_NZ_MAX)),
-  rate-limited (GE_MU_RATE); beta_c = 0;
+  mu_c = atan(V chi_dot_c cos(gamma) / g), |mu_c| <= min(GE_MU_MAX - GE_MU_MARGIN,
+  acos(1 / (GE_NZ_MAX - GE_NZ_MARGIN))), rate-limited (GE_MU_RATE); beta_c = 0;
 - speed -> throttle: a_c = V_ref_dot + K_V e_V + clip(K_VI int e_V, +-VI_MAX),
   T_req = D_nom + m g sin(gamma) + m a_c, throttle = T_req / (cos(alpha) cos(beta) C_T,max qbar S)
   within [0, min(1, T_max / (C_T,max qbar S))], rate-limited (GE_THR_RATE).
 The three integrals freeze while a limit blocks their loop in the error's direction (anti-windup).
 The limit in force is a bitfield (layout LIM_*) in the status record.
+The envelope limits (GE_NZ_*, GE_MU_MAX, GE_ALPHA_*) bound the achieved values: the commands
+stay a margin (GE_*_MARGIN) inside them, room for the inner loop's tracking error, so the
+limit bits are set when the command reaches the limit less its margin.
 """
 from __future__ import annotations
 
@@ -58,7 +61,7 @@ from fc.guidance.params import (
     P_GE_ALPHA_MIN, P_GE_ALPHA_RATE, P_GE_GAM_MAX, P_GE_GAM_RATE, P_GE_MU_MAX, P_GE_MU_RATE,
     P_GE_NZ_MAX, P_GE_NZ_MIN, P_GE_QBAR_BAND, P_GE_QBAR_MAX, P_GE_QBAR_MIN, P_GE_THR_RATE,
     P_GH_CHI_TAU, P_GH_CHIDOT_MAX, P_GH_K_CHI, P_GM_CT_MAX, P_GM_T_MAX, P_GS_ACC_MAX, P_GS_K_V, P_GS_K_VI,
-    P_GS_VI_MAX,
+    P_GS_VI_MAX, P_GE_ALPHA_MARGIN, P_GE_MU_MARGIN, P_GE_NZ_MARGIN,
 )
 from fc.control import layout as _claw, nominal as _nominal
 from hyfc_wire.numba_cache import drop_stale
@@ -141,6 +144,18 @@ def _clip_flag(v, lo, hi, bit_lo, bit_hi):
     if v < lo:
         return lo, bit_lo
     return v, 0
+
+
+@njit(cache=True, inline="always")
+def _inside(lo, hi, margin):
+    """The command's bounds (lo + margin, hi - margin): an envelope limit [lo, hi] on the
+    achieved value, the command kept ``margin`` inside it for the inner loop's tracking error
+    (the midpoint if the margins cross)."""
+    lo_c = lo + margin
+    hi_c = hi - margin
+    if lo_c > hi_c:
+        lo_c = hi_c = 0.5 * (lo + hi)
+    return lo_c, hi_c
 
 
 @njit(cache=True, inline="always")
@@ -316,16 +331,17 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gi = min(max(gi, -gp[P_GA_GI_MAX]), gp[P_GA_GI_MAX])
     cmu = max(math.cos(mu), _COS_MU_MIN)
     gdot_kin = gamc_dot + gp[P_GA_K_GAM] * e_g
-    nz, b = _clip_flag((g * math.cos(gam) + V * gdot_kin) / (g * cmu), gp[P_GE_NZ_MIN],
-                       gp[P_GE_NZ_MAX], LIM_NZ_MIN, LIM_NZ_MAX)
+    nz_lo, nz_hi = _inside(gp[P_GE_NZ_MIN], gp[P_GE_NZ_MAX], gp[P_GE_NZ_MARGIN])
+    nz, b = _clip_flag((g * math.cos(gam) + V * gdot_kin) / (g * cmu), nz_lo, nz_hi,
+                       LIM_NZ_MIN, LIM_NZ_MAX)
     lim |= b
     gdot_des = (nz * g * cmu - g * math.cos(gam)) / V + gi
     t_est = _thrust_model(gx[GX_THR_C], qS, gp)
     cl_req = (nz * m * g * (1.0 + V * gi / g) - t_est * math.sin(alpha)) / qS
     a_ff = alpha_for_lift(cl_req, mach, gx[GX_ALPHA_FF], xcg_m, tab, grid, gw)
     gx[GX_ALPHA_FF] = a_ff
-    a_lim, b = _clip_flag(a_ff, gp[P_GE_ALPHA_MIN], gp[P_GE_ALPHA_MAX], LIM_ALPHA_MIN,
-                          LIM_ALPHA_MAX)
+    a_lo, a_hi = _inside(gp[P_GE_ALPHA_MIN], gp[P_GE_ALPHA_MAX], gp[P_GE_ALPHA_MARGIN])
+    a_lim, b = _clip_flag(a_ff, a_lo, a_hi, LIM_ALPHA_MIN, LIM_ALPHA_MAX)
     lim |= b
     alpha_c, rl = _rate_limit(gx[GX_ALPHA_C], a_lim, gp[P_GE_ALPHA_RATE] * dt_s)
     if rl:
@@ -344,10 +360,10 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     cdm = gp[P_GH_CHIDOT_MAX]
     chid, b = _clip_flag(gp[P_GH_K_CHI] * e_chi, -cdm, cdm, LIM_CHIDOT, LIM_CHIDOT)
     lim |= b
-    mu_max = gp[P_GE_MU_MAX]
-    nzm = gp[P_GE_NZ_MAX]
-    if nzm > 1.0:
-        mu_max = min(mu_max, math.acos(1.0 / nzm))
+    # the bank of a level turn at the load-factor demand's bound, and GE_MU_MAX less its margin
+    mu_max = max(gp[P_GE_MU_MAX] - gp[P_GE_MU_MARGIN], 0.0)
+    if nz_hi > 1.0:
+        mu_max = min(mu_max, math.acos(1.0 / nz_hi))
     else:
         mu_max = 0.0
     mu_raw, b = _clip_flag(math.atan(V * chid * math.cos(gam) / g), -mu_max, mu_max,

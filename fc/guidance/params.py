@@ -99,6 +99,17 @@ GUIDANCE_PARAMS: tuple[Param, ...] = (
     _p("GA_GDOT_TAU", 1.0, 0, 30, "s", "GA",
        "Time constant of the first-order low-pass on the feed-forward gamma_c_dot (0 = none): 1 m "
        "of altitude noise differentiated at 50 Hz would be 0.25 g of load-factor demand."),
+    _p("GE_NZ_MARGIN", 0.05, 0, 0.5, "1", "GE",
+       "Load-factor margin: the demand stays within [GE_NZ_MIN + m, GE_NZ_MAX - m], so the "
+       "achieved load factor, which scatters about the demand with the inner loop's alpha "
+       "tracking and the elevons' lift (+-0.03 at the cruise point), stays inside the envelope."),
+    _p("GE_MU_MARGIN", 0.2, 0, 10, "deg", "GE",
+       "Bank margin: |mu_c| <= GE_MU_MAX - m, so the achieved bank (the command plus the inner "
+       "loop's tracking error, bounded at 0.2 deg) stays within GE_MU_MAX.", si_scale=DEG),
+    _p("GE_ALPHA_MARGIN", 0.2, 0, 5, "deg", "GE",
+       "Alpha margin: alpha_c within [GE_ALPHA_MIN + m, GE_ALPHA_MAX - m], so the achieved alpha "
+       "(the command plus the inner loop's tracking error) stays within the alpha limits.",
+       si_scale=DEG),
 )
 
 PARAM_INDEX = {p.name: i for i, p in enumerate(GUIDANCE_PARAMS)}
@@ -137,6 +148,9 @@ P_GH_CHI_TAU = PARAM_INDEX["GH_CHI_TAU"]
 P_GA_HI_ZONE = PARAM_INDEX["GA_HI_ZONE"]
 P_GA_GI_ZONE = PARAM_INDEX["GA_GI_ZONE"]
 P_GA_GDOT_TAU = PARAM_INDEX["GA_GDOT_TAU"]
+P_GE_NZ_MARGIN = PARAM_INDEX["GE_NZ_MARGIN"]
+P_GE_MU_MARGIN = PARAM_INDEX["GE_MU_MARGIN"]
+P_GE_ALPHA_MARGIN = PARAM_INDEX["GE_ALPHA_MARGIN"]
 P_N = len(GUIDANCE_PARAMS)
 assert all(len(p.name) <= 16 and p.min <= p.default <= p.max for p in GUIDANCE_PARAMS)
 assert all((p.si_scale == DEG) == p.unit.startswith("deg") for p in GUIDANCE_PARAMS)

@@ -85,9 +85,9 @@ def test_mission_waypoints_reached_where_the_law_says(mission_run):
     _, e, to_go, _ = leg_geometry(ne[2], ne[3], at[3])
     assert -300.0 < to_go <= 2000.0 + 300.0 and abs(e) < 1500.0
     # wp 0 (1.9 deg turn after it): switched at the turn-anticipation distance (~15 km at the
-    # bank limit GE_MU_MAX) ahead
+    # bank the guidance commands, GE_MU_MAX less GE_MU_MARGIN) ahead
     chi1 = math.atan2(ne[2][1] - ne[0][1], ne[2][0] - ne[0][0])
-    mu_max = math.radians(build_table().get("GE_MU_MAX"))
+    mu_max = math.radians(build_table().get("GE_MU_MAX") - build_table().get("GE_MU_MARGIN"))
     d = switch_distance_m(2250.0, mu_max, chi1, 2000.0)
     _, _, to_go0, _ = leg_geometry((0.0, 0.0), ne[0], at[0])
     assert abs(to_go0 - d) < 1000.0
@@ -132,7 +132,9 @@ def test_mission_mode_refused_without_mission_or_fix(tmp_path):
         fc.mission_flight._params(fc)
         p = fc.mission_flight.nav.p
         assert p.accept_m == 5000.0 and p.chi_int_rad == pytest.approx(math.radians(10.0))
-        assert p.mu_max_rad == pytest.approx(math.radians(build_table().get("GE_MU_MAX")))
+        fc.set_param("GE_MU_MAX", 25.0)
+        fc.mission_flight._params(fc)
+        assert p.mu_max_rad == pytest.approx(math.radians(25.0 - build_table().get("GE_MU_MARGIN")))
     finally:
         fc.close()
 

@@ -2,7 +2,7 @@
 parameter file survives.
 
 - The fc is SIGKILLed mid-run (real time): the plant detects the silence, puts the surfaces to
-  trim (``servo.no_command = "trim"`` after ``no_command_s``; the shipped paper scenario holds
+  trim (``servo.no_command = "trim"`` after ``no_command_s``; the shipped cruise scenario holds
   the last command instead, which is the same detection) and keeps running
   to the end of its run; the restarted fc reloads its parameters from its file (a value set by
   the ground station before the crash is still there), resyncs on the plant's frames, is armed
@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from fc.params import ParamTable, build_table
-from tools.sitl.rig import Rig, RigConfig, tracking_error_deg
+from tools.sitl.rig import Rig, RigConfig, steady_figures
 
 pytestmark = [pytest.mark.hil]
 
@@ -58,16 +58,14 @@ def _wait_file_value(rig, name: str, value: float, timeout_s: float = 5.0) -> di
 
 
 def _trim_scenario(tmp_path):
-    """The paper scenario with ``servo.no_command = "trim"`` and ``actuators.initial = "trim"``
-    (the plant's "trim" is its initial actuator position; holding an arbitrary last command or
-    zero deflection for seconds makes the vehicle depart, see docs/reliability.md)."""
+    """The cruise scenario (the rig's steady flight, its actuators starting at trim) with
+    ``servo.no_command = "trim"`` (the plant's "trim" is its initial actuator position; holding
+    an arbitrary last command for seconds makes the vehicle depart, see docs/reliability.md)."""
     from plant_sim.scenario import load
-    text = open(load("paper").path, encoding="utf-8").read()
-    assert 'no_command = "hold"' in text
-    path = tmp_path / "paper_trim.toml"
-    assert 'initial = "zero"' in text
-    path.write_text(text.replace('no_command = "hold"', 'no_command = "trim"')
-                    .replace('initial = "zero"', 'initial = "trim"'))
+    text = open(load("cruise").path, encoding="utf-8").read()
+    assert 'no_command = "hold"' in text and 'initial = "trim"' in text
+    path = tmp_path / "cruise_trim.toml"
+    path.write_text(text.replace('no_command = "hold"', 'no_command = "trim"'))
     return path
 
 
@@ -104,6 +102,7 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
         assert rig.wait_plant_time(t_restart + 2.0, 30) is not None
         rcs = rig.finish(stop_plant=True)
         truth = rig.truth()
+        internals = rig.internals()
         ps = rig.plant_summary()
         log = rig.fc_log()
         plant_log = (tmp_path / "plant" / "plant.log").read_text()
@@ -125,18 +124,20 @@ def test_promise3_fc_sigkill_plant_trims_restart_reloads_params_and_flies(tmp_pa
     held = cmd[(t > t_kill + 0.9) & (t < t_alive)]     # 0.5 s no_command_s + scheduling margin
     assert held.shape[0] > 400 and np.abs(held - trim_rad).max() < 1e-9
     # the new fc resynced and flies: the plant applies its answers again, the law commands
-    # the surfaces (they leave the plant's trim). Tracking is not asserted: seconds of fixed
-    # surfaces let this open-loop unstable vehicle depart (docs/reliability.md, promise 3).
+    # the surfaces (they leave the plant's trim). The steady-flight figures over the last
+    # second are printed, not asserted: the restarted CRUISE engages at the attitude the
+    # outage left (bank up to a few degrees) and ramps the bank back at GE_MU_RATE, so the
+    # inner loop lags its command by the prefilter's ~1 s for a while (docs/reliability.md)
     exits = re.findall(r"exit: frames (\d+), outputs (\d+)", log)
     assert len(exits) == 1                       # only the restarted fc exited cleanly
     assert int(exits[0][0]) > 500 and int(exits[0][1]) > 500
     tail = (t > t_restart + 1.0)
     assert np.abs(cmd[tail] - trim_rad).max() > math.radians(1.0)
-    assert mode_after is not None and mode_after & 0xFFFF == 1 and armed_after
-    err = tracking_error_deg(truth, t[-1] - 1.0)
+    assert mode_after is not None and mode_after & 0xFFFF == 4 and armed_after     # CRUISE
+    fig = steady_figures(truth, internals, t[-1] - 1.0)
     print(f"\npromise 3: killed at {t_kill:.2f} s, plant alive to {t_alive:.2f} s "
           f"({ps['no_command_frames']} no-command frames), fc flying again at {t_restart:.2f} s; "
-          f"tracking over the last second (deg): {err}")
+          f"steady flight over the last second: {fig}")
 
 
 class _Crash(Exception):

@@ -6,6 +6,12 @@ seeded impairment relay of tools/linkimpair.py on the plant link, and a pymavlin
 station that records everything the controller sends (STATUSTEXT, HEARTBEAT modes,
 NAMED_VALUE_FLOAT counters, SYS_STATUS). Every wait is bounded and every process is stopped by
 ``Rig.close`` (SIGINT, then SIGKILL). ``Flood`` runs ``python -m tools.soak flood`` as a child.
+
+By default the rig flies the ``cruise`` scenario in CRUISE: the guidance holds the altitude,
+course and speed at arming (Mach 7.5 at 28 km, a steady flight), with the law's reference
+prefilter on (REF_PF_EN 1, as tools.hil in the guidance modes). ``steady_figures`` gives its
+figures over a time window. ``scenario="paper", flight_mode="COORDINATED"`` flies the paper's
+attitude step (``timeline``), with ``tracking_error_deg`` against its command.
 """
 from __future__ import annotations
 
@@ -26,6 +32,7 @@ from tools.sitl.procs import Child, free_udp_port, repo_env
 ROOT = Path(__file__).resolve().parents[2]
 READY_TIMEOUT_S = 120.0            # cold numba cache on a busy 2-core machine
 PAPER_CMD_DEG = {"alpha": 5.0, "beta": 0.0, "mu": 4.0}
+GUIDANCE_MODES = ("CRUISE", "GUIDED", "MISSION")
 
 #: the impairment of promise 1 (docs/reliability.md)
 PROMISE1_IMPAIRMENT = Impairment(loss=0.05, jitter_s=0.005, dup=0.01, reorder=0.01)
@@ -64,7 +71,7 @@ class RigConfig:
     out: Path
     duration_s: float = 8.0              # plant sim time (real time: wall seconds)
     seed: int = 1
-    scenario: str = "paper"
+    scenario: str = "cruise"
     impair_up: Impairment | None = None  # plant -> fc
     impair_down: Impairment | None = None
     relay: bool = True                   # a relay (clean if no impairment) on the plant link
@@ -73,14 +80,25 @@ class RigConfig:
     plant_extra: tuple = ()
     signing_key_file: str | None = None
     timeline: tuple = ((0.0, 5.0, 0.0, 4.0),)   # (t_s, alpha, beta, mu) deg: the paper's step
+                                                # (flown in COORDINATED/UNCOORDINATED only)
     arm: str = "gcs"    # "gcs": armed by the ground station once plant data is valid;
                         # "start": --arm on the command line; "no": stays disarmed
     gcs_sysid: int = 250
-    flight_mode: str = "COORDINATED"   # the mode it is armed in (CRUISE: the guidance)
+    flight_mode: str = "CRUISE"   # the mode it is armed in (CRUISE: the guidance holds the state)
+
+    def fc_params(self) -> dict:
+        """``params`` with, when armed in a guidance mode, the reference prefilter on
+        (REF_PF_EN 1) unless given: the guidance's 50 Hz commands are not steps to track
+        (docs/guidance.md 2). Disarmed (``arm="no"``) the fc starts on its own file."""
+        if (self.arm != "no" and self.flight_mode in GUIDANCE_MODES
+                and "REF_PF_EN" not in self.params):
+            return {"REF_PF_EN": 1.0, **self.params}
+        return dict(self.params)
 
 
 class Rig:
-    """fc (real time, armed COORDINATED, paper timeline) + relay + plant + ground station."""
+    """fc (real time, armed by the ground station in ``flight_mode``, by default CRUISE over the
+    cruise scenario) + relay + plant + ground station."""
 
     def __init__(self, cfg: RigConfig) -> None:
         self.cfg = cfg
@@ -104,8 +122,9 @@ class Rig:
             lines += ["[[command]]", f"t_s = {t!r}", f"alpha_deg = {a!r}", f"beta_deg = {b!r}",
                       f"mu_deg = {m!r}", ""]
         (self.out / "timeline.toml").write_text("\n".join(lines))
-        if self.cfg.params and not self.params_path.exists():
-            self.params_path.write_text("".join(f"{k} {v!r}\n" for k, v in self.cfg.params.items()))
+        params = self.cfg.fc_params()
+        if params and not self.params_path.exists():
+            self.params_path.write_text("".join(f"{k} {v!r}\n" for k, v in params.items()))
 
     def fc_argv(self) -> list[str]:
         c = self.cfg
@@ -254,6 +273,42 @@ def tracking_error_deg(truth: dict, t_from_s: float, cmd_deg: dict = PAPER_CMD_D
         e = np.degrees(truth[f"{ch}_rad"][sel]) - cmd_deg[ch]
         out[ch] = {"max": float(np.max(np.abs(e))) if e.size else math.nan,
                    "rms": float(np.sqrt(np.mean(e * e))) if e.size else math.nan}
+    return out
+
+
+def time_window(log: dict, t0_s: float, t1_s: float = math.inf) -> dict:
+    """The rows of a per-sample log (truth or fc internals: columns of one length, ``t_s``
+    among them) with t0_s <= t_s < t1_s."""
+    sel = (log["t_s"] >= t0_s) & (log["t_s"] < t1_s)
+    return {k: v[sel] for k, v in log.items()}
+
+
+def steady_figures(truth: dict, internals: dict, t0_s: float, t1_s: float = math.inf) -> dict:
+    """The hold figures of a guided flight (``tools.guided_hil.hold_figures``: altitude, course
+    and speed against the fc's targets, the inner loop against the guidance's command and the
+    law's e1, surfaces at their limits, adaptive estimates) over t0_s <= t < t1_s."""
+    from tools.guided_hil import hold_figures
+    return hold_figures(time_window(truth, t0_s, t1_s), time_window(internals, t0_s, t1_s), t0_s)
+
+
+#: bounds of a steady cruise flight under the reliability promises (docs/reliability.md):
+#: altitude (m), course (deg), speed (m/s) against the fc's targets (the engagement's throttle
+#: step dips the speed by about 2 m/s), the inner loop (alpha, beta, mu against the guidance's
+#: command, deg: the attitude tolerance of the paper-scenario promises, room for a stalled
+#: real-time tick on a loaded machine)
+STEADY_BOUNDS = {"alt_err_max_m": 10.0, "course_err_max_deg": 0.1, "speed_err_max_m_s": 5.0,
+                 "inner_cmd_err_max_deg": (1.0, 1.0, 1.5)}
+
+
+def steady_violations(fig: dict, bounds: dict = STEADY_BOUNDS) -> list[str]:
+    """The figures of ``steady_figures`` beyond ``bounds`` ([] if none; a NaN figure, as
+    without a guidance target, is beyond), for an assertion message."""
+    out = []
+    for k, b in bounds.items():
+        vals = fig[k] if isinstance(fig[k], list) else [fig[k]]
+        lim = b if isinstance(b, tuple) else (b,) * len(vals)
+        if not all(v <= m for v, m in zip(vals, lim)):
+            out.append(f"{k} {vals} > {b}")
     return out
 
 

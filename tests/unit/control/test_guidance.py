@@ -154,8 +154,9 @@ def test_limits_bound_the_commands_and_are_flagged():
         alpha.append(g.out[G.GO_ALPHA])
         thr.append(g.out[G.GO_THR])
     assert max(gam) <= 2.0 * DEG + 1e-12
-    assert max(mu) <= 25.0 * DEG + 1e-12 and max(mu) > 24.9 * DEG
-    assert max(alpha) <= 6.0 * DEG + 1e-12
+    # the commands stop at the limits less their margins (GE_MU_MARGIN, GE_ALPHA_MARGIN 0.2 deg)
+    assert max(mu) <= 24.8 * DEG + 1e-12 and max(mu) > 24.7 * DEG
+    assert max(alpha) <= 5.8 * DEG + 1e-12
     assert max(thr) <= 1.0
     names = g.limits_in_force()
     for n in ("gamma_max", "mu_max", "thr_max", "hdot"):
@@ -167,14 +168,44 @@ def test_load_factor_limit_bounds_bank_and_pull_up():
     g, est = _engaged(GE_NZ_MAX=1.1, GE_MU_MAX=60.0)
     g.set_targets(chi_rad=90.0 * DEG)
     _run(g, est, 2000)
-    assert abs(g.out[G.GO_MU]) <= math.acos(1.0 / 1.1) + 1e-12       # 24.6 deg
+    assert abs(g.out[G.GO_MU]) <= math.acos(1.0 / 1.05) + 1e-12      # 17.8 deg, at n 1.1 - 0.05
     g, est = _engaged(GE_NZ_MAX=1.2)
     g.set_targets(h_m=H0 + 3000.0)
     nz = []
     for _ in range(400):
         g.step(est, 0.0, DT)
         nz.append(g.status[G.GS_NZ_C])
-    assert max(nz) == pytest.approx(1.2) and "nz_max" in g.limits_in_force()
+    assert max(nz) == pytest.approx(1.2 - 0.05) and "nz_max" in g.limits_in_force()
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.05, 0.2])
+def test_envelope_margins_keep_the_commands_inside_the_limits(margin):
+    # GIVEN margins on the load factor, the bank and alpha; WHEN every target asks beyond them
+    g, est = _engaged(GE_NZ_MAX=1.3, GE_NZ_MARGIN=margin, GE_MU_MAX=25.0,
+                      GE_MU_MARGIN=10 * margin)
+    g.set_targets(h_m=H0 + 5000.0, chi_rad=90.0 * DEG)
+    nz, mu = [], []
+    for _ in range(1500):
+        g.step(est, 0.0, DT)
+        nz.append(g.status[G.GS_NZ_C])
+        mu.append(g.out[G.GO_MU])
+    # THEN each command settles at its limit less its margin, and the limit is flagged
+    assert max(nz) == pytest.approx(1.3 - margin)
+    assert max(mu) == pytest.approx((25.0 - 10 * margin) * DEG)
+    assert {"nz_max", "mu_max"} <= set(g.limits_in_force())
+    g, est = _engaged(GE_ALPHA_MAX=6.0, GE_ALPHA_MARGIN=10 * margin)
+    g.set_targets(h_m=H0 + 5000.0)
+    _run(g, est, 1500)
+    assert g.out[G.GO_ALPHA] == pytest.approx((6.0 - 10 * margin) * DEG)
+    assert "alpha_max" in g.limits_in_force()
+
+
+def test_envelope_margins_that_cross_meet_in_the_middle():
+    g, est = _engaged(GE_NZ_MIN=0.9, GE_NZ_MAX=1.1, GE_NZ_MARGIN=0.2)
+    g.set_targets(h_m=H0 + 5000.0)
+    _run(g, est, 200)
+    assert g.status[G.GS_NZ_C] == pytest.approx(1.0)
+    assert g.out[G.GO_MU] == 0.0                   # no bank at a 1-g bound
 
 
 def test_rate_limits():

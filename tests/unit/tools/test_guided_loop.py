@@ -36,15 +36,19 @@ def test_altitude_target_climbs_within_the_load_factor_limit():
     gam = res.col("gamma_rad")
     assert gam[-1] > 0.5 * DEG and res.col("h_m")[-1] > H0 + 30.0
     assert res.cmd[-1, G.GO_ALPHA] > res.cmd[0, G.GO_ALPHA] - 0.5 * DEG
+    # the achieved load factor (the truth's, 50 Hz) stays below GE_NZ_MAX 1.6: the demand
+    # stops GE_NZ_MARGIN (0.05) inside it, room for the inner loop's scatter about the demand
     nz = res.load_factor()[5:-5]
-    assert nz.max() < 1.6 * 1.03                    # GE_NZ_MAX, within the estimate's error
-    assert res.col("nz_c").max() == pytest.approx(1.6)
+    assert nz.max() < 1.6 and nz.max() > 1.5
+    assert res.col("nz_c").max() == pytest.approx(1.6 - 0.05)
 
 
 def test_course_target_banks_and_turns_the_right_way():
     res = _fly(15.0, d_chi_rad=30.0 * DEG)
     mu = res.col("mu_rad")
-    assert mu.max() > 20.0 * DEG and mu.max() < 30.0 * DEG + 0.3 * DEG      # GE_MU_MAX 30
+    # the achieved bank (truth) reaches GE_MU_MAX 30 deg less its margin (0.2 deg), and keeps
+    # at least half the margin as room for the inner loop's tracking error
+    assert mu.max() > 29.5 * DEG and mu.max() < 29.9 * DEG
     chi = np.unwrap(res.col("chi_rad"))
     assert chi[-1] - chi[0] > 0.5 * DEG
     assert abs(res.col("beta_rad")).max() < 0.3 * DEG                          # coordinated
