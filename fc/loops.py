@@ -214,7 +214,7 @@ class RunLoops:
         self.plant.send_servo(stamp, self.out.pwm_us)
         if n:
             self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, 0,
-                                   time.perf_counter_ns() - t_exec)
+                                   time.perf_counter_ns() - t_exec, now_s)
 
     def _run_realtime(self, stop) -> None:
         if self.sync == "frame":
@@ -313,5 +313,6 @@ class RunLoops:
         exec_ns = time.monotonic_ns() - wake_ns
         self.stats.record(lateness_ns, exec_ns)
         self.counters.add_exec(exec_ns)
-        self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, lateness_ns, exec_ns)
+        self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, lateness_ns,
+                               exec_ns, now_s)
         self.housekeeping(now_s)
