@@ -41,7 +41,7 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
     masks = emem.view(np.int64)[EM_MASKS:EM_MASKS + 2]
     r[0] = meas[M_T_S]
     r[1] = wall_s
-    r[2] = np.float64(stamp_us)
+    r[2] = stamp_us
     r[3] = np.float64(mode)
     r[4] = 1.0 if armed else 0.0
     r[5] = 1.0 if healthy else 0.0
@@ -239,7 +239,9 @@ class Telemetry:
         # the parts' arrays are bound once (__post_init__; they update them in place)
         modes = self.modes
         st = self._status
-        fill_row(r, meas, wall_s, stamp_us, int(modes.mode), modes.armed, self.est.healthy,
+        # the stamp as a float: a u64 stamp beyond the int64 range (the plant's to send) would
+        # not convert to the kernel's integer argument
+        fill_row(r, meas, wall_s, float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
                  self._emem, self.out.cmd_active, self._delta, lateness_ns, exec_ns,
                  st if st is not None else np.ascontiguousarray(self.law.status, np.float64),
                  self._n_status, self.guid.throttle() if modes.guidance_active else math.nan,

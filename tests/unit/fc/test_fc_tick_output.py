@@ -68,3 +68,18 @@ def test_a_law_without_a_float64_3_surface_command_is_refused_at_start(tmp_path,
     # WHEN the fc starts THEN it says what is wrong before binding anything
     with pytest.raises(ValueError, match="delta_cmd_rad must be a float64"):
         FlightController(_cfg(tmp_path, "COORDINATED"))
+
+
+def test_the_log_row_takes_any_u64_stamp(tmp_path):
+    # GIVEN the fc after a tick on an ordinary frame (the row kernel compiled for it)
+    fc = FlightController(_cfg(tmp_path, "COORDINATED"))
+    try:
+        _tick(fc, 0.2)
+        # WHEN rows are logged for stamps up to the top of the wire's u64 range
+        for stamp in (200_000, 2**63 - 1, 2**63, 2**64 - 2):
+            fc.telemetry.log_row(fc.ilog, fc.meas, stamp, 0, 1000, 1.0)
+            # THEN each is logged (as the nearest float64), none raises
+            row = fc.ilog.chunk[fc.ilog.n - 1]
+            assert row[fc.ilog.col["stamp_us"]] == float(stamp)
+    finally:
+        fc.close()
