@@ -207,7 +207,8 @@ class RunLoops:
             # the plant re-sent frame k (re-request): answer again with the same output
             self.plant.send_servo(stamp, self.out.pwm_us)
             return
-        self.mode_ctl.sync()
+        if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
+            self.mode_ctl.sync()
         n = self.planner.due(stamp * 1000)
         for _ in range(n):
             self.tick(self.planner.slow_due(), False)
@@ -306,7 +307,8 @@ class RunLoops:
                 and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
             self.law_held = True
             self.counters.law_holds += 1
-        self.mode_ctl.sync()
+        if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
+            self.mode_ctl.sync()
         self.tick(self.planner.slow_due(), self.law_held)
         if have_frame:
             self.plant.send_servo(self.intake.stamp_us, self.out.pwm_us)
