@@ -174,8 +174,10 @@ def estimate_entry(meas, mem):
 @njit(cache=True)
 def accept_entry(frame, meas, mem):
     """The frame intake's one compiled call: the new frame ``frame`` copied into ``meas``
-    (both float64[M_N]), then :func:`estimate_entry` on it."""
-    meas[:] = frame
+    (both float64[M_N]), then :func:`estimate_entry` on it. (A loop: ``meas[:] = frame``
+    compiles in 2 s, this in 0.1 s.)"""
+    for i in range(meas.shape[0]):
+        meas[i] = frame[i]
     return estimate_entry(meas, mem)
 
 
