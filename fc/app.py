@@ -25,7 +25,7 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, pwm_map
+from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.mode_control import ModeControl
@@ -106,6 +106,10 @@ class FlightController:
         startup_texts = load_param_file(self.params, params_path, self.log)
         overrides = {n: self.params.get(n) for n in law_names}
         self.law = law_cls(overrides)
+        d = getattr(self.law, "delta_cmd_rad", None)
+        if not (isinstance(d, np.ndarray) and d.dtype == np.float64 and d.shape == (3,)):
+            raise ValueError(f"law {cfg.law_module}: delta_cmd_rad must be a float64[3] array "
+                             f"(docs/architecture.md section 11), not {type(d).__name__}")
         self.status_names = list(getattr(self.law, "STATUS_NAMES", ()))
         self._warm_up_law(law_cls, overrides)
         # the guidance (outer loop) of CRUISE/GUIDED (fc/guided.py), stepped from the fast tick
@@ -233,33 +237,35 @@ class FlightController:
     def _fast_tick(self, slow: bool, held: bool) -> None:
         """One fast tick: the guidance (in its modes), the law (``slow``: its slow loop too;
         ``held``: no new data, the last command held), the surface and throttle outputs."""
-        if self.modes.law_active and held:
-            pass                        # hold the last command: no new data to act on
-        elif self.modes.law_active and not self.mode_ctl.reset_pending:
+        modes = self.modes
+        out = self.out
+        if held and modes.law_active:
+            src = out.delta_rad         # hold the last command: no new data to act on
+        elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
                     if (self.guid.tick(self.est.est, self.meas)
-                            and self.modes.mode == FlightMode.MISSION):
+                            and modes.mode == FlightMode.MISSION):
                         self.gcs.mission_send(self.mission_flight.tick(self))
-                    self.out.cmd_active = self.guid.cmd_rad
+                    out.cmd_active = self.guid.cmd_rad
                 else:
-                    self.out.cmd_active = self.settings.cmd_rad
+                    out.cmd_active = self.settings.cmd_rad
                 if slow:
-                    self.law.slow_step(self.est.est, self.out.cmd_active, self.planner.slow_dt_s)
+                    self.law.slow_step(self.est.est, out.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
-                self.out.delta_rad[:] = self.law.delta_cmd_rad
+                src = self.law.delta_cmd_rad
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
                 self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
                 self.mode_ctl.law_fault()
-                self.out.delta_rad[:] = self.settings.trim_rad
+                src = self.settings.trim_rad
         else:
-            self.out.delta_rad[:] = self.settings.trim_rad
-        # servo1..3 from the surfaces (compiled, deflection_to_pwm's rounding); throttle only
-        # while the guidance flies (its last command held with the law); 0 = no output
-        # otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        pwm_map(self.out.delta_rad,
-                self.guid.throttle_pwm() if self.modes.guidance_active else 0, self.pwm_us)
+            src = self.settings.trim_rad
+        # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
+        # throttle only while the guidance flies (its last command held with the law); 0 = no
+        # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
+        surfaces_pwm(src, out.delta_rad,
+                     self.guid.throttle_pwm() if modes.guidance_active else 0, self.pwm_us)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)

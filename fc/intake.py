@@ -76,8 +76,7 @@ class FrameIntake:
                 self.timeline.next = 0          # the command timeline starts over
         self.last_stamp_us = stamp
         self.stamp_us = stamp
-        self.meas[:] = self.scratch
-        self.est.update(self.meas)
+        self.est.accept(self.scratch, self.meas)       # meas = scratch, the estimator on it
         self.mode_ctl.on_frame(now_s)
         if self.timeline is not None:
             self._timeline_due()

@@ -41,6 +41,7 @@ class InternalsLog:
             self._free.put(np.zeros((chunk_rows, self.ncol)))
         self._full: queue.Queue = queue.Queue()
         self.chunk = self._free.get()
+        self._chunk_rows = chunk_rows
         self.n = 0
         self.rows = 0
         self.dropped = 0
@@ -49,8 +50,13 @@ class InternalsLog:
         self.closed = False
 
     def row(self) -> np.ndarray | None:
-        """The next row (zeroed is not guaranteed: fill every column). None if no buffer free."""
-        if self.chunk is None:
+        """The next row (zeroed is not guaranteed: fill every column). None if no buffer free.
+        A full chunk goes to the writer on the next call (or ``flush``), after the caller has
+        filled its last row."""
+        if self.n == self._chunk_rows or self.chunk is None:
+            if self.chunk is not None:
+                self._full.put((self.chunk, self.n))
+                self.chunk = None
             try:
                 self.chunk = self._free.get_nowait()
             except queue.Empty:
@@ -60,9 +66,6 @@ class InternalsLog:
         r = self.chunk[self.n]
         self.n += 1
         self.rows += 1
-        if self.n == self.chunk.shape[0]:
-            self._full.put((self.chunk, self.n))
-            self.chunk = None
         return r
 
     def _writer(self) -> None:

@@ -23,7 +23,7 @@ from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
 from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
                                      GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
                                      GR_VN, SERVO_FRAME_MAX_B, decode_sensor, pwm_map,
-                                     servo_frame)
+                                     servo_frame, surfaces_pwm)
 from hyfc_wire.frame_kernels import GR_ALT_M as GR_ALT
 from hyfc_wire.framing import LeanFramer
 from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
@@ -38,7 +38,8 @@ from hyfc_wire.udp import MAX_DATAGRAM_B, UdpEndpoint, parse_hostport  # noqa: F
 __all__ = [
     "mavlink", "mavlink_dev", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink",
     "LinkCounters", "LeanFramer",
-    "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "pwm_map", "load_signing_key",
+    "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "pwm_map", "surfaces_pwm",
+    "load_signing_key",
     "parse_hostport",
     "M_T_S", "M_ROLL", "M_PITCH", "M_YAW", "M_P", "M_Q", "M_R", "M_AOA", "M_SSA",
     "M_AIRSPEED", "M_ALT", "M_CLIMB", "M_GROUNDSPEED", "M_HEADING", "M_N",
@@ -122,9 +123,12 @@ def _lean_self_check(link: "PlantLink") -> bool:
         link.gps_samples = 0
         link.counters.gnss = 0
         pwm = np.zeros(4, np.int64)
+        delta = np.zeros(3)
         for d in ((0.0, 0.1, -0.1), (0.35, -0.35, math.nan), (1e-3, -2e-3, 0.2)):
-            pwm_map(np.array(d), 0, pwm)     # (also compiles/loads it before the first tick)
-            if pwm.tolist() != [deflection_to_pwm(x) for x in d] + [0]:
+            # (also compiles/loads the fast tick's kernel before the first tick)
+            surfaces_pwm(np.array(d), delta, 0, pwm)
+            if (pwm.tolist() != [deflection_to_pwm(x) for x in d] + [0]
+                    or not np.array_equal(delta, d, equal_nan=True)):
                 return False
         c = new_codec(link.sysid, link.compid)
         for seq, args in ((0, (0, 1500, 1500, 1500, 0)), (7, (123456, 1000, 2000, 1500, 1420)),

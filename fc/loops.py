@@ -207,14 +207,15 @@ class RunLoops:
             # the plant re-sent frame k (re-request): answer again with the same output
             self.plant.send_servo(stamp, self.out.pwm_us)
             return
-        self.mode_ctl.sync()
+        if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
+            self.mode_ctl.sync()
         n = self.planner.due(stamp * 1000)
         for _ in range(n):
             self.tick(self.planner.slow_due(), False)
         self.plant.send_servo(stamp, self.out.pwm_us)
         if n:
             self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, 0,
-                                   time.perf_counter_ns() - t_exec)
+                                   time.perf_counter_ns() - t_exec, now_s)
 
     def _run_realtime(self, stop) -> None:
         if self.sync == "frame":
@@ -306,12 +307,14 @@ class RunLoops:
                 and now_s - self.last_frame_wall_s > HOLD_AFTER_S):
             self.law_held = True
             self.counters.law_holds += 1
-        self.mode_ctl.sync()
+        if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
+            self.mode_ctl.sync()
         self.tick(self.planner.slow_due(), self.law_held)
         if have_frame:
             self.plant.send_servo(self.intake.stamp_us, self.out.pwm_us)
         exec_ns = time.monotonic_ns() - wake_ns
         self.stats.record(lateness_ns, exec_ns)
         self.counters.add_exec(exec_ns)
-        self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, lateness_ns, exec_ns)
+        self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, lateness_ns,
+                               exec_ns, now_s)
         self.housekeeping(now_s)

@@ -154,11 +154,12 @@ class ModeControl:
         if self.reset_pending and self.modes.law_active:
             self._engage_law()
         self.last_good_wall_s = now_s
-        s = self.settings
-        text = self.modes.on_data_ok(now_s, s.fs_recover, s.fs_recover_s)
-        if text is not None:
-            self.event(text, ML.MAV_SEVERITY_NOTICE)
-            self.sync()
+        if self.modes.data_lost:        # (on_data_ok has nothing to do otherwise)
+            s = self.settings
+            text = self.modes.on_data_ok(now_s, s.fs_recover, s.fs_recover_s)
+            if text is not None:
+                self.event(text, ML.MAV_SEVERITY_NOTICE)
+                self.sync()
 
     def check_data(self, now_s: float) -> None:
         """Housekeeping: FAILSAFE once healthy frames stop for FS_TIMEOUT_S (not after the

@@ -10,18 +10,17 @@ nothing it reads.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
-from fc.estimator import Estimator
+from fc.estimator import E_N, EM_EST, EM_MASKS, Estimator
 from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
-from fc.link import PlantLink
+from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
 from fc.scheduler import FrameGate, LoopStats, TickPlanner
 
@@ -32,24 +31,26 @@ EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", 
 
 
 @njit(cache=True)
-def fill_row(r, t_s, wall_s, stamp_us, mode, armed, healthy, masks, est, cmd, delta,
+def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
              lateness_ns, exec_ns, status, n_status, throttle, limits, tgt):
     """One internals-log row (the columns of :meth:`Telemetry.columns`, in order) into ``r``
-    (float64[ncol]) in one compiled call: masks int64[2] (invalid, stale), est float64[E_N],
-    cmd/delta float64[3] (rad), status float64[>= n_status] (the law's), tgt float64[>= 3]
-    (the guidance's targets); lateness and execution time in ns, logged in us."""
-    r[0] = t_s
+    (float64[ncol]) in one compiled call: meas the frame (fc/link.py M_*; its time is
+    logged), emem the estimator's buffer (``Estimator.mem``, layout EM_*: the state and the
+    invalid/stale masks), cmd/delta float64[3] (rad), status float64[>= n_status] (the law's), tgt float64[>= 3] (the
+    guidance's targets); lateness and execution time in ns, logged in us."""
+    masks = emem.view(np.int64)[EM_MASKS:EM_MASKS + 2]
+    r[0] = meas[M_T_S]
     r[1] = wall_s
-    r[2] = np.float64(stamp_us)
+    r[2] = stamp_us
     r[3] = np.float64(mode)
     r[4] = 1.0 if armed else 0.0
     r[5] = 1.0 if healthy else 0.0
     r[6] = np.float64(masks[0])
     r[7] = np.float64(masks[1])
     k = 8
-    for i in range(est.shape[0]):
-        r[k + i] = est[i]
-    k += est.shape[0]
+    for i in range(E_N):
+        r[k + i] = emem[EM_EST + i]
+    k += E_N
     for i in range(3):
         r[k + i] = cmd[i]
         r[k + 3 + i] = delta[i]
@@ -66,6 +67,16 @@ def fill_row(r, t_s, wall_s, stamp_us, mode, armed, healthy, masks, est, cmd, de
 
 
 _NO_STATUS = np.zeros(0)
+
+
+class _OneRow:
+    """An internals log of one row (the row kernel's warm-up)."""
+
+    def __init__(self, row: np.ndarray) -> None:
+        self._row = row
+
+    def row(self) -> np.ndarray:
+        return self._row
 
 
 @dataclass
@@ -124,16 +135,24 @@ class Telemetry:
     #: the law's status record as the row kernel reads it: the law's own array, or None when
     #: that is not a contiguous float64 array (then converted per row); empty without one
     _status: np.ndarray | None = None
+    _n_status: int = 0
+    _emem: np.ndarray | None = None     # the estimator's buffer (state and masks)
+    _delta: np.ndarray | None = None    # out.delta_rad
+    _tgt: np.ndarray | None = None      # the guidance's targets
 
     def __post_init__(self) -> None:
         st = getattr(self.law, "status", None) if self.status_names else _NO_STATUS
         ok = (isinstance(st, np.ndarray) and st.dtype == np.float64 and st.ndim == 1
               and st.flags.c_contiguous)
         self._status = st if ok else None
-        # compile / load the row kernel now, for each command array the tick may log
+        self._n_status = len(self.status_names)
+        self._emem = self.est.mem
+        self._delta = self.out.delta_rad
+        self._tgt = self.guid.g.tgt
+        # compile / load the row kernel now (the guidance's command array, which the tick
+        # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
-        for cmd in {id(c): c for c in (self.out.cmd_active, self.guid.cmd_rad)}.values():
-            self._fill(row, 0.0, 0, 0, 0, cmd)
+        self.log_row(_OneRow(row), np.zeros(M_N), 0, 0, 0, 0.0)
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
@@ -210,20 +229,20 @@ class Telemetry:
         return cols
 
     def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: int,
-                exec_ns: int) -> None:
-        """One internals-log row of the newest tick (dropped when the log is full)."""
+                exec_ns: int, wall_s: float) -> None:
+        """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
+        the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
+        frame's arrival, in real time the wake-up."""
         r = ilog.row()
-        if r is not None:
-            self._fill(r, meas[0], stamp_us, lateness_ns, exec_ns, self.out.cmd_active)
-
-    def _fill(self, r: np.ndarray, t_s: float, stamp_us: int, lateness_ns: int, exec_ns: int,
-              cmd: np.ndarray) -> None:
+        if r is None:
+            return
+        # the parts' arrays are bound once (__post_init__; they update them in place)
         modes = self.modes
-        est = self.est
-        guid = self.guid
-        fill_row(r, t_s, time.monotonic(), stamp_us, int(modes.mode), modes.armed,
-                 est.healthy, est.masks, est.est, cmd, self.out.delta_rad, lateness_ns,
-                 exec_ns, self._status if self._status is not None
-                 else np.ascontiguousarray(self.law.status, np.float64), len(self.status_names),
-                 guid.throttle() if modes.guidance_active else math.nan, guid.limits,
-                 guid.g.tgt)
+        st = self._status
+        # the stamp as a float: a u64 stamp beyond the int64 range (the plant's to send) would
+        # not convert to the kernel's integer argument
+        fill_row(r, meas, wall_s, float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
+                 self._emem, self.out.cmd_active, self._delta, lateness_ns, exec_ns,
+                 st if st is not None else np.ascontiguousarray(self.law.status, np.float64),
+                 self._n_status, self.guid.throttle() if modes.guidance_active else math.nan,
+                 self.guid.limits, self._tgt)

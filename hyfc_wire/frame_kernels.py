@@ -37,7 +37,7 @@ from hyfc_wire.pwm import DEFLECTION_LIMIT_RAD, PWM_MAX_US, PWM_MIN_US, PWM_TRIM
 
 drop_stale(__file__, [_codec_mod.__file__, _layout_mod.__file__, _pwm_mod.__file__])
 
-__all__ = ["decode_sensor", "pwm_map", "servo_frame", "crc16_range", "REJ_FORMAT",
+__all__ = ["decode_sensor", "pwm_map", "surfaces_pwm", "servo_frame", "crc16_range", "REJ_FORMAT",
            "REJ_LENGTH", "REJ_SYSID", "REJ_MSGID", "REJ_REPEAT", "REJ_CRC", "REJ_INCOMPLETE",
            "REJ_STAMP", "REJ_NAMES", "GR_PRESENT", "GR_LAT_E7", "GR_LON_E7", "GR_ALT_M",
            "GR_VN", "GR_VE", "GR_VD", "GR_FIX", "GR_SATS", "GR_HACC_M", "GR_VACC_M",
@@ -263,6 +263,15 @@ def pwm_map(delta_rad, throttle_pwm_us, pwm_out):
     pwm_out[1] = _to_pwm(delta_rad[1])
     pwm_out[2] = _to_pwm(delta_rad[2])
     pwm_out[3] = throttle_pwm_us
+
+
+@njit(cache=True)
+def surfaces_pwm(src_rad, delta_out, throttle_pwm_us, pwm_out):
+    """The fast tick's output in one call: ``delta_out[0:3] = src_rad[0:3]`` (the surface
+    command, rad; ``src_rad`` may be ``delta_out`` itself) and :func:`pwm_map` of it."""
+    for i in range(3):
+        delta_out[i] = src_rad[i]
+    pwm_map(delta_out, throttle_pwm_us, pwm_out)
 
 
 @njit(cache=True)

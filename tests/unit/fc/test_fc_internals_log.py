@@ -58,13 +58,16 @@ def test_row_kernel_puts_each_value_in_its_named_column():
     # GIVEN the telemetry's column names for a law with three status values
     from types import SimpleNamespace
 
+    from fc.estimator import EM_EST, EM_MASKS, EM_N
     from fc.telemetry import Telemetry, fill_row
     cols = Telemetry.columns(SimpleNamespace(status_names=["s0", "s1", "s2"]))
-    est = np.arange(9.0) + 0.5
+    emem = np.zeros(EM_N)
+    emem[EM_EST:EM_EST + 9] = np.arange(9.0) + 0.5
+    emem.view(np.int64)[EM_MASKS:EM_MASKS + 2] = (5, 6)
     status = np.array([7.0, 8.0, 9.0, 99.0])       # longer than the names: only 3 logged
     row = np.full(len(cols), np.nan)
     # WHEN the compiled kernel fills a row
-    fill_row(row, 1.25, 123.5, 2_000_001, 2, True, False, np.array([5, 6], np.int64), est,
+    fill_row(row, np.array([1.25]), 123.5, 2_000_001, 2, True, False, emem,
              np.array([0.1, 0.2, 0.3]), np.array([-0.1, -0.2, -0.3]), 1500, 2_500_000, status,
              3, 0.75, 4, np.array([21000.0, 1.5, 2200.0, 0.9]))
     # THEN every column holds its value (the order is the columns' one)
@@ -79,3 +82,27 @@ def test_row_kernel_puts_each_value_in_its_named_column():
     assert (got["guid_throttle"], got["guid_limits"]) == (0.75, 4.0)
     assert (got["guid_tgt_h_m"], got["guid_tgt_V_m_s"]) == (21000.0, 2200.0)
     assert not np.isnan(row).any()
+
+
+def test_a_chunk_goes_to_the_writer_only_after_its_last_row_is_filled(tmp_path):
+    # GIVEN a log whose hand-over to the writer thread is watched: what the writer gets is
+    # copied at that moment (the writer may write it to disk at once)
+    log = InternalsLog(str(tmp_path), ["a"], chunk_rows=4, n_chunks=4)
+    handed = []
+    real_put = log._full.put
+
+    def watched_put(item):
+        if item is not None:
+            handed.append(item[0][:item[1]].copy())
+        real_put(item)
+
+    log._full.put = watched_put
+    # WHEN ten rows are filled one after the other (two chunks fill up)
+    for i in range(10):
+        log.row()[:] = i + 1.0
+    log.flush()
+    # THEN every row the writer got was filled, the last of each chunk too
+    assert [h[:, 0].tolist() for h in handed] == [[1.0, 2.0, 3.0, 4.0], [5.0, 6.0, 7.0, 8.0],
+                                                  [9.0, 10.0]]
+    log.close()
+    assert load(str(tmp_path))["a"].tolist() == [float(i + 1) for i in range(10)]

@@ -230,6 +230,22 @@ def test_pwm_map_is_deflection_to_pwm_on_any_float(d):
     assert pwm.tolist() == [_python_pwm(x) for x in d] + [0]
 
 
+def test_surfaces_pwm_copies_the_command_then_maps_it():
+    # GIVEN the fast tick's output arrays holding an older command
+    delta = np.array([0.3, 0.3, 0.3])
+    pwm = np.zeros(4, np.int64)
+    src = np.array([0.01, -0.2, math.nan])
+    # WHEN a new command goes out
+    K.surfaces_pwm(src, delta, 1420, pwm)
+    # THEN delta is the command, bit for bit, and the PWM its pwm_map
+    assert np.array_equal(delta, src, equal_nan=True)
+    assert pwm.tolist() == [deflection_to_pwm(x) for x in src] + [1420]
+    # AND a held command (the source is delta itself) maps the same, unchanged
+    K.surfaces_pwm(delta, delta, 0, pwm)
+    assert np.array_equal(delta, src, equal_nan=True)
+    assert pwm.tolist() == [deflection_to_pwm(x) for x in src] + [0]
+
+
 # ---- SERVO_OUTPUT_RAW -----------------------------------------------------------------------
 @settings(max_examples=300, deadline=None)
 @given(st.integers(0, 255), st.integers(0, 255), st.integers(0, 255),
