@@ -26,9 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from fc.guidance.guidance import limit_names
+from tools.sitl.metrics import DEG, SURFACE_LIMIT_DEG, hold_figures, targets_at, wrap_rad  # noqa: F401
 
-DEG = math.pi / 180.0
-SURFACE_LIMIT_DEG = 20.0
 STEPS = (("alt", 43001, lambda h, chi, v: (h + 2000.0,), 50.0, "+2 km altitude"),
          ("course", 43002, lambda h, chi, v: (0, math.degrees(chi) + 30.0), 0.5, "+30 deg heading"),
          ("speed", 43000, lambda h, chi, v: (0, v + 100.0), 5.0, "+100 m/s"))
@@ -45,59 +44,6 @@ def load_run(vdir: Path) -> tuple[dict, dict]:
     return truth, fc
 
 
-def _targets_at(truth: dict, fc: dict) -> np.ndarray:
-    """(n, 3) the fc's targets (h m, chi rad, V m/s) in force at the truth's times."""
-    t = fc["t_s"]
-    i = np.clip(np.searchsorted(t, truth["t_s"], side="right") - 1, 0, len(t) - 1)
-    return np.stack([fc["guid_tgt_h_m"][i], fc["guid_tgt_chi_rad"][i], fc["guid_tgt_V_m_s"][i]], 1)
-
-
-def _wrap(a):
-    return np.angle(np.exp(1j * a))
-
-
-def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
-    """Max abs errors after ``t_from_s``: altitude (m), course (deg), speed (m/s) to the fc's
-    targets; the inner loop (truth alpha/beta/mu to the fc's command, deg) and the law's own
-    tracking error e1 (deg); time with a surface within 0.05 deg of its limit (s); the range of
-    the adaptive estimates in the first and second half; limits seen."""
-    sel = truth["t_s"] >= t_from_s
-    if np.count_nonzero(sel) < 2 or np.count_nonzero(fc["t_s"] >= t_from_s) < 2:
-        raise ValueError(f"no samples after t = {t_from_s} s (the run ends at "
-                         f"{truth['t_s'][-1]:.1f} s)")
-    tg = _targets_at(truth, fc)[sel]
-    out = {"t_from_s": t_from_s, "t_to_s": float(truth["t_s"][-1])}
-    out["alt_err_max_m"] = float(np.max(np.abs(truth["h_m"][sel] - tg[:, 0])))
-    out["course_err_max_deg"] = float(np.degrees(np.max(np.abs(_wrap(truth["chi_rad"][sel]
-                                                                       - tg[:, 1])))))
-    out["speed_err_max_m_s"] = float(np.max(np.abs(truth["V_m_s"][sel] - tg[:, 2])))
-    fsel = fc["t_s"] >= t_from_s
-    ti = np.clip(np.searchsorted(truth["t_s"], fc["t_s"][fsel]), 0, len(truth["t_s"]) - 1)
-    inner = []
-    for name, c in (("alpha_rad", "cmd_alpha_rad"), ("beta_rad", "cmd_beta_rad"),
-                    ("mu_rad", "cmd_mu_rad")):
-        inner.append(float(np.degrees(np.max(np.abs(_wrap(truth[name][ti] - fc[c][fsel]))))))
-    out["inner_cmd_err_max_deg"] = inner
-    e1 = [k for k in fc if k.startswith("law_e1")]
-    if e1:
-        out["inner_e1_max_deg"] = [float(np.degrees(np.max(np.abs(fc[k][fsel])))) for k in e1]
-    d = np.stack([truth[k][sel] for k in ("delta_left_rad", "delta_right_rad",
-                                          "delta_rudder_rad")], 1)
-    dt = float(np.median(np.diff(truth["t_s"])))
-    out["surface_at_limit_s"] = float(np.sum(np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG,
-                                                    1)) * dt)
-    out["surface_peak_deg"] = [float(v) for v in np.degrees(np.max(np.abs(d), 0))]
-    rho = [k for k in fc if k.startswith("law_rho")]
-    if rho:
-        r = np.stack([fc[k][fsel] for k in rho], 1)
-        half = len(r) // 2
-        out["rho_abs_max_halves"] = [float(np.max(np.abs(r[:half]))),
-                                     float(np.max(np.abs(r[half:])))]
-    bits = np.bitwise_or.reduce(fc["guid_limits"][fsel].astype(np.int64))
-    out["limits_seen"] = limit_names(int(bits))
-    return out
-
-
 def step_figures(truth: dict, fc: dict, channel: str, t_step_s: float, band: float,
                  t_end_s: float) -> dict:
     """Response to the target change at ``t_step_s`` (the fc's target log): settling time (last
@@ -105,13 +51,13 @@ def step_figures(truth: dict, fc: dict, channel: str, t_step_s: float, band: flo
     limits in force until ``t_end_s``."""
     sel = (truth["t_s"] >= t_step_s) & (truth["t_s"] < t_end_s)
     t = truth["t_s"][sel]
-    tg = _targets_at(truth, fc)[sel]
+    tg = targets_at(truth, fc)[sel]
     if channel == "alt":
         err, r0 = truth["h_m"][sel] - tg[:, 0], truth["h_m"][sel][0] - tg[-1, 0]
     elif channel == "speed":
         err, r0 = truth["V_m_s"][sel] - tg[:, 2], truth["V_m_s"][sel][0] - tg[-1, 2]
     else:
-        err = np.degrees(_wrap(truth["chi_rad"][sel] - tg[:, 1]))
+        err = np.degrees(wrap_rad(truth["chi_rad"][sel] - tg[:, 1]))
         r0 = err[0]
     out_band = np.nonzero(np.abs(err) > band)[0]
     settled = (0.0 if len(out_band) == 0 else

@@ -139,7 +139,7 @@ def soak(args) -> int:
         truth, internals = rig.truth(), rig.internals()
         fig["exit_codes"] = rcs
         if guided:
-            from tools.guided_hil import hold_figures
+            from tools.sitl.metrics import hold_figures
             # after the engagement transient (10 s, or half of a shorter run)
             fig["hold_figures"] = hold_figures(truth, internals, min(10.0, 0.5 * args.duration))
         else:

@@ -53,7 +53,20 @@ def test_data_loss_gives_failsafe_then_recovery(flying):
     assert recovered and "COORDINATED" in recovered[0]
     loop.run(20)
     assert loop.outputs[-1] != (1500, 1500, 1500)
-    assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode & 0xFFFF == 1) is not None
+    # the HEARTBEAT says COORDINATED (1): it comes at 1 Hz, so keep the plant data coming while
+    # waiting for it (without frames the fc re-enters FAILSAFE after FS_TIMEOUT_S)
+    beat = []
+
+    def _beat():
+        m = gcs.wait("HEARTBEAT", 0, cond=lambda m: m.custom_mode & 0xFFFF == 1)
+        if m is not None:
+            beat.append(m)
+        return bool(beat)
+
+    deadline = time.monotonic() + 5
+    while not beat and time.monotonic() < deadline:
+        loop.run(50, on_frame=_beat)
+    assert beat, "no HEARTBEAT in COORDINATED after the data came back"
 
 
 def test_gcs_flood_and_garbage_do_not_stop_the_loop(flying):

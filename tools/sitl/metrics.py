@@ -246,3 +246,65 @@ def json_metrics(m: ChannelMetrics) -> dict:
     out = {k: d.pop(k) for k in METRIC_KEYS}
     out.update(d)
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# guided flight: hold figures against the fc's targets (tools.guided_hil, the rig, the soak)
+# ---------------------------------------------------------------------------------------------
+DEG = math.pi / 180.0
+SURFACE_LIMIT_DEG = 20.0         # the winged-cone's surface limit (plant_sim actuators)
+
+
+def targets_at(truth: dict, fc: dict) -> np.ndarray:
+    """(n, 3) the fc's targets (h m, chi rad, V m/s) in force at the truth's times."""
+    t = fc["t_s"]
+    i = np.clip(np.searchsorted(t, truth["t_s"], side="right") - 1, 0, len(t) - 1)
+    return np.stack([fc["guid_tgt_h_m"][i], fc["guid_tgt_chi_rad"][i], fc["guid_tgt_V_m_s"][i]], 1)
+
+
+def wrap_rad(a):
+    """Angles wrapped to (-pi, pi], rad."""
+    return np.angle(np.exp(1j * a))
+
+
+def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
+    """Max abs errors after ``t_from_s``: altitude (m), course (deg), speed (m/s) to the fc's
+    targets; the inner loop (truth alpha/beta/mu to the fc's command, deg) and the law's own
+    tracking error e1 (deg); time with a surface within 0.05 deg of its limit (s); the range of
+    the adaptive estimates in the first and second half; limits seen."""
+    sel = truth["t_s"] >= t_from_s
+    if np.count_nonzero(sel) < 2 or np.count_nonzero(fc["t_s"] >= t_from_s) < 2:
+        raise ValueError(f"no samples after t = {t_from_s} s (the run ends at "
+                         f"{truth['t_s'][-1]:.1f} s)")
+    tg = targets_at(truth, fc)[sel]
+    out = {"t_from_s": t_from_s, "t_to_s": float(truth["t_s"][-1])}
+    out["alt_err_max_m"] = float(np.max(np.abs(truth["h_m"][sel] - tg[:, 0])))
+    out["course_err_max_deg"] = float(np.degrees(np.max(np.abs(wrap_rad(truth["chi_rad"][sel]
+                                                                       - tg[:, 1])))))
+    out["speed_err_max_m_s"] = float(np.max(np.abs(truth["V_m_s"][sel] - tg[:, 2])))
+    fsel = fc["t_s"] >= t_from_s
+    ti = np.clip(np.searchsorted(truth["t_s"], fc["t_s"][fsel]), 0, len(truth["t_s"]) - 1)
+    inner = []
+    for name, c in (("alpha_rad", "cmd_alpha_rad"), ("beta_rad", "cmd_beta_rad"),
+                    ("mu_rad", "cmd_mu_rad")):
+        inner.append(float(np.degrees(np.max(np.abs(wrap_rad(truth[name][ti] - fc[c][fsel]))))))
+    out["inner_cmd_err_max_deg"] = inner
+    e1 = [k for k in fc if k.startswith("law_e1")]
+    if e1:
+        out["inner_e1_max_deg"] = [float(np.degrees(np.max(np.abs(fc[k][fsel])))) for k in e1]
+    d = np.stack([truth[k][sel] for k in ("delta_left_rad", "delta_right_rad",
+                                          "delta_rudder_rad")], 1)
+    dt = float(np.median(np.diff(truth["t_s"])))
+    out["surface_at_limit_s"] = float(np.sum(np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG,
+                                                    1)) * dt)
+    out["surface_peak_deg"] = [float(v) for v in np.degrees(np.max(np.abs(d), 0))]
+    rho = [k for k in fc if k.startswith("law_rho")]
+    if rho:
+        r = np.stack([fc[k][fsel] for k in rho], 1)
+        half = len(r) // 2
+        out["rho_abs_max_halves"] = [float(np.max(np.abs(r[:half]))),
+                                     float(np.max(np.abs(r[half:])))]
+    from fc.guidance.guidance import limit_names
+    bits = np.bitwise_or.reduce(fc["guid_limits"][fsel].astype(np.int64))
+    out["limits_seen"] = limit_names(int(bits))
+    return out

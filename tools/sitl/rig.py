@@ -284,10 +284,10 @@ def time_window(log: dict, t0_s: float, t1_s: float = math.inf) -> dict:
 
 
 def steady_figures(truth: dict, internals: dict, t0_s: float, t1_s: float = math.inf) -> dict:
-    """The hold figures of a guided flight (``tools.guided_hil.hold_figures``: altitude, course
+    """The hold figures of a guided flight (``tools.sitl.metrics.hold_figures``: altitude, course
     and speed against the fc's targets, the inner loop against the guidance's command and the
     law's e1, surfaces at their limits, adaptive estimates) over t0_s <= t < t1_s."""
-    from tools.guided_hil import hold_figures
+    from tools.sitl.metrics import hold_figures
     return hold_figures(time_window(truth, t0_s, t1_s), time_window(internals, t0_s, t1_s), t0_s)
 
 
