@@ -7,6 +7,7 @@ fixtures that start them (``FcProcess`` is a context manager).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import select
@@ -175,6 +176,21 @@ class FcProcess:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+@contextlib.contextmanager
+def fc_with_gcs(out_dir: str, *extra: str, **gcs_kw):
+    """``python -m fc`` (``FcProcess``, ``extra`` its arguments) and a ``ScriptedGcs`` on its
+    ground-station port that has heard the fc's HEARTBEAT; yields (fc, gcs), closes both."""
+    from tools.sitl.gcs import ScriptedGcs
+    port = free_udp_port()
+    with FcProcess(out_dir, *extra, gcs_ports=(port,)) as fc:
+        gcs = ScriptedGcs(port=port, **gcs_kw)
+        try:
+            assert gcs.wait("HEARTBEAT", 10) is not None, "no HEARTBEAT from the fc"
+            yield fc, gcs
+        finally:
+            gcs.close()
 
 
 def pwm_to_rad(us: int) -> float:

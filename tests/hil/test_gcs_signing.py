@@ -8,8 +8,7 @@ import sys
 
 import pytest
 
-from tests.fc_harness import REPO, FcProcess, free_udp_port, mavlink as ML
-from tools.sitl.gcs import ScriptedGcs
+from tests.fc_harness import REPO, fc_with_gcs, mavlink as ML
 
 pytestmark = pytest.mark.hil
 
@@ -21,15 +20,8 @@ def signed_fc(tmp_path):
     key_file = tmp_path / "gcs.key"
     key_file.write_bytes(PASSPHRASE + b"\n")
     os.chmod(key_file, 0o600)
-    gcs_port = free_udp_port()
-    out = str(tmp_path / "run")
-    with FcProcess(out, "--signing-key-file", str(key_file), gcs_ports=(gcs_port,)) as fc:
-        gcs = ScriptedGcs(port=gcs_port)
-        try:
-            assert gcs.wait("HEARTBEAT", 10) is not None
-            yield fc, gcs
-        finally:
-            gcs.close()
+    with fc_with_gcs(str(tmp_path / "run"), "--signing-key-file", str(key_file)) as (fc, gcs):
+        yield fc, gcs
 
 
 def test_unsigned_writes_are_rejected_and_counted_signed_accepted(signed_fc):

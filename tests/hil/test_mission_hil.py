@@ -11,9 +11,9 @@ import os
 
 import pytest
 
-from tests.fc_harness import REPO, FcProcess, free_udp_port, mavlink as ML
+from tests.fc_harness import REPO, FcProcess, fc_with_gcs, free_udp_port, mavlink as ML
 from tests.hil.test_mavproxy_fc import _Console, _mavproxy
-from tools.sitl.gcs import ScriptedGcs, read_wpl
+from tools.sitl.gcs import read_wpl
 
 pytestmark = pytest.mark.hil
 
@@ -28,15 +28,8 @@ def _same(got, item: dict, seq: int) -> bool:
 
 @pytest.fixture(scope="module")
 def fc_gcs(tmp_path_factory):
-    out = str(tmp_path_factory.mktemp("fc_mission"))
-    port = free_udp_port()
-    with FcProcess(out, gcs_ports=(port,)) as fc:
-        gcs = ScriptedGcs(port=port)
-        try:
-            assert gcs.wait("HEARTBEAT", 10) is not None
-            yield fc, gcs
-        finally:
-            gcs.close()
+    with fc_with_gcs(str(tmp_path_factory.mktemp("fc_mission"))) as (fc, gcs):
+        yield fc, gcs
 
 
 def test_upload_download_and_mission_current(fc_gcs):
