@@ -400,26 +400,41 @@ def sweep(scenario, channel: str, omegas, *, coordinated=True, law_overrides=Non
     return out
 
 
+#: The margins one run can measure (``--only``): the sweep (crossover, PM, GM), the all-pass
+#: phase margin (needs the crossover: a sweep runs first), the gain about trim (gain_ac) and of
+#: the whole command (gain), up and down, the delay in each channel and in all three.
+MARGINS = ("sweep", "pm_allpass", "gain_ac", "gain", "delay", "delay_all")
+#: the sweep of the crossover when only the all-pass phase margin needs it (fewer frequencies)
+QUICK_OMEGAS = np.geomspace(1.0, 40.0, 12)
+
+
 def channel_margins(scenario, channel: str, *, coordinated=True, law_overrides=None,
-                    omegas=None, duration_s: float = 20.0) -> dict:
-    """Every margin of one channel: sweep (crossover, PM, GM), gain bisection up and down,
-    all-pass phase margin at the crossover."""
-    omegas = np.geomspace(0.5, 60.0, 18) if omegas is None else np.asarray(omegas)
+                    omegas=None, duration_s: float = 20.0, which=MARGINS) -> dict:
+    """The margins of one channel named in ``which`` (MARGINS): sweep (crossover, PM, GM),
+    gain scans up and down (about trim and whole command), all-pass phase margin at the
+    crossover. Entries not measured are None."""
+    if omegas is None:
+        omegas = np.geomspace(0.5, 60.0, 18) if "sweep" in which else QUICK_OMEGAS
+    omegas = np.asarray(omegas)
     kw = dict(coordinated=coordinated, law_overrides=law_overrides)
-    lv = sweep(scenario, channel, omegas, **kw)
-    ok = np.isfinite(np.abs(lv))
-    cr = crossings(omegas[ok], np.asarray(lv)[ok])
+    cr = {"omega_c": None, "pm_deg": None, "omega_180": None, "gm_db": None,
+          "omega_180_low": None, "gm_low_db": None}
+    lv = []
+    if "sweep" in which or "pm_allpass" in which:
+        lv = sweep(scenario, channel, omegas, **kw)
+        ok = np.isfinite(np.abs(lv))
+        cr = crossings(omegas[ok], np.asarray(lv)[ok])
 
     def st_gain(mode):
         return lambda k: stable(fly(scenario, make_inj(mode, channel, gain=k),
                                     duration_s=duration_s, **kw))
     up = np.geomspace(1.0, 16.0, 13)
     down = np.geomspace(1.0, 1.0 / 16.0, 13)
-    gains = {f"{mode}_{d}": scan_boundary(st_gain(mode), vals, tol)
+    gains = {f"{mode}_{d}": (scan_boundary(st_gain(mode), vals, tol) if mode in which else None)
              for mode in ("gain", "gain_ac")
              for d, vals, tol in (("up", up, 0.02), ("down", down, 0.01))}
     pm_ap = None
-    if cr["omega_c"]:
+    if cr["omega_c"] and "pm_allpass" in which:
         wc = cr["omega_c"]
 
         def st_phase(phi_deg):
@@ -450,7 +465,10 @@ def _db(k):
 
 
 def _bound(b, fmt=".2f", db=False):
-    """'last stable / first unstable' of a boundary pair; dB of the last stable if ``db``."""
+    """'last stable / first unstable' of a boundary pair; dB of the last stable if ``db``;
+    '-' if not measured (None)."""
+    if b is None:
+        return "-"
     good, bad = b
     txt = f"{good:{fmt}} / {'none' if not math.isfinite(bad) else format(bad, fmt)}"
     if db:
@@ -495,6 +513,9 @@ def main(argv=None) -> int:
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
     ap.add_argument("--point", default=None, metavar="MACH,H_KM",
                     help="fly the paper's case at this flight condition (default: the paper's)")
+    ap.add_argument("--only", default=",".join(MARGINS),
+                    help="comma-separated margins to measure, of " + ", ".join(MARGINS)
+                         + " (default all; issue 20's three: pm_allpass,gain_ac,delay_all)")
     w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
                    help="extra delays to fly, frames (1 ms each)")
@@ -519,25 +540,40 @@ def main(argv=None) -> int:
         m, h = (float(x) for x in a.point.split(","))
         point = (m, h * 1e3)
     sc = margin_scenario(disturbance=a.disturbance, point=point)
+    which = tuple(x.strip() for x in a.only.split(",") if x.strip())
+    unknown = set(which) - set(MARGINS)
+    if unknown:
+        ap.error(f"--only: unknown margins {sorted(unknown)} (of {', '.join(MARGINS)})")
     t0 = time.perf_counter()
     results, delays = [], {}
     for var in a.variants.split(","):
         co = var == "co"
+        if not stable(fly(sc, make_inj(), coordinated=co, law_overrides=ov)):
+            print(f"{var}: the unperturbed loop is not stable at this point: no margin",
+                  flush=True)
+            delays[(var, "all")] = (0, 0)
+            continue
         for ch in a.channels.split(","):
-            r = channel_margins(sc, ch, coordinated=co, law_overrides=ov)
+            r = channel_margins(sc, ch, coordinated=co, law_overrides=ov, which=which)
             results.append(r)
-            delays[(var, ch)] = delay_margin(sc, coordinated=co, law_overrides=ov, channel=ch)
+            if "delay" in which:
+                delays[(var, ch)] = delay_margin(sc, coordinated=co, law_overrides=ov,
+                                                 channel=ch)
             brief = {k: r[k] for k in ("omega_c", "pm_deg", "gm_db", "gm_low_db", "gain_up",
                                        "gain_ac_up", "gain_down", "gain_ac_down",
                                        "pm_allpass_deg")}
-            print(f"{var} {ch}: {json.dumps(brief)} delay {delays[(var, ch)]} frames "
+            print(f"{var} {ch}: {json.dumps(brief)} delay {delays.get((var, ch))} frames "
                   f"({time.perf_counter() - t0:.0f} s)", flush=True)
-        delays[(var, "all")] = delay_margin(sc, coordinated=co, law_overrides=ov, channel="all")
-        print(f"{var} all-channel delay margin {delays[(var, 'all')]} frames", flush=True)
+        if "delay_all" in which:
+            delays[(var, "all")] = delay_margin(sc, coordinated=co, law_overrides=ov,
+                                                channel="all")
+            print(f"{var} all-channel delay margin {delays[(var, 'all')]} frames", flush=True)
     fdt = 1.0 / sc.data["timing"]["frame_hz"]
     table = margins_table(results, delays, fdt)
     all_rows = []
     for v in a.variants.split(","):
+        if (v, "all") not in delays:
+            continue
         good, bad = delays[(v, "all")]
         all_rows.append(f"| {v} | all three | {good * fdt * 1e3:.0f} ms stable, "
                         f"{'-' if bad is None else format(bad * fdt * 1e3, '.0f')} ms not |")
@@ -547,6 +583,7 @@ def main(argv=None) -> int:
     (a.out / "margins.json").write_text(json.dumps(
         {"results": results, "delays": {f"{k[0]}/{k[1]}": v for k, v in delays.items()},
          "frame_dt_s": fdt, "overrides": ov, "disturbance": a.disturbance,
+         "point": a.point, "only": list(which),
          "wall_s": time.perf_counter() - t0}, indent=1))
     print(text)
     print(f"wall {time.perf_counter() - t0:.0f} s")

@@ -28,8 +28,9 @@ from fc.control.layout import (
 from fc.control.linalg3 import clip, wrap_pi
 from fc.control.nominal import COS_MIN, V_MIN_M_S, eval_model
 from fc.control.options import switch_on
+from fc.control.schedule import apply_schedule
 from fc.control.params import (
-    P_FLT_ANG_HZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN, P_REF_PF_ZETA, P_SLW_AW,
+    P_CTL_SCHED, P_FLT_ANG_HZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN, P_REF_PF_ZETA, P_SLW_AW,
     P_SLW_CFB, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX, P_SLW_TH_BND,
 )
 
@@ -117,6 +118,9 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     st[S_INPUT_BAD] = 0.0
     eval_model(est, par, tab, atm, grid, nm)
     literal = switch_on(par, P_PAPER_LITERAL)
+    # gain schedule (CTL_SCHED): the gains at the estimated flight condition's dynamic pressure
+    if switch_on(par, P_CTL_SCHED) and not literal:
+        apply_schedule(nm[NM_QBAR], par, x)
     alpha_rad = est[E_ALPHA]
     beta_rad = est[E_BETA]
     v_m_s = max(est[E_V], V_MIN_M_S)

@@ -52,7 +52,7 @@ def _call_fast(law, est, dt):
 # ---------------------------------------------------------------------------------------------
 # Slow loop: Eqs. 26, 27, 29, 30 (+ V1 limit, V1b compensation, V2 freeze)
 # ---------------------------------------------------------------------------------------------
-SLOW_BASE = {"FLT_ANG_HZ": 0, "SLW_K1": 3, "SLW_K2": 4, "SLW_K3": 6, "SLW_KAPPA": 5,
+SLOW_BASE = {"CTL_SCHED": 0, "FLT_ANG_HZ": 0, "SLW_K1": 3, "SLW_K2": 4, "SLW_K3": 6, "SLW_KAPPA": 5,
              "SLW_GAMMA": 0.8, "SLW_LEAK": 0.7, "SLW_OMC_MAX": 0, "SLW_TH_BND": 0.5}
 INT0 = np.array([0.011, -0.023, 0.007])          # integral of e1 (rad s)
 RHO0 = np.array([0.1, -0.2, 0.05, 0.15])         # relative estimates of theta_Omega
