@@ -215,11 +215,13 @@ class Flight:
 
 
 def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: str = "paper",
-                    sensor_noise: bool = True, point: tuple | None = None):
+                    sensor_noise: bool = True, point: tuple | None = None,
+                    initial_beta_deg: float | None = None):
     """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
     on or off (the noise only matters over the wire, where the fc estimates from sensors);
     ``point`` = (Mach, altitude m): flown there instead, surfaces starting at the initial trim
-    (tools.envelope.point_scenario)."""
+    (tools.envelope.point_scenario); ``initial_beta_deg``: the initial sideslip instead of the
+    scenario's (where the paper's 5 deg cannot be trimmed within the surfaces' limits)."""
     from plant_sim.scenario import load, parse
     if point is None:
         sc = load(base)
@@ -229,6 +231,8 @@ def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: s
     d = copy.deepcopy(sc.data)
     d["timing"]["frame_hz"] = float(frame_hz)
     d["disturbance"]["enabled"] = bool(disturbance)
+    if initial_beta_deg is not None:
+        d["initial"]["beta_deg"] = float(initial_beta_deg)
     if not sensor_noise:
         for k in d["sensors"]["noise"]:
             d["sensors"]["noise"][k] = 0.0
@@ -513,6 +517,9 @@ def main(argv=None) -> int:
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
     ap.add_argument("--point", default=None, metavar="MACH,H_KM",
                     help="fly the paper's case at this flight condition (default: the paper's)")
+    ap.add_argument("--initial-beta", type=float, default=None, metavar="DEG",
+                    help="initial sideslip instead of the paper's 5 deg (a point where that "
+                         "cannot be trimmed)")
     ap.add_argument("--only", default=",".join(MARGINS),
                     help="comma-separated margins to measure, of " + ", ".join(MARGINS)
                          + " (default all; issue 20's three: pm_allpass,gain_ac,delay_all)")
@@ -539,7 +546,7 @@ def main(argv=None) -> int:
     if a.point:
         m, h = (float(x) for x in a.point.split(","))
         point = (m, h * 1e3)
-    sc = margin_scenario(disturbance=a.disturbance, point=point)
+    sc = margin_scenario(disturbance=a.disturbance, point=point, initial_beta_deg=a.initial_beta)
     which = tuple(x.strip() for x in a.only.split(",") if x.strip())
     unknown = set(which) - set(MARGINS)
     if unknown:
@@ -583,7 +590,7 @@ def main(argv=None) -> int:
     (a.out / "margins.json").write_text(json.dumps(
         {"results": results, "delays": {f"{k[0]}/{k[1]}": v for k, v in delays.items()},
          "frame_dt_s": fdt, "overrides": ov, "disturbance": a.disturbance,
-         "point": a.point, "only": list(which),
+         "point": a.point, "only": list(which), "initial_beta_deg": a.initial_beta,
          "wall_s": time.perf_counter() - t0}, indent=1))
     print(text)
     print(f"wall {time.perf_counter() - t0:.0f} s")

@@ -45,11 +45,15 @@ noise and per unit of rate command:
   x (G_paper / G), b the least effective channel's effectiveness, G the peak of the inner
   loop's acceleration demand after a unit omega_c step (``omega_c_peak_gain``).
 
-**Procedure.** At each node every candidate of a grid of (kappa1, K, kappa2, c, FST_CF_WN,
-FLT_RATE_HZ, FLT_ANG_HZ) is evaluated (numpy, all candidates at once); the feasible ones meet
-the margin targets with their buffers at k_p = 0.8 and 1.0, a closed-loop attitude peak
-|Omega / Omega_c| <= ``PEAK_MAX`` and the node's noise budget; the one with the widest attitude
-bandwidth (|Omega/Omega_c| = -3 dB) is chosen, ties to the larger observer bandwidth c. The
+**Procedure.** Every candidate of a grid of (kappa1, K, kappa2, c, FST_CF_WN, FLT_RATE_HZ,
+FLT_ANG_HZ) (``GRID``) is evaluated (numpy, all candidates at once); a candidate is feasible
+if it meets the margin targets with their buffers at k_p = 0.8 and 1.0, a closed-loop
+attitude peak |Omega / Omega_c| <= ``PEAK_MAX``, an attitude bandwidth >= ``BW_MIN_RAD_S``,
+and (per node) the noise budget. At each node the feasible candidate that leaves the
+smallest attitude error under the paper's disturbance (an angular acceleration of 5 deg/s^2
+at 1.5 and 2 rad/s) is chosen, ties (within 1 %) to the wider attitude bandwidth. Where no
+candidate meets the noise budget (the lowest nodes), the quietest margin-feasible one is
+taken and the table says "(over)". The
 table is then checked with the project's margins tool on the nonlinear law
 (``python -m tools.margins --only pm_allpass,gain_ac,delay_all --point M,H_KM``;
 docs/margins.md).

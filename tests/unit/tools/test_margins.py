@@ -144,3 +144,5 @@ def test_margin_scenario_options():
     assert sc.data["initial"]["h_m"] == 26e3
     assert all(v == 0.0 for v in sc.data["sensors"]["noise"].values())
     assert M.margin_scenario(disturbance=True).data["disturbance"]["enabled"] is True
+    assert M.margin_scenario(initial_beta_deg=0.0).data["initial"]["beta_deg"] == 0.0
+    assert M.margin_scenario().data["initial"]["beta_deg"] == 5.0
