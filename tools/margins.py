@@ -503,6 +503,60 @@ def margins_table(results: list[dict], delays: dict, frame_dt_s: float) -> str:
     return "\n".join(rows)
 
 
+#: the issue-20 targets the summary checks: all-pass PM (deg), gain about trim up and down (dB),
+#: all-channel delay (s)
+TARGET_PM_DEG = 45.0
+TARGET_GM_DB = 6.0
+TARGET_DM_S = 0.050
+
+
+def grid_table(dirs) -> str:
+    """Markdown summary of several runs' margins.json (one row per point, variant and
+    channel): all-pass phase margin, gain about trim up / down, all-channel delay, and whether
+    each meets the issue-20 targets. A variant whose unperturbed loop was not stable reads 0."""
+    from plant_sim.atmosphere import A_N, A_RHO_KG_M3, A_SOUND_M_S, us76
+    rows = ["| point | qbar kPa | variant | channel | PM all-pass deg | gain up about trim dB | "
+            "gain down about trim dB | delay all channels ms | targets met |",
+            "|" + "---|" * 9]
+    for d in dirs:
+        j = json.loads((Path(d) / "margins.json").read_text())
+        pt = j.get("point") or "7.44,21"
+        m, h = (float(x) for x in pt.split(","))
+        atm = np.zeros(A_N)
+        us76(h * 1e3, atm)
+        q_kpa = 0.5 * atm[A_RHO_KG_M3] * (m * atm[A_SOUND_M_S]) ** 2 / 1e3
+        label = pt + ("" if j.get("initial_beta_deg") is None
+                      else f" (beta0 {j['initial_beta_deg']:g} deg)")
+        if j.get("overrides"):
+            label += " " + " ".join(f"{k}={v:g}" for k, v in j["overrides"].items())
+        fdt = j["frame_dt_s"]
+        by_var = {}
+        for r in j["results"]:
+            by_var.setdefault("co" if r["coordinated"] else "unco", []).append(r)
+        for var in ("co", "unco"):
+            dl = j["delays"].get(f"{var}/all")
+            if dl is None:
+                continue
+            dm_s = dl[0] * fdt
+            if var not in by_var:
+                rows.append(f"| {label} | {q_kpa:.0f} | {var} | all | - | - | - | 0 | no: the "
+                            "unperturbed loop is not stable |")
+                continue
+            for r in by_var[var]:
+                pm = r["pm_allpass_deg"][0] if r["pm_allpass_deg"] else None
+                up = _db(r["gain_ac_up"][0]) if r["gain_ac_up"] else None
+                dn = _db(r["gain_ac_down"][0]) if r["gain_ac_down"] else None
+                ok = (pm is not None and pm >= TARGET_PM_DEG and up is not None
+                      and up >= TARGET_GM_DB and dn is not None and -dn >= TARGET_GM_DB
+                      and dm_s >= TARGET_DM_S)
+                rows.append(f"| {label} | {q_kpa:.0f} | {var} | {r['channel']} | "
+                            f"{'-' if pm is None else format(pm, '.0f')} | "
+                            f"{'-' if up is None else format(up, '+.1f')} | "
+                            f"{'-' if dn is None else format(dn, '+.1f')} | "
+                            f"{dm_s * 1e3:.0f} | {'yes' if ok else 'no'} |")
+    return "\n".join(rows)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.margins", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd")
@@ -535,7 +589,12 @@ def main(argv=None) -> int:
     w.add_argument("--disturbance", action="store_true",
                    help="keep the scenario's disturbance on (default off, as in process)")
     w.add_argument("--noise", action="store_true", help="keep the sensors' noise on")
+    t = sub.add_parser("table", help="summarise runs' margins.json against issue 20's targets")
+    t.add_argument("dirs", nargs="+", type=Path, help="run directories (--out of earlier runs)")
     a = ap.parse_args(argv)
+    if a.cmd == "table":
+        print(grid_table(a.dirs))
+        return 0
     ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":

@@ -146,3 +146,24 @@ def test_margin_scenario_options():
     assert M.margin_scenario(disturbance=True).data["disturbance"]["enabled"] is True
     assert M.margin_scenario(initial_beta_deg=0.0).data["initial"]["beta_deg"] == 0.0
     assert M.margin_scenario().data["initial"]["beta_deg"] == 5.0
+
+
+def test_grid_table_checks_the_issue_20_targets(tmp_path):
+    """`python -m tools.margins table DIR...`: one row per variant and channel, 'yes' only when
+    all-pass PM >= 45 deg, gain about trim >= 6 dB up and down and the all-channel delay
+    >= 50 ms; a variant without results (unperturbed loop unstable) reads 0 ms, 'no'."""
+    import json
+
+    def res(ch, pm, up, down):
+        return {"channel": ch, "coordinated": True, "pm_allpass_deg": [pm, pm + 1],
+                "gain_ac_up": [up, up * 1.01], "gain_ac_down": [down, down * 0.99]}
+    j = {"point": "8,26", "frame_dt_s": 0.001, "overrides": {}, "initial_beta_deg": None,
+         "results": [res("roll", 50.0, 2.0 ** 0.5 * 2.0, 0.4), res("pitch", 44.0, 4.0, 0.3),
+                     res("yaw", 50.0, 1.9, 0.3)],
+         "delays": {"co/all": [60, 61], "unco/all": [0, 0]}}
+    (tmp_path / "margins.json").write_text(json.dumps(j))
+    rows = [r for r in M.grid_table([tmp_path]).splitlines()[2:]]
+    assert [r.split("|")[4].strip() for r in rows] == ["roll", "pitch", "yaw", "all"]
+    assert [r.rstrip(" |").split("|")[-1].strip()[:3] for r in rows] == [
+        "yes", "no", "no", "no:"]
+    assert "| 98 |" in rows[0]                                   # Mach 8 / 26 km, US76
