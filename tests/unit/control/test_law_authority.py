@@ -183,3 +183,27 @@ def test_cruise_rate_aware_allocation_asks_at_most_the_actuator_rate():
     beta_rms, rudder_rms, sat_s, rate_max = _fly_cruise(ALLOC_RATE=1)
     assert rate_max <= 90.0 * (1.0 + 1e-9)
     assert beta_rms < 0.05 and rudder_rms < 3.0 and sat_s == 0.0
+
+
+def test_complementary_filter_step_is_the_equation():
+    """One fast step of V8 from a preset state: Omega_hat + dt (g_s(Omega_hat) omega + f)
+    pulled toward the vanes by 1 - exp(-2 pi f_c dt); mu wraps across +-180 deg; the slow
+    step stores f = f1 + Psi^T theta_hat for it."""
+    cf = 1.5
+    law = AttitudeLaw({"FLT_ANG_CF": cf})
+    est = _est(alpha_deg=4.0, beta_deg=1.0, mu_deg=179.9, p=0.02, q=-0.015, r=0.01)
+    law.reset(est)
+    law.slow_step(est, (4.0 * DEG, 0.0, 179.0 * DEG), 0.01)
+    f = law.x[L.X_FKIN:L.X_FKIN + 3].copy()
+    assert np.all(f != 0.0)
+    hat = np.array([3.9 * DEG, 1.2 * DEG, -179.8 * DEG])
+    law.x[L.X_AF2:L.X_AF2 + 3] = hat
+    K.fast_kernel(est, DT_FAST_S, law.par, law.x, law.nm, law.status, law.tab, law.atm,
+                  law.grid, law.delta_cmd_rad)
+    kin = np.array(K.gs(hat[0], hat[1], est[L.E_P], est[L.E_Q], est[L.E_R]))
+    pred = hat + DT_FAST_S * (kin + f)
+    g = 1.0 - math.exp(-2.0 * math.pi * cf * DT_FAST_S)
+    wrap = lambda v: (v + math.pi) % (2.0 * math.pi) - math.pi      # noqa: E731
+    exp = pred + g * (est[:3] - pred)
+    exp[2] = wrap(wrap(pred[2]) + g * wrap(est[2] - wrap(pred[2])))
+    np.testing.assert_allclose(law.x[L.X_AF2:L.X_AF2 + 3], exp, rtol=1e-12, atol=1e-15)
