@@ -146,6 +146,7 @@ class FlightController:
                            signing_key=key, log=self.log, io=self.io,
                            sim_time=cfg.mode == "lockstep",
                            signing_path=os.path.join(state_dir, SIGNING_FILE), disk=self.disk)
+        self.mission.alt_limits_m = self._mission_alt_limits    # checked at upload
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
@@ -226,6 +227,13 @@ class FlightController:
                           self.guid.targets()[0], math.degrees(self.guid.targets()[1]),
                           self.guid.targets()[2])
         return reason
+
+    def _mission_alt_limits(self) -> tuple[float, float, float | None]:
+        """(GT_ALT_MIN m, GT_ALT_MAX m, home altitude m MSL or None): a mission's waypoint
+        altitudes are checked against them at upload (fc/mission.py)."""
+        home = self.gcs.home
+        return (self.params.get("GT_ALT_MIN"), self.params.get("GT_ALT_MAX"),
+                None if home is None else home[2])
 
     def guidance_targets(self) -> tuple[float, float, float]:
         """(altitude m, course rad, speed m/s) the guidance flies (or last flew)."""

@@ -710,7 +710,8 @@ class GcsLink:
         mode = mode_from_custom(value)
         if mode is None:
             return False, f"mode {value:g} refused: not a mode"
-        change = mode != self.v.modes.mode
+        # a change to another mode takes a token; FAILSAFE (the operator's stop) never waits
+        change = mode != self.v.modes.mode and mode != FlightMode.FAILSAFE
         if change and not self._mode_change_allowed(time.monotonic()):
             self.mode_refused += 1
             return False, (f"mode {value:g} refused: more than {MODE_BURST:g} changes at "
