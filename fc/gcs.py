@@ -544,6 +544,10 @@ class GcsLink:
         if reason is not None:
             self._param_error(m, idx, code)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
+        elif self.disk is not None and self.disk.failing:
+            # set in memory, but the disk refuses writes: it would revert at a restart
+            err = self.disk.error_of("parameters") or "writes failing"
+            self.statustext(ML.MAV_SEVERITY_ERROR, f"{name} set, NOT saved (disk: {err})")
         self.send(self._param_value(idx))   # current value, also when refused
 
     def _param_error(self, m, idx: int, code: int) -> None:
