@@ -69,7 +69,7 @@ class DiskHealth:
         self._failing: dict[str, str] = {}     # what -> the last error
         self.failures = 0                      # writes that failed, ever
         self._next_report_s = 0.0
-        self._reported = False                 # the current fault has been said at least once
+        self._said: set[str] = set()           # what the last report named
 
     @property
     def failing(self) -> bool:
@@ -93,18 +93,16 @@ class DiskHealth:
         return self._failing.get(what)
 
     def report(self, now_s: float) -> str | None:
-        """The text to say now (a new fault at once, a lasting one every ``every_s``), or
-        None. ``now_s``: monotonic seconds."""
+        """The text to say now (a fault of something new at once, a lasting one every
+        ``every_s``), or None. ``now_s``: monotonic seconds."""
         with self._lock:
+            self._said &= set(self._failing)      # what recovered is new again next time
             if not self._failing:
-                if self._reported:          # the next fault is said at once
-                    self._reported = False
-                    self._next_report_s = 0.0
                 return None
-            if now_s < self._next_report_s:
+            if now_s < self._next_report_s and set(self._failing) <= self._said:
                 return None
             self._next_report_s = now_s + self.every_s
-            self._reported = True
+            self._said = set(self._failing)
             parts = "; ".join(f"{w} not written ({e})" for w, e in sorted(self._failing.items()))
         return f"DISK: {parts}"
 

@@ -132,3 +132,8 @@ def test_disk_faults_are_said_at_once_then_once_per_minute():
     assert health.report(200.0) is None and not health.failing
     health.failed("parameters", OSError(errno.EIO, "Input/output error"))
     assert health.report(201.0) == "DISK: parameters not written (Input/output error)"
+    # something new failing is said at once, within the minute
+    health.failed("tlog", OSError(errno.ENOSPC, "No space left on device"))
+    assert health.report(202.0) == ("DISK: parameters not written (Input/output error); "
+                                    "tlog not written (No space left on device)")
+    assert health.report(203.0) is None
