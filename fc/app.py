@@ -28,6 +28,7 @@ from fc.iothread import IoThread
 from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
+from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
 from fc.mode_control import ModeControl
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
 from fc.param_service import ParamService, load_param_file
@@ -147,6 +148,18 @@ class FlightController:
                            sim_time=cfg.mode == "lockstep",
                            signing_path=os.path.join(state_dir, SIGNING_FILE), disk=self.disk)
         self.mission.alt_limits_m = self._mission_alt_limits    # checked at upload
+        # the mission and home of the last run (fc/mission_store.py): a restart flies on
+        self.mission_store = MissionStore(self.mission, os.path.join(state_dir, MISSION_FILE),
+                                          self._home, self.log, self.disk)
+        restored_home = self.mission_store.load()
+        if restored_home is not None:
+            self.gcs.home = restored_home
+            startup_texts.append((ML.MAV_SEVERITY_INFO, "home restored: %.7f %.7f %.0f m"
+                                  % restored_home))
+        if self.mission.count:
+            startup_texts.append((ML.MAV_SEVERITY_INFO,
+                                  f"mission restored: {self.mission.count} items, "
+                                  f"current {self.mission.current}"))
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
@@ -163,7 +176,8 @@ class FlightController:
                                    self.status_names, self.guid)
         self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
-        self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),)
+        self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
+                       (self.mission_store.snapshot, self.mission_store.save))
         housekeeping = Housekeeping(self.gcs, self.plant, self.intake, self.mode_ctl, self.stats,
                                     self.planner, self.counters, self.telemetry, self.param_svc,
                                     self.io, self._event, self.log, disk=self.disk,
@@ -227,6 +241,9 @@ class FlightController:
                           self.guid.targets()[0], math.degrees(self.guid.targets()[1]),
                           self.guid.targets()[2])
         return reason
+
+    def _home(self) -> tuple[float, float, float] | None:
+        return self.gcs.home
 
     def _mission_alt_limits(self) -> tuple[float, float, float | None]:
         """(GT_ALT_MIN m, GT_ALT_MAX m, home altitude m MSL or None): a mission's waypoint

@@ -226,6 +226,29 @@ class Mission:
         self._changed()
         return [("current",)]
 
+    def restore(self, items: list[dict], current: int, finished: bool = False) -> str | None:
+        """Make ``items`` (dicts of MISSION_ITEM_INT fields, as ``item`` gives them) the stored
+        mission, at item ``current`` (a mission kept across a restart, fc/mission_store.py).
+        Every item is checked as at upload; None on success, else why nothing was stored."""
+        if len(items) > self.capacity:
+            return f"{len(items)} items, capacity {self.capacity}"
+        b = self._staging
+        for seq, it in enumerate(items):
+            p = (float(it["param1"]), float(it["param2"]), float(it["param3"]),
+                 float(it["param4"]))
+            x, y, z = int(it["x"]), int(it["y"]), float(it["z"])
+            result = _check_item(int(it["command"]), int(it["frame"]), p, x, y, z)
+            if result != ML.MAV_MISSION_ACCEPTED:
+                return f"item {seq} refused ({result})"
+            b.ints[seq] = (int(it["command"]), int(it["frame"]), int(it["autocontinue"]), x, y)
+            b.flts[seq] = (*p, z)
+        b.count = len(items)
+        self._active, self._staging = self._staging, self._active
+        self.current = int(current) if 0 <= int(current) < b.count else 0
+        self.version += 1
+        self.finished = bool(finished) and b.count > 0
+        return None
+
     def tick(self, now_s: float) -> list:
         """Retries and the timeout of an upload in progress. Returns the outputs."""
         if self._partner is None or now_s - self._sent_s < self.retry_s:
