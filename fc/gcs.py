@@ -250,11 +250,10 @@ class GcsLink:
         try:
             self.guard.save(data)
         except OSError as exc:
-            if self.disk is not None:
-                self.disk.failed("signing timestamps", exc)
-            if self.log is not None:
-                self.log.error("cannot save the signing timestamps: %s", exc)
             self.guard.dirty = True          # tried again at the next save
+            new = self.disk is None or self.disk.failed("signing timestamps", exc)
+            if new and self.log is not None:
+                self.log.error("cannot save the signing timestamps: %s", exc)
             return
         if self.disk is not None:
             self.disk.ok("signing timestamps")

@@ -57,10 +57,9 @@ class MissionStore:
         try:
             atomic_write(self.path, data)
         except OSError as exc:
-            self.log.error("cannot save the mission to %s: %s", self.path, exc)
-            self._saved_key = None
-            if self.disk is not None:
-                self.disk.failed("mission", exc)
+            self._saved_key = None           # tried again at the next snapshot
+            if self.disk is None or self.disk.failed("mission", exc):
+                self.log.error("cannot save the mission to %s: %s", self.path, exc)
             return
         if self.disk is not None:
             self.disk.ok("mission")
@@ -81,6 +80,7 @@ class MissionStore:
             if reason is not None:
                 raise ValueError(reason)
         except FileNotFoundError:
+            self._saved_key = self._key()    # nothing to save until something changes
             return None
         except (OSError, ValueError, KeyError, TypeError) as exc:
             self.log.error("mission file %s not restored (%s); kept aside", self.path, exc)

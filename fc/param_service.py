@@ -137,10 +137,9 @@ class ParamService:
                     saved.values[i] = d.default
             saved.save(self.path)
         except OSError as exc:
-            self.log.error("cannot save parameters to %s: %s", self.path, exc)
-            if self.disk is not None:
-                self.disk.failed("parameters", exc)
             self.dirty = True               # tried again at the next save
+            if self.disk is None or self.disk.failed("parameters", exc):
+                self.log.error("cannot save parameters to %s: %s", self.path, exc)
             return
         if self.disk is not None:
             self.disk.ok("parameters")

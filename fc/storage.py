@@ -75,12 +75,15 @@ class DiskHealth:
     def failing(self) -> bool:
         return bool(self._failing)
 
-    def failed(self, what: str, exc: BaseException) -> None:
-        """A write of ``what`` failed with ``exc``."""
+    def failed(self, what: str, exc: BaseException) -> bool:
+        """A write of ``what`` failed with ``exc``. True when ``what`` was not failing before
+        (the caller logs the first failure only; the repeats are in the reports)."""
         text = exc.strerror if isinstance(exc, OSError) and exc.strerror else repr(exc)
         with self._lock:
             self.failures += 1
+            new = what not in self._failing
             self._failing[what] = text
+        return new
 
     def ok(self, what: str) -> None:
         """A write of ``what`` succeeded (its fault, if any, is over)."""
