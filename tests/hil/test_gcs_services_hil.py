@@ -149,3 +149,28 @@ def test_mavsdk_in_air_true_velocity_and_unknown_parameter_at_once(mavsdk_flying
     dt = time.monotonic() - t0
     print(f"MAVSDK get_param_float(NO_SUCH_PARAM): {err.value.result} after {dt:.2f} s")
     assert err.value.result == ParamResult.DOES_NOT_EXIST and dt < 1.0
+
+
+def test_mavsdk_downloads_an_msl_mission_with_mission_raw(mavsdk_flying):
+    """MAVSDK's Mission plugin takes on download only NAV_WAYPOINT in frame 6
+    (GLOBAL_RELATIVE_ALT_INT) and DO_CHANGE_SPEED with param1 = 1 (MAVSDK 4.1
+    mission_impl.cpp ``convert_to_result_and_mission_items``), so the shipped MSL mission is
+    UNSUPPORTED there; the fc returns items as stored, and MissionRaw downloads them all."""
+    from mavsdk.plugins.mission import Mission, MissionError
+    from mavsdk.plugins.mission_raw import MissionRaw
+    from tests.fc_harness import REPO
+    from tools.sitl.gcs import ScriptedGcs, read_wpl
+    fc, system = mavsdk_flying
+    items = read_wpl(os.path.join(REPO, "plant_sim", "scenarios", "mission_short.waypoints"))
+    peer = ScriptedGcs(vehicle=("127.0.0.1", fc.gcs_bind_port))
+    try:
+        peer.upload_mission(items)
+    finally:
+        peer.close()
+    got = MissionRaw(system).download_mission()
+    assert [(g.seq, g.frame, g.command, g.x, g.y, g.z) for g in got] == [
+        (k, it["frame"], it["command"], it["x"], it["y"], it["z"]) for k, it in enumerate(items)]
+    with pytest.raises(MissionError) as err:
+        Mission(system).download_mission()
+    print(f"MAVSDK Mission.download_mission of the MSL mission: {err.value.result}; "
+          f"MissionRaw: {len(got)} items")
