@@ -14,6 +14,11 @@ direction) is in docs/fc.md. As a PX4/ArduPilot SITL session:
   (fc/ratelimit.py), long texts chunked;
 - integer parameters are INT32, bytewise (fc/params.py ``encode_value``); a refused set is
   answered at once with PARAM_ERROR and the unchanged PARAM_VALUE.
+- the protocol services are modules of their own, each with its state (docs/fc.md section
+  7a): TIMESYNC (fc/gcs_timesync.py), log download (fc/gcs_logs.py), read-only FTP
+  (fc/gcs_ftp.py); this link dispatches their requests and sends their answers to the
+  requester only (``_service_out``), paced within ``max_tx``; fc/gcs_streams.py holds the
+  field rules of the streamed state (landed state, speeds that do not fit a field).
 
 Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
