@@ -35,8 +35,9 @@ class _Peer:
             time.sleep(0.001)
         raise AssertionError("the link never read the datagram")
 
-    def answers(self, kind: str, timeout_s: float = 2.0, n_service: int = 50) -> list:
-        """Run ``service`` a few times and return the ``kind`` messages this peer received."""
+    def answers(self, kind, timeout_s: float = 2.0, n_service: int = 50) -> list:
+        """Run ``service`` a few times and return the messages of type ``kind`` (a name or a
+        tuple of names) this peer received."""
         got = []
         deadline = time.monotonic() + timeout_s
         for _ in range(n_service):
@@ -48,7 +49,7 @@ class _Peer:
                 break
             data = self.sock.recv(65536)
             for m in self.rx.parse_buffer(data) or []:
-                if m.get_type() == kind:
+                if m.get_type() in ((kind,) if isinstance(kind, str) else kind):
                     got.append(m)
         return got
 
@@ -163,4 +164,21 @@ def test_speeds_that_do_not_fit_are_unknown_and_local_position_ned_has_them(tmp_
         assert (ned.vx, ned.vy, ned.vz) == (2200.0, -30.0, 1.5)
         assert (ned.x, ned.y, ned.z) == (0.0, 0.0, 0.0)           # at home
     finally:
+        link.close()
+
+
+def test_extended_sys_state_on_request(tmp_path):
+    link = _link(tmp_path, _flying(_Vehicle()))
+    peer = _Peer(link)
+    try:
+        peer.send(ML.MAVLink_command_long_message(1, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0,
+                                                  ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+                                                  0, 0, 0, 0, 0, 0))
+        got = peer.answers(("EXTENDED_SYS_STATE", "COMMAND_ACK"))
+        acks = [m for m in got if m.get_type() == "COMMAND_ACK"]
+        assert [a.result for a in acks] == [ML.MAV_RESULT_ACCEPTED]
+        states = [m for m in got if m.get_type() == "EXTENDED_SYS_STATE"]
+        assert states and states[0].landed_state == ML.MAV_LANDED_STATE_IN_AIR
+    finally:
+        peer.close()
         link.close()
