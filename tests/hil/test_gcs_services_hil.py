@@ -67,10 +67,11 @@ def test_mavproxy_gets_parameters_by_ftp_at_once_and_lists_and_downloads_the_log
     n_params = len(build_table())
     with FcProcess(str(tmp_path / "run"), gcs_ports=(port,)) as fc:
         plant = _FlyingPlant(fc.plant_port)        # a flight: the .tlog grows while served
-        t0 = time.monotonic()
-        con = _Console(exe + [f"--master=udpin:127.0.0.1:{port}", "--no-state",
-                              "--default-modules=link,param,misc,ftp,log"], str(tmp_path))
+        con = None
         try:
+            t0 = time.monotonic()
+            con = _Console(exe + [f"--master=udpin:127.0.0.1:{port}", "--no-state",
+                                  "--default-modules=link,param,misc,ftp,log"], str(tmp_path))
             con.expect("Detected vehicle 1:1", 30)
             t_detect = time.monotonic()
             line = con.expect(f"Received {n_params} parameters", 30)
@@ -91,7 +92,8 @@ def test_mavproxy_gets_parameters_by_ftp_at_once_and_lists_and_downloads_the_log
             con.send("ftp list /")
             con.expect("fc.tlog", 15)
         finally:
-            con.close()
+            if con is not None:
+                con.close()
             plant.close()
         assert fc.stop() == 0
     with open(os.path.join(fc.out, "fc.tlog"), "rb") as f:
