@@ -5,8 +5,9 @@ the flight log of this run (``fc.tlog``, docs/fc.md section 10), which is still 
 
 - LOG_REQUEST_LIST(start, end) -> LOG_ENTRY(id 1, num_logs 1, last_log_num 1, time_utc = the
   fc's start (s, UTC), size = the bytes on disk now) when 1 is in [start, end]; a run without a
-  log answers LOG_ENTRY(0, 0, 0, 0, 0) ("No logs"). The size is held from the list on (a
-  snapshot: the file keeps growing) until LOG_REQUEST_END, so a download has one length.
+  log answers LOG_ENTRY(0, 0, 0, 0, 0) ("No logs"). The size is a snapshot (the file keeps
+  growing), taken by a list while no transfer runs and held until LOG_REQUEST_END, so a
+  download has the length its list said.
 - LOG_REQUEST_DATA(id 1, ofs, count) -> LOG_DATA(ofs, count <= 90, data) from ``ofs`` up to
   min(ofs + count, size): streamed, at most ``per_call`` messages per ``take`` and
   ``rate_hz`` on average (a token bucket on the wall clock). The last message has count < 90;
@@ -99,7 +100,7 @@ class LogService:
                 return [(peer, ML.MAVLink_log_entry_message(0, 0, 0, 0, 0))]
             if not m.start <= LOG_ID <= m.end:
                 return []
-            if self.size is None:
+            if self.size is None or self.peer is None:     # no transfer running: fresh
                 self.size = self._disk_size()
             return [(peer, ML.MAVLink_log_entry_message(LOG_ID, 1, LOG_ID, self.time_utc_s,
                                                         self.size))]

@@ -39,6 +39,11 @@ def test_list_gives_one_log_with_its_size_and_the_start_time(tmp_path):
     assert peer == PEER and e.get_type() == "LOG_ENTRY"
     assert (e.id, e.num_logs, e.last_log_num, e.size, e.time_utc) == (1, 1, 1, 1000,
                                                                        1_764_000_000)
+    # the log grows: a new list (no transfer running) has the new size
+    with open(svc.path, "ab") as f:
+        f.write(b"y" * 500)
+    (_, e), = svc.handle(received(ML.MAVLink_log_request_list_message(1, 1, 0, 0xFFFF)), PEER, 0)
+    assert e.size == 1500
     # a range without log 1: nothing; a run without a log: "No logs"
     assert svc.handle(received(ML.MAVLink_log_request_list_message(1, 1, 2, 5)), PEER, 0) == []
     (_, none), = LogService(None, 0).handle(
