@@ -13,7 +13,7 @@ from fc.gcs_ftp import (BURST_PACKETS, ERR, MAX_DATA, MAX_SESSIONS, OP, FtpServi
 from fc.gcs_ftp_param import pack_params  # noqa: E402
 from fc.link import mavlink as ML  # noqa: E402
 from fc.params import build_table  # noqa: E402
-from tests.unit.fc.wire_msgs import received  # noqa: E402
+from tests.fc_harness import received  # noqa: E402
 
 PEER = ("127.0.0.1", 14550)
 

@@ -7,7 +7,7 @@ import os
 os.environ["MAVLINK20"] = "1"
 from fc.gcs_logs import CHUNK, LOG_ID, LogService, Pacer  # noqa: E402
 from fc.link import mavlink as ML  # noqa: E402
-from tests.unit.fc.wire_msgs import received  # noqa: E402
+from tests.fc_harness import received  # noqa: E402
 
 PEER = ("127.0.0.1", 14550)
 

@@ -6,12 +6,12 @@ import os
 os.environ["MAVLINK20"] = "1"
 from fc.gcs_timesync import TimesyncTargeted, answer, request_targets  # noqa: E402
 from fc.link import mavlink as ML  # noqa: E402
-from tests.unit.fc.wire_msgs import received as _received  # noqa: E402
+from tests.fc_harness import received  # noqa: E402
 
 
 def test_a_request_is_answered_with_our_time_and_its_own_ts1_mirrored_to_the_requester():
     # GIVEN a request (tc1 = 0) with the requester's time in ts1 (ns)
-    req = _received(ML.MAVLink_timesync_message(0, 123_456_789_012))
+    req = received(ML.MAVLink_timesync_message(0, 123_456_789_012))
     # WHEN the fc's time base reads 5.5 s
     reply = answer(req, 5_500_000_000, sysid=1, compid=1)
     # THEN tc1 = our time (ns), ts1 mirrored, targeted at the requester (current common.xml)
@@ -19,15 +19,15 @@ def test_a_request_is_answered_with_our_time_and_its_own_ts1_mirrored_to_the_req
     assert (reply.target_system, reply.target_component) == (255, 190)
     # and on the wire it is a TIMESYNC that a reader with the old dialect decodes, and whose
     # extension bytes carry the targets
-    back = _received(reply, sysid=1, compid=1)
+    back = received(reply, sysid=1, compid=1)
     assert back.get_type() == "TIMESYNC" and back.tc1 == 5_500_000_000
     assert request_targets(back) == (255, 190)
 
 
 def test_an_answer_or_a_request_for_another_system_is_not_answered():
-    assert answer(_received(ML.MAVLink_timesync_message(7, 8)), 1, 1, 1) is None   # tc1 != 0
-    other = _received(TimesyncTargeted(0, 99, 42, 1))
+    assert answer(received(ML.MAVLink_timesync_message(7, 8)), 1, 1, 1) is None   # tc1 != 0
+    other = received(TimesyncTargeted(0, 99, 42, 1))
     assert request_targets(other) == (42, 1)
     assert answer(other, 1, sysid=1, compid=1) is None
-    mine = _received(TimesyncTargeted(0, 99, 1, 1))
+    mine = received(TimesyncTargeted(0, 99, 1, 1))
     assert answer(mine, 1, sysid=1, compid=1).ts1 == 99
