@@ -1,8 +1,9 @@
 """HIL tier: issue 21's protocol services with the real clients against the fc process.
 
-- MAVProxy (headless, its default ``param_ftp`` on, the ``ftp`` and ``log`` modules loaded):
-  the parameters arrive by FTP (``@PARAM/param.pck``) without an FTP time-out, ``log list``
-  shows the run's .tlog and ``log download`` returns it byte for byte.
+- MAVProxy (headless, its default ``param_ftp`` on, the ``ftp`` and ``log`` modules and the
+  project's tools.mavproxy_hyfc loaded): the parameters arrive by FTP (``@PARAM/param.pck``)
+  without an FTP time-out and can be set, ``log list`` shows the run's .tlog and ``log
+  download`` returns it byte for byte.
 - MAVSDK: ``telemetry.in_air()`` is True at Mach 7 (EXTENDED_SYS_STATE), the velocity of
   ``position_velocity_ned`` is the true 2200 m/s (LOCAL_POSITION_NED), and a parameter read of
   an unknown name fails at once (PARAM_ERROR) instead of after MAVSDK's time-out.
@@ -71,7 +72,8 @@ def test_mavproxy_gets_parameters_by_ftp_at_once_and_lists_and_downloads_the_log
         try:
             t0 = time.monotonic()
             con = _Console(exe + [f"--master=udpin:127.0.0.1:{port}", "--no-state",
-                                  "--default-modules=link,param,misc,ftp,log"], str(tmp_path))
+                                  "--default-modules=link,param,misc,ftp,log",
+                                  "--load-module", "tools.mavproxy_hyfc"], str(tmp_path))
             con.expect("Detected vehicle 1:1", 30)
             t_detect = time.monotonic()
             line = con.expect(f"Received {n_params} parameters", 30)
@@ -81,6 +83,16 @@ def test_mavproxy_gets_parameters_by_ftp_at_once_and_lists_and_downloads_the_log
             assert "(ftp)" in line
             # an FTP time-out would cost seconds; the answer is at once
             assert t_params - t_detect < 5.0
+            # the packed file's integers are whole numbers, and a set after it is verified
+            con.send("param show CO_FAC_EQ")
+            con.expect("CO_FAC_EQ        19")
+            con.send("param set CO_FAC_EQ 14")
+            for _ in range(10):                           # the set is queued in MAVProxy
+                con.send("param fetch CO_FAC_EQ")
+                if con.expect("CO_FAC_EQ = ").endswith("= 14"):
+                    break
+            else:
+                raise AssertionError("CO_FAC_EQ never read back as 14")
             con.send("log list")
             entry = con.expect("Log 1  numLogs 1 lastLog 1 size", 15)
             size = int(entry.split("size")[1].split()[0])
