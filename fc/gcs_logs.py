@@ -12,8 +12,11 @@ the flight log of this run (``fc.tlog``, docs/fc.md section 10), which is still 
   min(ofs + count, size): streamed, at most ``per_call`` messages per ``take`` and
   ``rate_hz`` on average (a token bucket on the wall clock). The last message has count < 90;
   when the end falls on a multiple of 90, one more with count 0 ends it (MAVProxy's end test).
-  A request at or past the end answers count 0 at once; a new request replaces the running one.
-  Another id: nothing is sent (as ArduPilot).
+  A request at or past the end answers count 0 at once. The requests of a download are queued
+  (at most MAX_RANGES, a repeat once) and served in order: a ground station that lost
+  messages asks for its gaps in a burst of requests (MAVProxy: up to 20), and each is served
+  (ArduPilot serves only the last one); a request from offset 0 or from another peer starts
+  a new download. Another id: nothing is sent (as ArduPilot).
 - LOG_REQUEST_END: stops a transfer, drops the size snapshot.
 - LOG_ERASE: refused (the running flight's log is never erased), with a STATUSTEXT.
 
@@ -25,15 +28,17 @@ never from the frame path. Calls return outputs for the caller (fc/gcs.py) to se
 from __future__ import annotations
 
 import os
+from collections import deque
 
 from fc.link import mavlink as ML
 
-__all__ = ["LogService", "Pacer", "MSG_IDS", "LOG_ID", "CHUNK", "RATE_HZ", "PER_CALL"]
+__all__ = ["LogService", "Pacer", "MSG_IDS", "LOG_ID", "CHUNK", "RATE_HZ", "PER_CALL", "MAX_RANGES"]
 
 LOG_ID = 1                # the one log: this run's fc.tlog
 CHUNK = 90                # LOG_DATA.data is uint8_t[90]
 RATE_HZ = 1000.0          # LOG_DATA messages per second on average (90 kB/s)
 PER_CALL = 4              # ... and at most this many per ``take``
+MAX_RANGES = 32           # requested ranges queued (MAVProxy asks for up to 20 gaps at once)
 
 MSG_IDS = frozenset({
     ML.MAVLINK_MSG_ID_LOG_REQUEST_LIST, ML.MAVLINK_MSG_ID_LOG_REQUEST_DATA,
@@ -66,7 +71,7 @@ class Pacer:
 
 
 class LogService:
-    """The log handler's state: the size snapshot and the running transfer."""
+    """The log handler's state: the size snapshot and the queued ranges of the transfer."""
 
     def __init__(self, path: str | None, time_utc_s: int, rate_hz: float = RATE_HZ,
                  per_call: int = PER_CALL) -> None:
@@ -76,15 +81,14 @@ class LogService:
         self.size: int | None = None      # the snapshot of the log's length (bytes)
         self.fd: int | None = None
         self.peer = None                  # the transfer's requester
-        self.ofs = 0                      # next byte to send
-        self.end = 0                      # transfer end (exclusive)
-        self.end_marker = False           # one count-0 LOG_DATA still to send
+        # the requested ranges [ofs, end, end_marker], served in order; ofs advances as sent
+        self.ranges: deque[list] = deque(maxlen=MAX_RANGES)
         self.sent = 0                     # LOG_DATA messages sent (counter)
 
     @property
     def busy(self) -> bool:
         """A transfer is running (``take`` has messages to give)."""
-        return self.peer is not None
+        return bool(self.ranges)
 
     def _disk_size(self) -> int:
         try:
@@ -100,7 +104,7 @@ class LogService:
                 return [(peer, ML.MAVLink_log_entry_message(0, 0, 0, 0, 0))]
             if not m.start <= LOG_ID <= m.end:
                 return []
-            if self.size is None or self.peer is None:     # no transfer running: fresh
+            if self.size is None or not self.busy:     # no transfer running: a fresh size
                 self.size = self._disk_size()
             return [(peer, ML.MAVLink_log_entry_message(LOG_ID, 1, LOG_ID, self.time_utc_s,
                                                         self.size))]
@@ -111,13 +115,16 @@ class LogService:
                 self.size = self._disk_size()
             end = min(self.size, m.ofs + m.count)
             if m.ofs >= end:
-                self.peer = None
                 return [(peer, self._data(m.ofs, b""))]
-            self.peer, self.ofs, self.end = peer, int(m.ofs), int(end)
-            self.end_marker = end % CHUNK == 0 and end == self.size
+            if peer != self.peer or m.ofs == 0:      # a new download: forget the old ranges
+                self.ranges.clear()
+                self.peer = peer
+            rng = [int(m.ofs), int(end), end % CHUNK == 0 and end == self.size]
+            if rng not in self.ranges:               # a repeated gap request: once
+                self.ranges.append(rng)
             return []
         if t == ML.MAVLINK_MSG_ID_LOG_REQUEST_END:
-            self.peer = None
+            self.ranges.clear()
             self.size = None
             return []
         if t == ML.MAVLINK_MSG_ID_LOG_ERASE:
@@ -131,9 +138,9 @@ class LogService:
                                            list(data) + [0] * (CHUNK - len(data)))
 
     def take(self, now_s: float, budget: int) -> list:
-        """The next LOG_DATA messages of the running transfer, ``(peer, message)``: at most
+        """The next LOG_DATA messages of the queued ranges, ``(peer, message)``: at most
         ``budget``, ``per_call`` and what the rate allows since the last call."""
-        if self.peer is None:
+        if not self.ranges:
             return []
         n = self.pacer.allowance(now_s, budget)
         out = []
@@ -143,29 +150,29 @@ class LogService:
             try:
                 self.fd = os.open(self.path, os.O_RDONLY)
             except OSError:
-                self.peer = None
+                self.ranges.clear()
                 return [("text", ML.MAV_SEVERITY_WARNING, "log download: cannot read fc.tlog")]
         peer = self.peer
-        while len(out) < n:
-            if self.ofs >= self.end:
-                if self.end_marker:
-                    out.append((peer, self._data(self.ofs, b"")))
-                self.peer = None
-                break
-            want = min(CHUNK, self.end - self.ofs)
+        while len(out) < n and self.ranges:
+            rng = self.ranges[0]
+            ofs, end, marker = rng
+            if ofs >= end:                   # done: the count-0 end marker if it needs one
+                self.ranges.popleft()
+                if marker:
+                    out.append((peer, self._data(ofs, b"")))
+                continue
             try:
-                data = os.pread(self.fd, want, self.ofs)
+                data = os.pread(self.fd, min(CHUNK, end - ofs), ofs)
             except OSError:
                 data = b""
-            if not data:                   # shorter on disk than listed: end here
-                out.append((peer, self._data(self.ofs, b"")))
-                self.peer = None
-                break
-            out.append((peer, self._data(self.ofs, data)))
-            self.ofs += len(data)
-            if self.ofs >= self.end and not self.end_marker:
-                self.peer = None
-                break
+            if not data:                     # shorter on disk than listed: end here
+                self.ranges.popleft()
+                out.append((peer, self._data(ofs, b"")))
+                continue
+            out.append((peer, self._data(ofs, data)))
+            rng[0] = ofs + len(data)
+            if rng[0] >= end and not marker:
+                self.ranges.popleft()
         self.pacer.spend(len(out))
         return out
 

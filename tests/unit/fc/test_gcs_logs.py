@@ -103,3 +103,20 @@ def test_pacer_refills_at_its_rate_up_to_the_burst():
     assert p.allowance(0.05, 10) == 0
     assert p.allowance(0.1, 10) == 1
     assert p.allowance(100.0, 10) == 3
+
+
+def test_a_burst_of_gap_requests_is_served_whole_and_a_new_download_starts_over(tmp_path):
+    # GIVEN a download that lost three ranges, asked for at once (MAVProxy's missing handler)
+    svc = LogService(_log(tmp_path, 1000), 0)
+    for ofs, count in ((180, 180), (450, 90), (900, 100)):
+        assert svc.handle(received(ML.MAVLink_log_request_data_message(1, 1, 1, ofs, count)),
+                          PEER, 0.0) == []
+    # WHEN the service streams  THEN every range is sent, in order, the last with the end
+    msgs = _download(svc, ofs=900, count=100)        # a repeated request is queued once
+    assert [(m.ofs, m.count) for m in msgs] == [(180, 90), (270, 90), (450, 90), (900, 90),
+                                                 (990, 10)]
+    # a request from offset 0 is a new download: the queued gaps are dropped
+    for ofs, count in ((180, 90), (0, 180)):
+        svc.handle(received(ML.MAVLink_log_request_data_message(1, 1, 1, ofs, count)), PEER, 0)
+    assert [(m.ofs, m.count) for m in _download(svc, ofs=0, count=180)] == [(0, 90), (90, 90)]
+    svc.close()
