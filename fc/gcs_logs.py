@@ -15,8 +15,10 @@ the flight log of this run (``fc.tlog``, docs/fc.md section 10), which is still 
   A request at or past the end answers count 0 at once. The requests of a download are queued
   (at most MAX_RANGES, a repeat once) and served in order: a ground station that lost
   messages asks for its gaps in a burst of requests (MAVProxy: up to 20), and each is served
-  (ArduPilot serves only the last one); a request from offset 0 or from another peer starts
-  a new download. Another id: nothing is sent (as ArduPilot).
+  (ArduPilot serves only the last one). Such a burst says the station could not keep up (its
+  socket buffer overflowed while it was not scheduled): the rate halves, once per burst, down
+  to RATE_MIN_HZ. A request for the whole log (offset 0 to the end) starts a new download at
+  RATE_HZ; a request from another peer drops the ranges queued for the previous one. Another id: nothing is sent (as ArduPilot).
 - LOG_REQUEST_END: stops a transfer, drops the size snapshot.
 - LOG_ERASE: refused (the running flight's log is never erased), with a STATUSTEXT.
 
@@ -39,6 +41,7 @@ CHUNK = 90                # LOG_DATA.data is uint8_t[90]
 RATE_HZ = 1000.0          # LOG_DATA messages per second on average (90 kB/s)
 PER_CALL = 4              # ... and at most this many per ``take``
 MAX_RANGES = 32           # requested ranges queued (MAVProxy asks for up to 20 gaps at once)
+RATE_MIN_HZ = 100.0       # the rate halves on each burst of gap requests, down to this
 
 MSG_IDS = frozenset({
     ML.MAVLINK_MSG_ID_LOG_REQUEST_LIST, ML.MAVLINK_MSG_ID_LOG_REQUEST_DATA,
@@ -83,7 +86,10 @@ class LogService:
         self.peer = None                  # the transfer's requester
         # the requested ranges [ofs, end, end_marker], served in order; ofs advances as sent
         self.ranges: deque[list] = deque(maxlen=MAX_RANGES)
+        self.rate_hz = float(rate_hz)     # the rate a new download starts at
+        self.t_slowed = -1e9              # when the rate was last halved (s, wall clock)
         self.sent = 0                     # LOG_DATA messages sent (counter)
+        self.gap_requests = 0             # requests for ranges a station lost (counter)
 
     @property
     def busy(self) -> bool:
@@ -116,12 +122,23 @@ class LogService:
             end = min(self.size, m.ofs + m.count)
             if m.ofs >= end:
                 return [(peer, self._data(m.ofs, b""))]
-            if peer != self.peer or m.ofs == 0:      # a new download: forget the old ranges
+            if peer != self.peer:               # another station: its own download
                 self.ranges.clear()
                 self.peer = peer
-            rng = [int(m.ofs), int(end), end % CHUNK == 0 and end == self.size]
-            if rng not in self.ranges:               # a repeated gap request: once
-                self.ranges.append(rng)
+            if m.ofs == 0 and end == self.size:
+                # a new download (the whole log): forget the old ranges, start at full rate
+                self.ranges.clear()
+                self.pacer.rate_hz = self.rate_hz
+            else:
+                # a range the station lost: it could not take the rate; halve it once per
+                # burst of such requests (MAVProxy sends them together), down to RATE_MIN_HZ
+                self.gap_requests += 1
+                if now_s - self.t_slowed > 0.5:
+                    self.t_slowed = now_s
+                    self.pacer.rate_hz = max(RATE_MIN_HZ, self.pacer.rate_hz * 0.5)
+            start, end = int(m.ofs), int(end)
+            if not any(r[3] == start and r[1] == end for r in self.ranges):   # repeats: once
+                self.ranges.append([start, end, end % CHUNK == 0 and end == self.size, start])
             return []
         if t == ML.MAVLINK_MSG_ID_LOG_REQUEST_END:
             self.ranges.clear()
@@ -155,7 +172,7 @@ class LogService:
         peer = self.peer
         while len(out) < n and self.ranges:
             rng = self.ranges[0]
-            ofs, end, marker = rng
+            ofs, end, marker, _start = rng
             if ofs >= end:                   # done: the count-0 end marker if it needs one
                 self.ranges.popleft()
                 if marker:

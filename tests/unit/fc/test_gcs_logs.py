@@ -105,18 +105,22 @@ def test_pacer_refills_at_its_rate_up_to_the_burst():
     assert p.allowance(100.0, 10) == 3
 
 
-def test_a_burst_of_gap_requests_is_served_whole_and_a_new_download_starts_over(tmp_path):
+def test_a_burst_of_gap_requests_is_served_whole_slower_and_a_new_download_starts_over(
+        tmp_path):
     # GIVEN a download that lost three ranges, asked for at once (MAVProxy's missing handler)
-    svc = LogService(_log(tmp_path, 1000), 0)
+    svc = LogService(_log(tmp_path, 1000), 0, rate_hz=1000.0)
     for ofs, count in ((180, 180), (450, 90), (900, 100)):
         assert svc.handle(received(ML.MAVLink_log_request_data_message(1, 1, 1, ofs, count)),
-                          PEER, 0.0) == []
+                          PEER, 5.0) == []
+    # THEN the station could not keep up: the rate halved once for the burst
+    assert svc.pacer.rate_hz == 500.0 and svc.gap_requests == 3
     # WHEN the service streams  THEN every range is sent, in order, the last with the end
-    msgs = _download(svc, ofs=900, count=100)        # a repeated request is queued once
+    msgs = _download(svc, ofs=900, count=100, t0=5.1)     # a repeated request is queued once
     assert [(m.ofs, m.count) for m in msgs] == [(180, 90), (270, 90), (450, 90), (900, 90),
                                                  (990, 10)]
-    # a request from offset 0 is a new download: the queued gaps are dropped
-    for ofs, count in ((180, 90), (0, 180)):
-        svc.handle(received(ML.MAVLink_log_request_data_message(1, 1, 1, ofs, count)), PEER, 0)
-    assert [(m.ofs, m.count) for m in _download(svc, ofs=0, count=180)] == [(0, 90), (90, 90)]
+    # a request for the whole log is a new download: queued gaps dropped, full rate again
+    svc.handle(received(ML.MAVLink_log_request_data_message(1, 1, 1, 180, 90)), PEER, 10.0)
+    msgs = _download(svc, ofs=0, t0=10.0)
+    assert svc.pacer.rate_hz == 1000.0
+    assert [m.ofs for m in msgs if m.count] == list(range(0, 1000, CHUNK))
     svc.close()
