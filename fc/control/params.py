@@ -169,7 +169,8 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
        "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
     _p("ACT_RATE", 90, 1, 1000, "deg/s", "ACT",
-       "Surface rate limit of the controller's actuator model (observer input only).",
+       "Surface rate limit of the controller's actuator model (the observer's input) and of "
+       "the rate-aware allocation (ALLOC_RATE).",
        si_scale=DEG),
     _p("ACT_TAU", 0.02, 0, 1, "s", "ACT",
        "First-order lag of the controller's actuator model (0 = none)."),
@@ -204,6 +205,18 @@ LAW_PARAMS: tuple[Param, ...] = (
        "1 = on the axis the prose names (elevator loop = pitch row x (1 + lambda_e), aileron "
        "loop = roll row x (1 + lambda_a), rudder loop = yaw row x (1 + lambda_r)).",
        integer=True),
+    _p("ALLOC_RATE", 0, 0, 2, "-", "ACT",
+       "Rate-aware allocation: the change of the surface command per fast step is kept within "
+       "ALLOC_RATE x ACT_RATE x dt by scaling the change vector (the change of moment keeps its "
+       "direction); the shortfall goes to the unallocated moment and the observer sees the "
+       "modelled actuators as before. 1 = the actuators' own rate, 0 = off (the command jumps, "
+       "the actuators rate-limit each surface on their own)."),
+    _p("FLT_ANG_CF", 1, 0, 20, "Hz", "FLT",
+       "Crossover of the complementary attitude filter; > 0 replaces the FLT_ANG_HZ low-pass of "
+       "alpha, beta, mu (e1 of the slow loop) by Omega_hat_dot = g_s(Omega_hat) omega + f1 + "
+       "Psi^T theta_hat + 2 pi FLT_ANG_CF (Omega - Omega_hat) (Eq. 2 with the gyros' omega): "
+       "the vanes' noise is filtered above the crossover, the gyros and the model carry the "
+       "fast motion, without the low-pass's lag. 0 = off."),
 )
 
 #: The scheduled quantities: (family prefix of the SCH_* parameters, npz name, unit, min, max,
@@ -289,6 +302,8 @@ P_SLW_CFB = PARAM_INDEX["SLW_CFB"]
 P_FLT_RATE_HZ = PARAM_INDEX["FLT_RATE_HZ"]
 P_FLT_ANG_HZ = PARAM_INDEX["FLT_ANG_HZ"]
 P_CO_MAP = PARAM_INDEX["CO_MAP"]
+P_ALLOC_RATE = PARAM_INDEX["ALLOC_RATE"]
+P_FLT_ANG_CF = PARAM_INDEX["FLT_ANG_CF"]
 P_CTL_SCHED = PARAM_INDEX["CTL_SCHED"]
 P_SCH_Q = PARAM_INDEX["SCH_Q_1"]           # SCHED_N nodes, then each family's SCHED_N values
 P_SCH_KAP1 = PARAM_INDEX["SCH_KAP1_1"]
