@@ -53,6 +53,15 @@ from plant_sim import dynamics as dy
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
 from tools.sitl.closed_loop import law_frame
 
+from hyfc_wire.numba_cache import drop_stale
+
+# _loop inlines the law's and the plant's kernels (numba links a callee into its caller's
+# cache and checks only the caller's file): recompile when any of them changed. Without it,
+# a parameter slot that moved (a parameter added before it) was read from its old index.
+_ROOT = Path(__file__).resolve().parents[1]
+drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire", "tools/sitl")
+                      for f in (_ROOT / pkg).glob("*.py")])
+
 CHANNELS = ("roll", "pitch", "yaw")
 ALL = 3                                   # channel index meaning all three
 MODES = {"none": 0, "gain": 1, "delay": 2, "allpass": 3, "sine": 4, "gain_ac": 5}
