@@ -11,20 +11,24 @@ after FS_RECOVER_S of data back (FS_RECOVER).
 from __future__ import annotations
 
 import logging
+import math
 from typing import Callable
 
 import numpy as np
 
 from fc.estimator import Estimator
 from fc.guided import GuidanceRunner
-from fc.link import PlantLink
+from fc.link import M_AIRSPEED, PlantLink
 from fc.link import mavlink as ML
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
 from fc.param_service import ProcessSettings
 from fc.params import ParamTable
 from fc.scheduler import TickPlanner
 
-__all__ = ["DATA_LOSS_BITS", "ModeControl"]
+__all__ = ["DATA_LOSS_BITS", "IN_AIR_SPEED_M_S", "ModeControl"]
+
+#: Above this airspeed (m/s) the vehicle is in the air: a disarm needs the force code.
+IN_AIR_SPEED_M_S = 50.0
 
 #: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
 DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -77,9 +81,19 @@ class ModeControl:
         self.sync()
         return ok, text
 
-    def arm(self, armed: bool) -> tuple[bool, str]:
+    def in_air(self) -> bool:
+        """Flying, as far as the fc knows: plant data seen, the plant's run not ended, and the
+        newest frame's airspeed above IN_AIR_SPEED_M_S (also after the data was lost: the last
+        word is that it flies)."""
+        v = float(self.meas[M_AIRSPEED])
+        return (self.seen_data and not self.plant.ended
+                and (v > IN_AIR_SPEED_M_S or not math.isfinite(v)))
+
+    def arm(self, armed: bool, forced: bool = False) -> tuple[bool, str]:
+        """Arm/disarm (COMPONENT_ARM_DISARM): a disarm in flight only when ``forced``."""
         ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
-                                        and not self.modes.data_lost and not self.plant.ended)
+                                        and not self.modes.data_lost and not self.plant.ended,
+                                        in_air=self.in_air(), forced=forced)
         self.sync()
         return ok, text
 
