@@ -160,7 +160,7 @@ def decode_mode_request(param2: float, param3: float = 0.0) -> tuple[FlightMode 
         try:
             return FlightMode(main), ""
         except ValueError:
-            return None, f"mode {main} refused: unknown mode number"
+            return None, f"unknown mode {main} refused"
     if main & 0xFFFF or main > 0xFFFFFFFF:
         return None, f"mode {main:#x} refused: not a mode"
     key = ((main >> 16) & 0xFF, main >> 24)

@@ -35,7 +35,7 @@ def test_requests_that_mean_a_mode(param2, param3, want):
 @pytest.mark.parametrize("param2, param3, word", [
     (4, 2, "AUTO.TAKEOFF"), (4, 6, "AUTO.LAND"), (4, 1, "AUTO.READY"),
     (4, 8, "AUTO.FOLLOW_TARGET"), (3, 1, "PX4 3/1"), (2, 7, "PX4 2/7"),
-    (8, 0, "unknown mode number"), (42, 0, "unknown mode number"),
+    (8, 0, "unknown mode 8"), (42, 0, "unknown mode 42"),
     (0x00020000, 0, "ALTCTL"), (0x00050000, 0, "ACRO"), (0x02040000, 0, "AUTO.TAKEOFF"),
     (0x00070009, 0, "not a mode"),
     (0x04040008, 0, "not a mode"),    # MISSION's HEARTBEAT value rounded to a float32
