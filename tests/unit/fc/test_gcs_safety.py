@@ -308,3 +308,11 @@ def test_fc_log_is_bounded_in_every_mode(vehicle):
         rates[mode.name] = (len(fc.test_lines) - n0) * 60.0 / 4.0
     print("fc.log lines per minute:", rates)
     assert max(rates.values()) <= 30.0, rates
+
+
+# ------------------------------------------------------------------ refusal wording
+def test_parameter_refusals_read_whole_and_name_the_parameter_once(vehicle):
+    fc = vehicle
+    assert fc.set_param("CO_FAC_EQ", 99) == "CO_FAC_EQ=99 outside [14, 19]"      # no " -"
+    assert fc.set_param("CO_FAC_EQ", 15) == "CO_FAC_EQ=15 refused: must be 14 or 19"
+    assert fc.set_param("FS_TIMEOUT_S", 1000.0).endswith("] s")                   # a unit
