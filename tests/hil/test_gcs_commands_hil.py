@@ -7,7 +7,7 @@ NAV_CONTROLLER_OUTPUT, STATUSTEXT). Every wait is bounded; the processes are sto
 
 - MAVSDK: upload a mission, ``start_mission`` flies MISSION and ``mission_progress`` advances,
   ``disarm`` in flight is refused, ``return_to_launch`` turns for home, ``goto_location``
-  flies to the point;
+  flies to the point, ``hold`` holds (CRUISE);
 - MAVProxy (with tools/mavproxy_hyfc.py): ``wp load``, ``mode MISSION``, ``wp clear`` in
   MISSION: CRUISE, holding the altitude, with the reason on the console.
 
@@ -106,7 +106,7 @@ def test_mavsdk_mission_progress_disarm_refused_rtl_and_goto(flight):
         system = sdk.first_autopilot(20.0)
         assert system is not None, "MAVSDK found no autopilot"
         mission, action, telemetry = Mission(system), Action(system), Telemetry(system)
-        # GIVEN a three-waypoint mission ahead (north, 28 km above... home's altitude + 0)
+        # GIVEN a three-waypoint mission ahead (north, at home's altitude)
         lat, lon, alt0 = _pos(gcs)
         items = [MissionItem(latitude_deg=lat + d, longitude_deg=LON0, relative_altitude_m=0.0,
                              is_fly_through=True, acceptance_radius_m=2000.0)
@@ -165,7 +165,11 @@ def test_mavsdk_mission_progress_disarm_refused_rtl_and_goto(flight):
         _say(lines, gcs, f"MAVSDK goto_location: SUCCESS, GUIDED, course target "
                          f"{nav.nav_bearing} deg (point at {brg:.0f} deg), altitude target "
                          f"28200 m")
-        assert not fc.proc.poll()
+        # WHEN hold (PX4 AUTO.LOITER) THEN CRUISE: the altitude, course and speed held
+        action.hold()
+        assert _wait_mode(gcs, CRUISE) is not None
+        _say(lines, gcs, "MAVSDK hold: SUCCESS, CRUISE (holding)")
+        assert fc.proc.poll() is None
     finally:
         sdk.destroy()
 
