@@ -154,7 +154,7 @@ class PointFlight:
         try:
             ref = self.nav.ref
             here = self._here(fc)
-            was = self.nav.orbiting
+            was = self.nav.arrived
             chi = self.nav.step(local_ne(here[0], here[1], ref[0], ref[1]))
             reason = fc.set_guidance_targets(chi_rad=chi)
             if reason is None:
@@ -165,10 +165,10 @@ class PointFlight:
         out = []
         if reason is not None:
             out.append(("text", ML.MAV_SEVERITY_WARNING, f"{self.what} course refused: {reason}"))
-        if self.nav.orbiting and not was:
+        if self.nav.arrived and not was:
             out.append(("text", ML.MAV_SEVERITY_INFO, f"{self.what}: arrived, circling at "
                                    f"{self.nav.radius_m / 1000:.0f} km radius"))
-        wp = self.nav.centre_ne if self.nav.orbiting else self.nav.point_ne
+        wp = self.nav.centre_ne if self.nav.arrived else self.nav.point_ne
         x = local_ne(here[0], here[1], ref[0], ref[1])
         fc.guid.nav_wp = (math.atan2(wp[1] - x[1], wp[0] - x[0]), self.nav.dist_m, 0.0)
         return out

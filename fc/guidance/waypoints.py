@@ -239,15 +239,15 @@ def orbit_course(x_ne: tuple, c_ne: tuple, radius_m: float, clockwise: bool, xt_
 
 
 class PointNavigator:
-    """Fly to a point, then circle over it (RTL, DO_REPOSITION); or circle a centre (DO_ORBIT).
+    """Fly to a point and circle over it (RTL, DO_REPOSITION), or circle a centre (DO_ORBIT).
 
     All positions are (north, east) m on the flat map about ``ref`` (lat, lon deg), as
-    :func:`local_ne`. ``goto``: the course target is the bearing to the point
-    (:func:`course_target` on the leg from the start to the point, so a cross-track offset is
-    flown out) until the point is within the acceptance distance along the leg or passed; then
-    the vehicle circles at ``radius_m`` about the centre that puts the point on the circle,
-    tangent to the arrival course (``clockwise``: the centre to the right), so it passes over
-    the point once a lap. ``orbit``: circles a given centre at once.
+    :func:`local_ne`. ``goto``: the circle of ``radius_m`` is placed through the point, tangent
+    there to the straight line from the start to the point (``clockwise``: its centre to the
+    right of that line), and flown with :func:`orbit_course` from the start: the tangent to
+    it from the start is that line, so the vehicle flies straight at the point, passes over it
+    and circles on, over the point once a lap. ``orbit``: circles a given centre. ``arrived``
+    turns True once the point is within the acceptance distance along the line, or passed.
     """
 
     def __init__(self, params: NavParams | None = None) -> None:
@@ -255,38 +255,37 @@ class PointNavigator:
         self.ref = (0.0, 0.0)
         self.start_ne = (0.0, 0.0)
         self.point_ne = (0.0, 0.0)
-        self.centre_ne: tuple[float, float] | None = None   # None: still flying to the point
+        self.centre_ne = (0.0, 0.0)
         self.radius_m = 0.0
         self.clockwise = True
-        self.dist_m = 0.0            # to the point (goto) or the circle (orbit), m
+        self.arrived = False
+        self.dist_m = 0.0            # to the point until arrived, then to the circle, m
 
     def goto(self, ref: tuple, start_ne: tuple, point_ne: tuple, radius_m: float,
              clockwise: bool = True) -> None:
         self.ref = tuple(float(v) for v in ref)
         self.start_ne, self.point_ne = start_ne, point_ne
-        self.centre_ne = None
         self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
+        b = math.atan2(point_ne[1] - start_ne[1], point_ne[0] - start_ne[0])
+        s = 1.0 if clockwise else -1.0
+        self.centre_ne = (point_ne[0] - s * self.radius_m * math.sin(b),
+                          point_ne[1] + s * self.radius_m * math.cos(b))
+        self.arrived = False
 
     def orbit(self, ref: tuple, centre_ne: tuple, radius_m: float, clockwise: bool = True) -> None:
         self.ref = tuple(float(v) for v in ref)
         self.point_ne = self.centre_ne = centre_ne
         self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
-
-    @property
-    def orbiting(self) -> bool:
-        return self.centre_ne is not None
+        self.arrived = True
 
     def step(self, x_ne: tuple) -> float:
-        """Course target (rad) at the position ``x_ne``; switches from goto to the orbit."""
-        p = self.p
-        if self.centre_ne is None:
-            chi_leg, e, to_go, dist = leg_geometry(self.start_ne, self.point_ne, x_ne)
-            self.dist_m = dist
-            if to_go > p.accept_m:
-                return course_target(chi_leg, e, p.xt_len_m, p.chi_int_rad)
-            s = 1.0 if self.clockwise else -1.0       # arrived: the circle through the point
-            self.centre_ne = (self.point_ne[0] - s * self.radius_m * math.sin(chi_leg),
-                              self.point_ne[1] + s * self.radius_m * math.cos(chi_leg))
+        """Course target (rad) at the position ``x_ne``."""
         c = self.centre_ne
-        self.dist_m = abs(math.hypot(c[0] - x_ne[0], c[1] - x_ne[1]) - self.radius_m)
-        return orbit_course(x_ne, c, self.radius_m, self.clockwise, p.xt_len_m, p.chi_int_rad)
+        if not self.arrived:
+            _, _, to_go, dist = leg_geometry(self.start_ne, self.point_ne, x_ne)
+            self.arrived = to_go <= self.p.accept_m
+            self.dist_m = dist
+        if self.arrived:
+            self.dist_m = abs(math.hypot(c[0] - x_ne[0], c[1] - x_ne[1]) - self.radius_m)
+        return orbit_course(x_ne, c, self.radius_m, self.clockwise, self.p.xt_len_m,
+                            self.p.chi_int_rad)

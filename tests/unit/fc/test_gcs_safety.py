@@ -274,7 +274,7 @@ def test_orbit_below_the_turn_limit_is_refused_with_the_least_radius(vehicle):
     assert command(fc, ML.MAV_CMD_DO_ORBIT, -1.1 * least, math.nan, 0, 0, math.nan, math.nan,
                    math.nan) == ML.MAV_RESULT_ACCEPTED
     fly(fc, 0.3)
-    assert fc.modes.mode == FlightMode.GUIDED and fc.point_flight.nav.orbiting
+    assert fc.modes.mode == FlightMode.GUIDED and fc.point_flight.nav.arrived
     assert not fc.point_flight.nav.clockwise
 
 
