@@ -109,7 +109,7 @@ def test_mavsdk_mission_progress_disarm_refused_rtl_and_goto(flight):
         # GIVEN a three-waypoint mission ahead (north, at home's altitude)
         lat, lon, alt0 = _pos(gcs)
         items = [MissionItem(latitude_deg=lat + d, longitude_deg=LON0, relative_altitude_m=0.0,
-                             is_fly_through=True, acceptance_radius_m=2000.0)
+                             is_fly_through=True)          # MAVSDK's defaults otherwise
                  for d in (0.1, 0.2, 0.3)]
         mission.upload_mission(MissionPlan(items))
         _say(lines, gcs, "MAVSDK upload_mission: 3 items: SUCCESS")
