@@ -11,7 +11,8 @@ through :class:`fc.mission_mode.MissionVehicle`.
 - DO_ORBIT (GUIDED): circle the centre at the radius given, if the envelope allows it.
 
 The circle's radius is the least the guidance's bank limit allows with a quarter of its tangent
-in reserve (:func:`fc.guidance.waypoints.orbit_radius_m`, 1200 km at Mach 7.5 with GE_MU_MAX 30
+in reserve (:func:`fc.guidance.waypoints.orbit_radius_m` at the faster of the speed and its
+target; docs/guidance.md section 2b: 1202 km at 2250 m/s with GE_MU_MAX 30
 deg); an orbit asked smaller is refused with the least radius in the reason. :meth:`tick` runs
 every guidance step (the navigator every ``NAV_DIV``-th, with a fresh fix, as a mission) and
 sets the course target; the altitude and speed targets are set once, at the start.
@@ -123,8 +124,9 @@ class PointFlight:
     def _goto(self, fc: MissionVehicle, point: tuple[float, float], what: str) -> None:
         ref = fc.gcs.home
         here = self._here(fc)
+        v = max(float(fc.est.est[E_V]), fc.guidance_targets()[2])   # the faster: the wider
         self.nav.goto((ref[0], ref[1]), local_ne(here[0], here[1], ref[0], ref[1]),
-                      local_ne(point[0], point[1], ref[0], ref[1]), self.least_radius_m(fc))
+                      local_ne(point[0], point[1], ref[0], ref[1]), self.least_radius_m(fc, v))
         self._started(fc, what)
 
     def _started(self, fc: MissionVehicle, what: str) -> None:
