@@ -203,9 +203,9 @@ class FlightController:
             if reason is not None:
                 return False, reason
         if mode == FlightMode.RTL:
-            reason = self.point_flight.entry_refusal(self, "RTL")
+            reason = self.point_flight.entry_refusal(self)
             if reason is not None:
-                return False, reason
+                return False, f"RTL refused: {reason}"
         return self.mode_ctl.request_mode(mode)     # RTL: home is set at the next step
 
     def arm(self, armed: bool, forced: bool = False) -> tuple[bool, str]:
@@ -247,8 +247,8 @@ class FlightController:
     def _point(self, start) -> str | None:
         """Enter GUIDED (unless in it) and start a point target with ``start()``."""
         if not self.modes.armed:
-            return "refused: disarmed"
-        reason = self.point_flight.entry_refusal(self, "reposition")
+            return "disarmed"
+        reason = self.point_flight.entry_refusal(self)
         if reason is not None:
             return reason
         if self.modes.mode != FlightMode.GUIDED:
@@ -256,7 +256,7 @@ class FlightController:
             if not ok:
                 return text
         if not self.guid.engaged:
-            return "refused: the guidance is not engaged yet (no healthy estimate)"
+            return "the guidance is not engaged yet (no healthy estimate)"
         return start()
 
     def hold(self, why: str) -> None:
@@ -337,7 +337,7 @@ class FlightController:
             if not pf.active or pf.stale(self):        # entered before the guidance engaged
                 reason = pf.start_home(self)
                 if reason is not None:
-                    self._nav_out([("hold", f"RTL: {reason}")])
+                    self._nav_out([("hold", f"RTL cannot go home ({reason}): holding (CRUISE)")])
                     return
             self._nav_out(pf.tick(self))
         elif mode == FlightMode.GUIDED and self.point_flight.active:

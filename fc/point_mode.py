@@ -59,21 +59,21 @@ class PointFlight:
         g = fc.plant.gps
         return float(g[G_LAT_DEG]), float(g[G_LON_DEG])
 
-    def entry_refusal(self, fc: MissionVehicle, what: str) -> str | None:
+    def entry_refusal(self, fc: MissionVehicle) -> str | None:
         """None if a point can be flown now, else the reason."""
         if not self._fix(fc) or fc.gcs.home is None:
-            return f"{what} refused: no GNSS fix"
+            return "no GNSS fix"
         return None
 
     def orbit_refusal(self, fc: MissionVehicle, radius_m: float) -> str | None:
         """None if an orbit of ``radius_m`` can be flown now, else the reason."""
-        reason = self.entry_refusal(fc, "orbit")
+        reason = self.entry_refusal(fc)
         if reason is None and not (math.isfinite(radius_m) and radius_m != 0.0):
-            reason = "orbit refused: radius must be a number other than 0"
+            reason = "radius must be a number other than 0"
         if reason is None:
             least = self.least_radius_m(fc)
             if abs(radius_m) < least:
-                reason = (f"orbit refused: radius {abs(radius_m) / 1000:.0f} km below the "
+                reason = (f"radius {abs(radius_m) / 1000:.0f} km below the "
                           f"{least / 1000:.0f} km the bank limit allows at "
                           f"{float(fc.est.est[E_V]):.0f} m/s (GE_MU_MAX)")
         return reason
@@ -86,7 +86,7 @@ class PointFlight:
     def start_home(self, fc: MissionVehicle) -> str | None:
         """RTL: toward home at the present altitude and speed, then circle over it."""
         home = fc.gcs.home
-        reason = self.entry_refusal(fc, "RTL")
+        reason = self.entry_refusal(fc)
         if reason is None:
             reason = fc.set_guidance_targets(h_m=float(fc.est.est[E_H]),
                                              V_m_s=float(fc.est.est[E_V]))
@@ -98,9 +98,9 @@ class PointFlight:
                     h_m: float | None, v_m_s: float | None) -> str | None:
         """DO_REPOSITION: to (lat, lon) deg at ``h_m`` (m AMSL; None keeps the target) and
         ``v_m_s`` (None keeps it), then circle over it."""
-        reason = self.entry_refusal(fc, "reposition")
+        reason = self.entry_refusal(fc)
         if reason is None and not (-90.0 <= lat_deg <= 90.0 and -180.0 <= lon_deg <= 180.0):
-            reason = f"reposition refused: position {lat_deg:g}, {lon_deg:g} deg not valid"
+            reason = f"position {lat_deg:g}, {lon_deg:g} deg not valid"
         if reason is None:
             reason = fc.set_guidance_targets(h_m=h_m, V_m_s=v_m_s)
         if reason is None:
