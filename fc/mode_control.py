@@ -17,6 +17,7 @@ from typing import Callable
 import numpy as np
 
 from fc.estimator import Estimator
+from fc.gcs_streams import IN_AIR_SPEED_M_S
 from fc.guided import GuidanceRunner
 from fc.link import M_AIRSPEED, PlantLink
 from fc.link import mavlink as ML
@@ -25,10 +26,7 @@ from fc.param_service import ProcessSettings
 from fc.params import ParamTable
 from fc.scheduler import TickPlanner
 
-__all__ = ["DATA_LOSS_BITS", "IN_AIR_SPEED_M_S", "ModeControl"]
-
-#: Above this airspeed (m/s) the vehicle is in the air: a disarm needs the force code.
-IN_AIR_SPEED_M_S = 50.0
+__all__ = ["DATA_LOSS_BITS", "ModeControl"]
 
 #: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
 DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -82,9 +80,10 @@ class ModeControl:
         return ok, text
 
     def in_air(self) -> bool:
-        """Flying, as far as the fc knows: plant data seen, the plant's run not ended, and the
-        newest frame's airspeed above IN_AIR_SPEED_M_S (also after the data was lost: the last
-        word is that it flies)."""
+        """Flying, as far as the fc knows, for the disarm rule: plant data seen, the plant's run
+        not ended, and the newest frame's airspeed above IN_AIR_SPEED_M_S (EXTENDED_SYS_STATE's
+        threshold, fc/gcs_streams.py), also after the data was lost (the last word is that it
+        flies; EXTENDED_SYS_STATE says UNDEFINED then)."""
         v = float(self.meas[M_AIRSPEED])
         return (self.seen_data and not self.plant.ended
                 and (v > IN_AIR_SPEED_M_S or not math.isfinite(v)))
