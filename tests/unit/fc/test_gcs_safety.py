@@ -20,7 +20,7 @@ import time
 import pytest
 
 from fc.app import FcConfig, FlightController
-from fc.gcs import _Command
+from fc.gcs import MODE_BURST, _Command
 from fc.guidance.waypoints import local_ne
 from fc.link import G_ALT_M, G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S, M_T_S, new_codec
 from fc.link import mavlink as ML
@@ -193,6 +193,7 @@ def test_px4_layout_and_hyfc_numbers_and_unknown_modes(vehicle):
                     ((129, 4, 5), FlightMode.RTL),          # return_to_launch
                     ((1, 5, 0), FlightMode.GUIDED),         # the hyfc number
                     ((1, 6, 0), FlightMode.MISSION)):
+        fc.gcs._mode_tokens = MODE_BURST         # (the rate limit: test_fc_input_limits.py)
         assert command(fc, ML.MAV_CMD_DO_SET_MODE, *p) == ML.MAV_RESULT_ACCEPTED, p
         fly(fc, 0.05)
         assert fc.modes.mode == want, p
