@@ -29,7 +29,9 @@ atmosphere of fc.control.nominal):
 - speed -> throttle: a_c = V_ref_dot + K_V e_V + clip(K_VI int e_V, +-VI_MAX),
   T_req = D_nom + m g sin(gamma) + m a_c, throttle = T_req / (cos(alpha) cos(beta) C_T,max qbar S)
   within [0, min(1, T_max / (C_T,max qbar S))], rate-limited (GE_THR_RATE).
-The three integrals freeze while a limit blocks their loop in the error's direction (anti-windup).
+The three integrals freeze while a limit blocks their loop in the error's direction (anti-windup)
+or the error is outside their zone, except that an integral opposing its error always unwinds
+toward zero (never past it): a value taken up in a transient cannot latch a loop at its limit.
 The limit in force is a bitfield (layout LIM_*) in the status record.
 The envelope limits (GE_NZ_*, GE_MU_MAX, GE_ALPHA_*) bound the achieved values: the commands
 stay a margin (GE_*_MARGIN) inside them, room for the inner loop's tracking error, so the
@@ -156,6 +158,21 @@ def _inside(lo, hi, margin):
     if lo_c > hi_c:
         lo_c = hi_c = 0.5 * (lo + hi)
     return lo_c, hi_c
+
+
+@njit(cache=True, inline="always")
+def _integrate(acc, err, dt_s, free):
+    """An integral's next value: ``acc + err dt`` when ``free`` (inside its zone, no limit
+    blocking), else only if that moves it toward zero, stopping at zero (unwinding is never
+    blocked)."""
+    nxt = acc + err * dt_s
+    if free:
+        return nxt
+    if acc > 0.0 and err < 0.0:
+        return max(nxt, 0.0)
+    if acc < 0.0 and err > 0.0:
+        return min(nxt, 0.0)
+    return acc
 
 
 @njit(cache=True, inline="always")
@@ -397,18 +414,23 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gx[GX_THR_C] = thr_c
 
     # --- integrators with anti-windup (conditional integration) ---------------------------
+    # an integral grows only inside its zone and while no limit blocks its loop in the
+    # error's direction; one that opposes the error always unwinds toward zero (never past
+    # it), so a value taken up in a transient (an engagement during an upset) cannot latch the
+    # loop at a limit (issue 22: the flight-path integral held at -GA_GI_MAX with the
+    # load-factor demand at its bound, the vehicle sinking, for ever)
     up_blocked = (lim & (LIM_HDOT | LIM_GAM_MAX | LIM_NZ_MAX | LIM_ALPHA_MAX)) != 0
     down_blocked = (lim & (LIM_HDOT | LIM_GAM_MIN | LIM_NZ_MIN | LIM_ALPHA_MIN)) != 0
-    if (abs(e_h) < gp[P_GA_HI_ZONE]
-            and not ((e_h > 0.0 and up_blocked) or (e_h < 0.0 and down_blocked))):
-        gx[GX_H_INT] += e_h * dt_s
+    gx[GX_H_INT] = _integrate(gx[GX_H_INT], e_h, dt_s, abs(e_h) < gp[P_GA_HI_ZONE]
+                              and not ((e_h > 0.0 and up_blocked)
+                                       or (e_h < 0.0 and down_blocked)))
     lift_up = (lim & (LIM_NZ_MAX | LIM_ALPHA_MAX)) != 0
     lift_down = (lim & (LIM_NZ_MIN | LIM_ALPHA_MIN)) != 0
-    if (abs(e_g) < gp[P_GA_GI_ZONE]
-            and not ((e_g > 0.0 and lift_up) or (e_g < 0.0 and lift_down))):
-        gx[GX_G_INT] += e_g * dt_s
-    if not ((e_v > 0.0 and (lim & LIM_THR_MAX) != 0) or (e_v < 0.0 and (lim & LIM_THR_MIN) != 0)):
-        gx[GX_V_INT] += e_v * dt_s
+    gx[GX_G_INT] = _integrate(gx[GX_G_INT], e_g, dt_s, abs(e_g) < gp[P_GA_GI_ZONE]
+                              and not ((e_g > 0.0 and lift_up) or (e_g < 0.0 and lift_down)))
+    gx[GX_V_INT] = _integrate(gx[GX_V_INT], e_v, dt_s,
+                              not ((e_v > 0.0 and (lim & LIM_THR_MAX) != 0)
+                                   or (e_v < 0.0 and (lim & LIM_THR_MIN) != 0)))
 
     out[GO_ALPHA] = alpha_c
     out[GO_BETA] = 0.0
