@@ -85,6 +85,8 @@ class RigConfig:
                         # "start": --arm on the command line; "no": stays disarmed
     gcs_sysid: int = 250
     flight_mode: str = "CRUISE"   # the mode it is armed in (CRUISE: the guidance holds the state)
+    mode: str = "realtime"        # both processes' --mode: realtime | lockstep (the plant waits
+                                  # for each answer: a cut link freezes sim time)
 
     def fc_params(self) -> dict:
         """``params`` with, when armed in a guidance mode, the reference prefilter on
@@ -128,7 +130,7 @@ class Rig:
 
     def fc_argv(self) -> list[str]:
         c = self.cfg
-        argv = [sys.executable, "-m", "fc", "--mode", "realtime",
+        argv = [sys.executable, "-m", "fc", "--mode", c.mode,
                 "--plant-bind", f"127.0.0.1:{self.plant_port}",
                 "--gcs-bind", f"127.0.0.1:{self.gcs_bind_port}",
                 "--gcs", f"127.0.0.1:{self.gcs_port}",
@@ -187,7 +189,7 @@ class Rig:
     def start_plant(self) -> Proc:
         c = self.cfg
         argv = [sys.executable, "-m", "plant_sim", "run", "--scenario", c.scenario,
-                "--mode", "realtime", "--fc", f"{self.plant_target[0]}:{self.plant_target[1]}",
+                "--mode", c.mode, "--fc", f"{self.plant_target[0]}:{self.plant_target[1]}",
                 "--bind", f"127.0.0.1:{self.plant_bind_port}", "--out", str(self.out / "plant"),
                 "--duration", repr(float(c.duration_s)), "--seed", str(c.seed),
                 "--progress-every", "0.25", *c.plant_extra]
