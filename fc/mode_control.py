@@ -58,7 +58,7 @@ class SurfaceHold:
     def update(self, delta_rad: np.ndarray, dt_s: float) -> None:
         """One fast tick of the law's fresh command ``delta_rad`` (rad)."""
         self.flown_s += dt_s
-        k = dt_s / max(self.flown_s, self.tau_s)
+        k = dt_s / min(self.flown_s, self.tau_s)
         e = self.est_rad
         for i in range(3):
             e[i] += k * (delta_rad[i] - e[i])
