@@ -227,8 +227,9 @@ class ModeControl:
         text = self.modes.on_data_ok(t_s, s.fs_recover, s.fs_recover_s, at_once=frozen)
         if text is None:
             return
-        if frozen:
-            text += f" (the plant froze: {gap_s:.3f} s of plant time in the gap)"
+        if frozen:      # (a STATUSTEXT holds 50 characters: the detail goes to fc.log)
+            text = text.replace("plant data back", "plant data back (froze)", 1)
+        self.log.info("%s; %.3f s of plant time in the gap", text, gap_s)
         self.event(text, ML.MAV_SEVERITY_NOTICE)
         if resume_from is not None and self.modes.mode == resume_from:
             self.resume = RESUME_FROZEN if frozen else RESUME_FLOWN
