@@ -94,6 +94,8 @@ def blackout_figures(truth: dict, internals: dict, t_cut_s: float, t_restore_s: 
         if m != seq[-1]:
             seq.append(int(m))
     rec = recovery_time_s(truth, internals, t_restore_s)
+    fs = internals["mode"] == 3
+    fs_frames = np.unique(fi[fs]).size                  # plant frames answered in FAILSAFE
     fig = {
         "t_cut_s": round(t_cut_s, 3), "t_restore_s": round(t_restore_s, 3),
         "sim_time_cut_s": round(t_restore_s - t_cut_s, 3),
@@ -107,6 +109,8 @@ def blackout_figures(truth: dict, internals: dict, t_cut_s: float, t_restore_s: 
             wrap_rad(truth["chi_rad"][after] - chi_t))))),
         "target_alt_end_minus_before_m": float(internals["guid_tgt_h_m"][-1]) - h_t,
         "recovery_s": rec,
+        "failsafe_frames": int(fs_frames),
+        "failsafe_sim_s": float(fs_frames * np.median(np.diff(tt))),
     }
     departure = (fig["mu_abs_max_deg"] >= MU_DEPARTURE_DEG
                  or fig["alpha_range_deg"][0] < ALPHA_ENVELOPE_DEG[0]
@@ -168,6 +172,19 @@ def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: f
     return fig
 
 
+def analyse(run_dir: Path, settle_s: float) -> dict:
+    """The figures of a finished run (its directory, as ``one_run`` left it), the cut found
+    from the fc's log after ``settle_s``."""
+    from fc.internals_log import load as load_internals
+    from plant_sim.truthlog import load as load_truth
+    truth = load_truth(str(run_dir / "plant" / "truth.npz"))
+    internals = load_internals(str(run_dir / "fc" / "fc_internals.npz"))
+    mode = "lockstep" if "lockstep" in run_dir.name else "realtime"
+    t_cut, t_restore = cut_times_from_internals(internals, settle_s, mode)
+    return {"run": str(run_dir), "mode": mode,
+            **blackout_figures(truth, internals, t_cut, t_restore)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.blackout",
                                  description="Plant-link blackouts in CRUISE (cruise scenario), "
@@ -181,7 +198,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="sim seconds flown after the link is back (40)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", help="run directory (default: a new temp directory)")
+    ap.add_argument("--analyse", nargs="+", metavar="RUN_DIR",
+                    help="no run: the figures of finished runs (their directories)")
     args = ap.parse_args(argv)
+    if args.analyse:
+        print(json.dumps([analyse(Path(d), args.settle) for d in args.analyse], indent=2))
+        return 0
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-blackout-"))
     results = []
     for d in args.durations:
