@@ -21,12 +21,16 @@ hold to the end (None if never). ``ok``: no departure, no surface on its limit >
 within 30 s.
 
     python -m tools.blackout --mode realtime --durations 0.5 1 2 5 10 [--out DIR] [--seed 1]
+    python -m tools.blackout --fault fc-stall --durations 3      # the fc's own stall instead
+    python -m tools.blackout --analyse RUN_DIR ...               # figures of finished runs
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
+import os
+import signal
 import sys
 import tempfile
 import time
@@ -121,19 +125,29 @@ def blackout_figures(truth: dict, internals: dict, t_cut_s: float, t_restore_s: 
     return fig
 
 
-def cut_and_restore(rig: Rig, settle_s: float, blackout_s: float) -> tuple[float, float]:
+def cut_and_restore(rig: Rig, settle_s: float, blackout_s: float,
+                    fault: str = "link") -> tuple[float, float]:
     """Cut the plant link (both ways) once the plant reports ``settle_s`` of sim time, restore
     it ``blackout_s`` wall seconds later. Returns the plant's reported sim times (s) at the cut
-    and at the restore (PROGRESS lines, every 0.25 s wall)."""
+    and at the restore (PROGRESS lines, every 0.25 s wall). ``fault="fc-stall"``: the fc
+    process is stopped (SIGSTOP) instead, then continued (its own stall)."""
     if rig.wait_plant_time(settle_s, settle_s * 10 + 120) is None:
         raise RuntimeError(f"the plant did not reach t = {settle_s} s")
-    rig.relay.set_blackout(True, "both")
-    t_cut = rig.plant_time_now()
-    t_end = time.monotonic() + blackout_s
-    while time.monotonic() < t_end:
-        rig.plant.wait_line(lambda s: False, min(0.05, max(0.0, t_end - time.monotonic())))
-    t_restore = rig.plant_time_now()
-    rig.relay.set_blackout(False, "both")
+    if fault == "fc-stall":
+        os.kill(rig.fc.pid, signal.SIGSTOP)
+    else:
+        rig.relay.set_blackout(True, "both")
+    try:
+        t_cut = rig.plant_time_now()
+        t_end = time.monotonic() + blackout_s
+        while time.monotonic() < t_end:
+            rig.plant.wait_line(lambda s: False, min(0.05, max(0.0, t_end - time.monotonic())))
+        t_restore = rig.plant_time_now()
+    finally:
+        if fault == "fc-stall":
+            os.kill(rig.fc.pid, signal.SIGCONT)
+        else:
+            rig.relay.set_blackout(False, "both")
     return t_cut, t_restore
 
 
@@ -155,18 +169,18 @@ def cut_times_from_internals(internals: dict, t_cut_hint_s: float, mode: str) ->
 
 
 def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: float,
-            seed: int) -> dict:
+            seed: int, fault: str = "link") -> dict:
     sim_s = settle_s + after_s + (blackout_s if mode == "realtime" else 0.0) + 1.0
     cfg = RigConfig(out=out, duration_s=sim_s, seed=seed, mode=mode,
                     arm="start" if mode == "lockstep" else "gcs")
     with Rig(cfg) as rig:
         rig.start()
-        hint, _ = cut_and_restore(rig, settle_s, blackout_s)
+        hint, _ = cut_and_restore(rig, settle_s, blackout_s, fault)
         rcs = rig.finish()
         texts = [t for _, _, t in rig.gcs.texts]
         truth, internals = rig.truth(), rig.internals()
     t_cut, t_restore = cut_times_from_internals(internals, hint, mode)
-    fig = {"mode": mode, "blackout_wall_s": blackout_s, "exit_codes": rcs,
+    fig = {"mode": mode, "fault": fault, "blackout_wall_s": blackout_s, "exit_codes": rcs,
            **blackout_figures(truth, internals, t_cut, t_restore),
            "texts": [t for t in texts if "FAILSAFE" in t or "plant" in t or "stall" in t]}
     return fig
@@ -189,14 +203,19 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.blackout",
                                  description="Plant-link blackouts in CRUISE (cruise scenario), "
                                              "one run per duration; prints the figures as JSON.")
-    ap.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
+    ap.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime",
+                    help="both processes' timing mode; in lockstep a cut link freezes sim "
+                         "time (realtime)")
     ap.add_argument("--durations", type=float, nargs="+", default=[0.5, 1.0, 2.0, 5.0, 10.0],
                     help="blackout lengths, wall seconds (0.5 1 2 5 10)")
     ap.add_argument("--settle", type=float, default=12.0,
                     help="sim seconds flown before the cut (12)")
     ap.add_argument("--after", type=float, default=40.0,
                     help="sim seconds flown after the link is back (40)")
-    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=1, help="seed of the plant (1)")
+    ap.add_argument("--fault", choices=("link", "fc-stall"), default="link",
+                    help="link: the plant link cut both ways (default); fc-stall: the fc "
+                         "process stopped (SIGSTOP) for the duration")
     ap.add_argument("--out", help="run directory (default: a new temp directory)")
     ap.add_argument("--analyse", nargs="+", metavar="RUN_DIR",
                     help="no run: the figures of finished runs (their directories)")
@@ -207,8 +226,8 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-blackout-"))
     results = []
     for d in args.durations:
-        fig = one_run(out / f"{args.mode}-{d:g}s", args.mode, d, args.settle, args.after,
-                      args.seed)
+        fig = one_run(out / f"{args.mode}-{args.fault}-{d:g}s", args.mode, d, args.settle,
+                      args.after, args.seed, args.fault)
         print(json.dumps(fig), file=sys.stderr, flush=True)
         results.append(fig)
     print(json.dumps({"out": str(out), "runs": results}, indent=2))
