@@ -219,17 +219,26 @@ def _flight_condition(est, gw, atm, grid):
 def guidance_reset(est, gp, mass_kg, xcg_m, gx, thr_now, gw, tab, atm, grid):
     """Engage at the current state without a bump.
 
-    Commands start at the present alpha, mu and gamma; the speed reference at V. The
+    Commands start at the present alpha, mu and gamma (clipped to the envelope's command
+    limits: an engagement in an upset is not held in it); the speed reference at V. The
     flight-path integral starts where the lift demand (with gamma_dot = 0) equals the nominal
     trimmed lift at the present alpha, and the speed integral (if ``thr_now`` >= 0, the
     throttle in use, 0..1) where the throttle demand equals ``thr_now``: the integrators take
     up the nominal model's error at once (both within their clamps). ``thr_now`` < 0: the
     speed integral starts at 0 and the first step's throttle is taken without rate limit.
     """
-    gx[GX_GAM_C] = est[E_GAMMA]
-    gx[GX_ALPHA_C] = est[E_ALPHA]
-    gx[GX_ALPHA_FF] = est[E_ALPHA]
-    gx[GX_MU_C] = est[E_MU]
+    # the commands start at the present state, within the envelope's command limits: engaged
+    # in an upset (a recovery after the fc lost its data, issue 22: mu 175 deg) they would
+    # otherwise hold the upset and leave it only at the rate limits, tens of seconds
+    a_lo, a_hi = _inside(gp[P_GE_ALPHA_MIN], gp[P_GE_ALPHA_MAX], gp[P_GE_ALPHA_MARGIN])
+    _nz_lo, nz_hi = _inside(gp[P_GE_NZ_MIN], gp[P_GE_NZ_MAX], gp[P_GE_NZ_MARGIN])
+    mu_max = max(gp[P_GE_MU_MAX] - gp[P_GE_MU_MARGIN], 0.0)
+    mu_max = min(mu_max, math.acos(1.0 / nz_hi)) if nz_hi > 1.0 else 0.0
+    gmax = gp[P_GE_GAM_MAX]
+    gx[GX_GAM_C] = min(max(est[E_GAMMA], -gmax), gmax)
+    gx[GX_ALPHA_C] = min(max(est[E_ALPHA], a_lo), a_hi)
+    gx[GX_ALPHA_FF] = gx[GX_ALPHA_C]
+    gx[GX_MU_C] = min(max(est[E_MU], -mu_max), mu_max)
     gx[GX_THR_C] = thr_now if thr_now >= 0.0 else math.nan
     gx[GX_H_INT] = 0.0
     gx[GX_V_INT] = 0.0

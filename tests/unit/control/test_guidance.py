@@ -296,6 +296,26 @@ def test_engaged_in_an_upset_the_flight_path_integral_unwinds_and_the_altitude_c
     assert abs(h_err) < 50.0 and abs(hdot) < 5.0, (h_err, hdot, g.limits_in_force())
 
 
+def test_engaged_in_an_upset_the_commands_start_inside_the_envelope():
+    """Issue 22: resumed after a data loss with the vehicle rolled over (mu 168 deg, alpha
+    15 deg), the commands started at the upset and left it at GE_MU_RATE: the law was told to
+    hold the upset for many seconds. They start inside the envelope's command limits."""
+    g = Guidance()
+    est = _est(alpha=15.0 * DEG, mu=168.0 * DEG, gamma=-5.0 * DEG)
+    g.set_targets(h_m=H0, chi_rad=0.0, V_m_s=V0)
+    g.reset(est, 0.44)
+    p = g.params()
+    assert abs(g.gx[G.GX_MU_C]) <= (p["GE_MU_MAX"] - p["GE_MU_MARGIN"]) * DEG + 1e-12
+    assert g.gx[G.GX_ALPHA_C] <= (p["GE_ALPHA_MAX"] - p["GE_ALPHA_MARGIN"]) * DEG + 1e-12
+    assert abs(g.gx[G.GX_GAM_C]) <= p["GE_GAM_MAX"] * DEG + 1e-12
+    g.step(est, 0.0, DT)
+    assert abs(g.out[G.GO_MU]) <= p["GE_MU_MAX"] * DEG
+    assert g.out[G.GO_ALPHA] <= p["GE_ALPHA_MAX"] * DEG
+    # and inside the envelope the engagement is still bumpless
+    g2, est2 = _engaged(_est(mu=10.0 * DEG, gamma=1.0 * DEG))
+    assert g2.gx[G.GX_MU_C] == 10.0 * DEG and g2.gx[G.GX_GAM_C] == 1.0 * DEG
+
+
 def test_an_integral_opposing_its_error_unwinds_outside_its_zone_but_not_past_zero():
     # GIVEN an altitude integral wound up (climb) and a target far below (outside the zone)
     g, est = _engaged(GA_HI_ZONE=150.0)
