@@ -47,8 +47,9 @@ RESUME_NONE, RESUME_FROZEN, RESUME_FLOWN = 0, 1, 2
 class SurfaceHold:
     """The trim the law flew: its surface commands (rad, left elevon, right elevon, rudder)
     averaged, a running mean over the first TRIM_EST_TAU_S of flight and a first-order
-    low-pass after it. What FAILSAFE holds (the plant, silent fc, holds the last command it
-    got: the same design). Three floats, updated in place, no allocation."""
+    low-pass after it. What FAILSAFE holds (the plant holds the commands of a silent fc
+    averaged the same way: plant_sim/process.py ``HOLD_TAU_S``). Three floats, updated in
+    place, no allocation."""
 
     def __init__(self, tau_s: float = TRIM_EST_TAU_S) -> None:
         self.tau_s = tau_s
