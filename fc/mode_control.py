@@ -38,7 +38,7 @@ DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_AB
 
 
 #: time constant of the trim estimate (the law's commands low-passed), s
-TRIM_EST_TAU_S = 1.0
+TRIM_EST_TAU_S = 3.0
 
 #: how the law and guidance resume after a data-loss FAILSAFE
 RESUME_NONE, RESUME_FROZEN, RESUME_FLOWN = 0, 1, 2

@@ -45,7 +45,7 @@ DEG = math.pi / 180.0
 SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
 #: real time, ``servo.no_command = "hold"``: time constant of the commands' mean it holds, s
 #: (the fc's FAILSAFE holds its law's commands averaged the same way: fc/mode_control.py)
-HOLD_TAU_S = 1.0
+HOLD_TAU_S = 3.0
 
 
 @dataclass
