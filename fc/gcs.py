@@ -14,6 +14,11 @@ direction) is in docs/fc.md. As a PX4/ArduPilot SITL session:
   (fc/ratelimit.py), long texts chunked;
 - integer parameters are INT32, bytewise (fc/params.py ``encode_value``); a refused set is
   answered at once with PARAM_ERROR and the unchanged PARAM_VALUE.
+- the protocol services are modules of their own, each with its state (docs/fc.md section
+  7a): TIMESYNC (fc/gcs_timesync.py), log download (fc/gcs_logs.py), read-only FTP
+  (fc/gcs_ftp.py); this link dispatches their requests and sends their answers to the
+  requester only (``_service_out``), paced within ``max_tx``; fc/gcs_streams.py holds the
+  field rules of the streamed state (landed state, speeds that do not fit a field).
 
 Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
@@ -25,13 +30,18 @@ The vehicle (fc/app.py) is reached through a typed interface, fc/vehicle_view.py
 from __future__ import annotations
 
 import math
+import os
 import struct
 import time
 from collections import deque
 
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
-                     decode_datagram, mavlink, mavlink_dev, new_codec)
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, LeanFramer,
+                     UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
+from fc.gcs_ftp import FtpService
+from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
+from fc.gcs_streams import cm_s_i16, cm_s_u16, landed_state, local_ned
+from fc.gcs_timesync import answer as timesync_answer
 from fc.mission import MSG_IDS as MISSION_MSGS, encode as mission_encode
 from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
@@ -60,6 +70,8 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
     ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
     ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.1,   # from the first GNSS fix on (true velocity)
+    ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,   # landed state (fc/gcs_streams.py)
     ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
     ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: 0.25,  # in the guidance modes only
     ML.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,      # and on every change (fc/mission.py)
@@ -79,8 +91,10 @@ DATA_STREAMS = {
                                          MD.MAVLINK_MSG_ID_CURRENT_MODE,
                                          ML.MAVLINK_MSG_ID_GPS_RAW_INT,
                                          ML.MAVLINK_MSG_ID_SYSTEM_TIME,
-                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT),
+                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT,
+                                         ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),
     ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                                  ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
                                   ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
@@ -200,6 +214,12 @@ class GcsLink:
         self._log_next = 0
         self._log_last_us = 0
         self.io = io
+        # the protocol services (one module each): log download of this .tlog, read-only FTP
+        # of the run directory; their answers go to the requester only, never to the .tlog
+        self.logs = LogService(tlog_path, self.epoch_us // 1_000_000)
+        self.ftp = FtpService(os.path.dirname(tlog_path) if tlog_path else None, vehicle.params)
+        self.services = {**{i: self.logs for i in LOG_MSGS},
+                         ML.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL: self.ftp}
         self.signing = signing_key is not None
         self.signing_key = signing_key
         if signing_key is not None:
@@ -281,6 +301,20 @@ class GcsLink:
         elif self.links.get(link.addr) is link:     # not forgotten meanwhile
             self.endpoint.send(buf, link.addr)
 
+    def _send_to(self, addr, msg) -> None:
+        """Send ``msg`` to one peer only (a service's answer), with that peer's codec."""
+        buf = self._pack(self._link_of(addr).mav, msg)
+        if buf is not None:
+            self.endpoint.send(buf, addr)
+
+    def _service_out(self, outputs: list) -> None:
+        """Send a protocol service's outputs: ``(peer, message)`` or ``("text", sev, text)``."""
+        for out in outputs:
+            if out[0] == "text":
+                self.statustext(out[1], out[2])
+            else:
+                self._send_to(*out)
+
     def _link_of(self, addr) -> _Streams:
         return self.links.get(addr, self.default)
 
@@ -343,6 +377,8 @@ class GcsLink:
 
     def close(self) -> None:
         """Write what is pending (synchronously: the loop has stopped) and close."""
+        self.logs.close()
+        self.ftp.close()
         if self.tlog is not None:
             self.tlog.write(self._tlog_buf)
             self._tlog_buf = bytearray()
@@ -420,7 +456,9 @@ class GcsLink:
         elif t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ:
             if self._for_us(m):
                 idx = self._param_index(m.param_id, m.param_index)
-                if idx is not None and len(self.param_queue) < 4 * len(self.v.params):
+                if idx is None:                 # answered at once: no client time-out
+                    self._param_error(m, m.param_index, PARAM_ERR_UNKNOWN)
+                elif len(self.param_queue) < 4 * len(self.v.params):
                     self.param_queue.append(idx)
         elif t == ML.MAVLINK_MSG_ID_PARAM_SET:
             if self._for_us(m):
@@ -441,6 +479,13 @@ class GcsLink:
         elif t in MISSION_MSGS:
             if self._for_us(m):
                 self.mission_send(self.mission.handle(m, now_s))
+        elif t == ML.MAVLINK_MSG_ID_TIMESYNC:
+            reply = timesync_answer(m, self.time_us() * 1000, self.v.sysid, self.v.compid)
+            if reply is not None:
+                self._send_to(self._rx_addr, reply)
+        elif t in self.services:
+            if self._for_us(m):
+                self._service_out(self.services[t].handle(m, self._rx_addr, now_s))
 
     # ------------------------------------------------------------------ parameters
     def _param_index(self, param_id, index: int) -> int | None:
@@ -810,7 +855,7 @@ class GcsLink:
         if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
             g, fix = self._gnss()
             spd = math.hypot(g[G_VN], g[G_VE])
-            vel = int(round(spd * 100.0)) if spd * 100.0 < 65534.5 else 65535   # u16: unknown
+            vel = cm_s_u16(spd)                          # UINT16_MAX (unknown) above 655 m/s
             cog = (int(round(math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0)) % 36000
                    if fix and spd > 0.0 else 65535)
             return self.mav.gps_raw_int_encode(
@@ -827,7 +872,17 @@ class GcsLink:
             return self.mav.global_position_int_encode(
                 ms, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
                 int(round(g[G_ALT_M] * 1000.0)), int(round((g[G_ALT_M] - self.home[2]) * 1000.0)),
-                _i16(g[G_VN] * 100.0), _i16(g[G_VE] * 100.0), _i16(g[G_VD] * 100.0), hdg)
+                cm_s_i16(g[G_VN]), cm_s_i16(g[G_VE]), cm_s_i16(g[G_VD]), hdg)
+        if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
+            g, fix = self._gnss()
+            if self.home is None:
+                return None
+            x, y, z = local_ned(self.home, g[G_LAT_DEG], g[G_LON_DEG], g[G_ALT_M])
+            return self.mav.local_position_ned_encode(ms, x, y, z, g[G_VN], g[G_VE], g[G_VD])
+        if msg_id == ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            has_data = v.plant.counters.frames > 0 and not v.modes.data_lost
+            return self.mav.extended_sys_state_encode(ML.MAV_VTOL_STATE_UNDEFINED,
+                                                      landed_state(has_data, m[M_AIRSPEED]))
         if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
             nav = v.nav_controller_output()
             return None if nav is None else self.mav.nav_controller_output_encode(*nav)
@@ -889,6 +944,7 @@ class GcsLink:
             self.mission_send(mission_out)
         if (now_s < self.wall_due and not self.oneshot and not self.text_queue
                 and not self.param_queue and self.list_next < 0
+                and not self.logs.busy and not self.ftp.busy
                 and self.v.modes.mode == self.last_mode_sent):
             return 0                       # nothing due, nothing queued: most frames
         sent = 0
@@ -926,6 +982,11 @@ class GcsLink:
             self.send(self._param_value(idx))
             n_param += 1
             sent += 1
+        for svc in (self.logs, self.ftp):             # streamed answers, paced
+            if svc.busy and sent < self.max_tx:
+                out = svc.take(now_s, self.max_tx - sent)
+                self._service_out(out)
+                sent += len(out)
         sent = self._streams(self.default, now_s, sent)
         for link in list(self.links.values()):
             sent = self._streams(link, now_s, sent)
@@ -974,13 +1035,6 @@ class GcsLink:
 def _u32(x: float) -> int:
     """A non-negative finite value as u32 (rounded, saturated); 0 otherwise."""
     return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
-
-
-def _i16(x: float) -> int:
-    """A value as i16 (rounded, saturated at +-32767: MAVLink's cm/s fields end at 327 m/s)."""
-    if not math.isfinite(x):
-        return 0
-    return max(-32767, min(32767, int(round(x))))
 
 
 def _write_flush(f, chunk: bytes) -> None:
