@@ -263,7 +263,7 @@ class FlightController:
                 src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
         elif modes.armed and modes.mode == FlightMode.FAILSAFE:
             # hold the trim the law flew (not the TRIM_* defaults: 0 deg while the cruise
-            # trims at 5.4 / 5.4 / 0 deg), as the plant holds the last command of a silent fc
+            # trims at 5.4 / 5.4 / 0 deg), as the plant holds a silent fc's commands averaged
             src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
         else:
             src = self.settings.trim_rad
