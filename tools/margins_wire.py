@@ -51,10 +51,10 @@ def plant_with_relay(argv=None) -> int:
 def wire_delay_runs(scenario, frames: list[int], out: Path, variant: str = "coordinated",
                     overrides: dict | None = None, duration_s: float = 20.0) -> int:
     """Fly ``scenario`` over the wire with each extra delay in ``frames``; print and write
-    ``out/wire.md`` / ``wire.json`` with the stability verdict of each (tools.margins.stable)."""
+    ``out/wire.md`` / ``wire.json`` with the stability verdict of each (tools.margins_flight.stable)."""
     from tools.hil import rundata
     from tools.hil.runner import RunConfig, run_variant
-    from tools.margins import Flight, stable
+    from tools.margins_flight import stable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scen_path = out / "scenario.toml"
@@ -98,9 +98,9 @@ def wire_delay_runs(scenario, frames: list[int], out: Path, variant: str = "coor
 
 
 def truth_flight(vdir: Path, cmd_rad: np.ndarray, frame_dt_s: float):
-    """A tools.margins.Flight from a run directory's plant truth log."""
+    """A tools.margins_flight.Flight from a run directory's plant truth log."""
     from plant_sim.truthlog import load
-    from tools.margins import Flight
+    from tools.margins_flight import Flight
     tr = load(str(Path(vdir) / "truth.npz"))
     att = np.column_stack([tr["alpha_rad"], tr["beta_rad"], tr["mu_rad"]])
     rate = np.column_stack([tr["p_rad_s"], tr["q_rad_s"], tr["r_rad_s"]])
