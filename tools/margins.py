@@ -464,7 +464,8 @@ def main(argv=None) -> int:
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
     ap.add_argument("--point", default=None, metavar="MACH,H_KM",
                     help="fly the paper's case at this flight condition (default: the paper's)")
-    w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
+    w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep "
+                                    "frames, or wall-clock ms in real time)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
                    help="extra delays to fly, frames (1 ms each)")
     w.add_argument("--out", type=Path, default=Path("runs/margins_wire"),
@@ -476,12 +477,18 @@ def main(argv=None) -> int:
     w.add_argument("--disturbance", action="store_true",
                    help="keep the scenario's disturbance on (default off, as in process)")
     w.add_argument("--noise", action="store_true", help="keep the sensors' noise on")
+    w.add_argument("--realtime-ms", default=None, metavar="MS,MS,...",
+                   help="fly in real time instead, the relay holding each servo datagram "
+                        "this many wall-clock ms (one flight per value; --frames ignored)")
     a = ap.parse_args(argv)
     ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":
         sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
         from tools.margins_wire import wire_delay_runs
+        if a.realtime_ms is not None:
+            return wire_delay_runs(sc, [float(x) for x in a.realtime_ms.split(",")], a.out,
+                                   a.variant, ov, realtime=True)
         return wire_delay_runs(sc, [int(x) for x in a.frames.split(",")], a.out, a.variant, ov)
     point = None
     if a.point:
