@@ -333,6 +333,7 @@ class FlightController:
         ``held``: no new data, the last command held), the surface and throttle outputs."""
         modes = self.modes
         out = self.out
+        fresh = False
         if held and modes.law_active:
             src = out.delta_rad         # hold the last command: no new data to act on
         elif modes.law_active and not self.mode_ctl.reset_pending:
@@ -347,13 +348,20 @@ class FlightController:
                     self.law.slow_step(self.est.est, out.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
                 src = self.law.delta_cmd_rad
+                fresh = True
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
                 self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
                 self.mode_ctl.law_fault()
-                src = self.settings.trim_rad
+                src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
+        elif modes.armed and modes.mode == FlightMode.FAILSAFE:
+            # hold the trim the law flew (not the TRIM_* defaults: 0 deg while the cruise
+            # trims at 5.4 / 5.4 / 0 deg), as the plant holds a silent fc's commands averaged
+            src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
         else:
             src = self.settings.trim_rad
+        if fresh:
+            self.mode_ctl.hold.update(src, self.planner.fast_dt_s)
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
@@ -433,12 +441,14 @@ class FlightController:
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
-            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d",
+            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d, "
+            "fc stalls %d (longest %.2f s)",
             c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
             c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
             self.telemetry.skipped_ticks(), self.counters.law_errors,
-            self.counters.reordered_frames)
+            self.counters.reordered_frames, self.counters.fc_stalls,
+            self.counters.fc_stall_max_s)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

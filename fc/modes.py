@@ -10,7 +10,9 @@ AVAILABLE_MODES, MAVProxy through tools/mavproxy_hyfc.py) read ours:
 - MANUAL (0): surfaces at the TRIM_* parameters (no RC on this vehicle: passthrough of trim).
 - COORDINATED (1): the law with CO_ENABLE = 1.
 - UNCOORDINATED (2): the law with CO_ENABLE = 0.
-- FAILSAFE (3): surfaces at trim. Entered on plant-data loss (automatic) or on request.
+- FAILSAFE (3): surfaces held at trim: armed, the trim the law flew (the running mean of its
+  commands, fc/mode_control.py ``SurfaceHold``), else the TRIM_* parameters. Entered on
+  plant-data loss (automatic) or on request.
 - CRUISE (4): the guidance (fc/guidance) holds the altitude, course and speed at entry; the
   law tracks its alpha/beta/mu commands (inner variant: parameter GUID_INNER_CO).
 - GUIDED (5): the guidance flies targets from the ground station (GUIDED_CHANGE_*,
@@ -245,16 +247,20 @@ class ModeManager:
             self.mode_before_fs = self.mode
             self._set(FlightMode.FAILSAFE)
             self.fs_cause = FS_DATA
-            return "FAILSAFE: plant data lost, surfaces to trim"
+            return "FAILSAFE: plant data lost, surfaces held at trim"
         return "plant data lost (already in FAILSAFE)"
 
-    def on_data_ok(self, now_s: float, recover: bool, recover_s: float) -> str | None:
-        """Valid plant data arrived at wall time ``now_s``. Returns an event text or None."""
+    def on_data_ok(self, now_s: float, recover: bool, recover_s: float,
+                   at_once: bool = False) -> str | None:
+        """Valid plant data arrived at ``now_s`` (the fc passes plant time, s: the recovery is
+        judged on the flight, not on the wall clock). Recovery after ``recover_s`` of data
+        back, or ``at_once`` (the plant froze: no time passed without the fc). Returns an event
+        text or None."""
         if not self.data_lost:
             return None
         if self.data_back_since_s < 0.0:
             self.data_back_since_s = now_s
-        if now_s - self.data_back_since_s < recover_s:
+        if not at_once and now_s - self.data_back_since_s < recover_s:
             return None
         self.data_lost = False
         if self.fs_cause == FS_DATA and recover:
