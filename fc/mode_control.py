@@ -16,13 +16,15 @@ from the new state).
 from __future__ import annotations
 
 import logging
+import math
 from typing import Callable
 
 import numpy as np
 
 from fc.estimator import Estimator
+from fc.gcs_streams import IN_AIR_SPEED_M_S
 from fc.guided import GuidanceRunner
-from fc.link import PlantLink
+from fc.link import M_AIRSPEED, PlantLink
 from fc.link import mavlink as ML
 from fc.modes import FS_DATA, GUIDANCE_MODES, FlightMode, ModeManager
 from fc.param_service import ProcessSettings
@@ -121,9 +123,20 @@ class ModeControl:
         self.sync()
         return ok, text
 
-    def arm(self, armed: bool) -> tuple[bool, str]:
+    def in_air(self) -> bool:
+        """Flying, as far as the fc knows, for the disarm rule: plant data seen, the plant's run
+        not ended, and the newest frame's airspeed above IN_AIR_SPEED_M_S (EXTENDED_SYS_STATE's
+        threshold, fc/gcs_streams.py), also after the data was lost (the last word is that it
+        flies; EXTENDED_SYS_STATE says UNDEFINED then)."""
+        v = float(self.meas[M_AIRSPEED])
+        return (self.seen_data and not self.plant.ended
+                and (v > IN_AIR_SPEED_M_S or not math.isfinite(v)))
+
+    def arm(self, armed: bool, forced: bool = False) -> tuple[bool, str]:
+        """Arm/disarm (COMPONENT_ARM_DISARM): a disarm in flight only when ``forced``."""
         ok, text = self.modes.set_armed(armed, data_ok=self.est.healthy and self.seen_data
-                                        and not self.modes.data_lost and not self.plant.ended)
+                                        and not self.modes.data_lost and not self.plant.ended,
+                                        in_air=self.in_air(), forced=forced)
         self.sync()
         return ok, text
 

@@ -81,7 +81,7 @@ PROCESS_PARAMS: tuple[ParamDef, ...] = (
              "Rudder position in MANUAL, disarmed, and FAILSAFE before the law flew (then it "
              "holds the law's trim) (trailing edge left +)."),
     ParamDef("GUID_INNER_CO", 1.0, 0.0, 1.0, "bool", "guidance",
-             "Inner loop in the guidance modes (CRUISE, GUIDED, MISSION): 1 the coordinated law "
+             "Inner loop in the guidance modes (CRUISE, GUIDED, MISSION, RTL): 1 the coordinated law "
              "(CO_ENABLE 1), 0 the uncoordinated (CO_ENABLE 0).", integer=True),
     ParamDef("GT_ALT_MIN", 20000.0, 0.0, 100000.0, "m", "guidance",
              "Lowest altitude target a ground station or mission may set (AMSL); lower is refused."),
