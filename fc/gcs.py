@@ -46,6 +46,8 @@ from fc.mission import MSG_IDS as MISSION_MSGS, encode as mission_encode
 from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
+from fc.signing import SigningGuard, clock_timestamp
+from fc.storage import AppendFile, DiskHealth
 from fc.vehicle_view import VehicleView
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
@@ -118,7 +120,8 @@ LOG_STREAMS_S = {k: v for k, v in {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DE
                  if k in ML.mavlink_map}
 #: A GNSS sample older than this (plant time) is stale: GPS health off, fix reported as NO_FIX.
 GNSS_STALE_S = 1.0
-SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
+#: A peer table of this many addresses is full: a newcomer evicts the oldest peer, but with
+#: signing on an unsigned newcomer evicts only an unsigned peer (never a signed ground station)
 MAX_PEERS = 8
 PEER_TIMEOUT_S = 10.0
 STATUSTEXT_CHUNK = 50          # STATUSTEXT.text is char[50]
@@ -128,6 +131,13 @@ PARAM_ERR_UNKNOWN = MD.MAV_PARAM_ERROR_DOES_NOT_EXIST
 PARAM_ERR_RANGE = MD.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
 PARAM_ERR_READ_ONLY = MD.MAV_PARAM_ERROR_READ_ONLY
 PARAM_ERR_TYPE = getattr(MD, "MAV_PARAM_ERROR_TYPE_MISMATCH", 7)
+#: GUIDED_CHANGE_HEADING's heading (deg) is refused beyond +-this (a wrapped 1e9 deg is a turn
+#: to an arbitrary course, not what anyone typed)
+HEADING_LIMIT_DEG = 360.0
+#: Mode changes from the ground stations: at most MODE_BURST at once, MODE_RATE_HZ sustained;
+#: more are refused with a STATUSTEXT (each change resets the law and the guidance's state)
+MODE_BURST = 4.0
+MODE_RATE_HZ = 1.0
 
 
 class _Streams:
@@ -155,12 +165,19 @@ class GcsLink:
     def __init__(self, vehicle: VehicleView, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
                  log=None, max_rx: int = 8, max_tx: int = 6, io=None,
-                 sim_time: bool = False) -> None:
+                 sim_time: bool = False, signing_path: str | None = None,
+                 disk: DiskHealth | None = None) -> None:
         self.v = vehicle
         self.log = log
         self.endpoint = UdpEndpoint(*bind)
         self.outputs = list(outputs)
         self.peers: dict[tuple, float] = {}
+        self.signed_peers: set[tuple] = set()      # peers that sent a correctly signed message
+        self.peers_refused = 0                     # unsigned newcomers a full table of signed peers kept out
+        self.disk = disk
+        self._mode_tokens = MODE_BURST
+        self._mode_refill_s = time.monotonic()
+        self.mode_refused = 0
         self.mav = new_codec(vehicle.sysid, vehicle.compid)
         self.max_rx = max_rx
         self.max_tx = max_tx
@@ -203,7 +220,7 @@ class GcsLink:
         self.ignored_target = 0
         # tlog: frames collect in memory; flush() hands the chunk to the I/O thread (``io``,
         # fc/iothread.py) so a slow disk never stalls the loop
-        self.tlog = open(tlog_path, "wb") if tlog_path else None
+        self.tlog = AppendFile(tlog_path, "tlog", disk) if tlog_path else None
         self._tlog_buf = bytearray()
         # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
         # paced by the time base (sim time in lockstep), not by the wall clock
@@ -222,16 +239,44 @@ class GcsLink:
                          ML.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL: self.ftp}
         self.signing = signing_key is not None
         self.signing_key = signing_key
+        # signatures verified before any timestamp bookkeeping, stream timestamps persisted
+        # (fc/signing.py: pymavlink's own check stores the timestamp of a forged frame)
+        self.guard = (SigningGuard(signing_key, signing_path, log) if signing_key is not None
+                      else None)
         if signing_key is not None:
             self._sign(self.mav, 0)
+            self.mav.signing.timestamp = self.guard.start_timestamp()
             self.mav.signing.allow_unsigned_callback = self._allow_unsigned
+            self.guard.install(self.mav)
 
     def _sign(self, mav, link_id: int) -> None:
         s = mav.signing
         s.secret_key = self.signing_key
         s.sign_outgoing = True
         s.link_id = link_id
-        s.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
+        # never behind a timestamp already used (the links' own or the stored one)
+        s.timestamp = max(clock_timestamp(), self.mav.signing.timestamp)
+
+    def signing_snapshot(self) -> bytes | None:
+        """The signing state file's bytes when a stream timestamp changed, else None (saved
+        on the I/O thread with ``save_signing``; fc/signing.py)."""
+        if self.guard is None or self.guard.path is None:
+            return None
+        own = max(link.mav.signing.timestamp for link in (self.default, *self.links.values()))
+        return self.guard.snapshot(max(own, clock_timestamp()))
+
+    def save_signing(self, data: bytes) -> None:
+        """Write a ``signing_snapshot`` (I/O thread); a failure goes to the disk health."""
+        try:
+            self.guard.save(data)
+        except OSError as exc:
+            self.guard.dirty = True          # tried again at the next save
+            new = self.disk is None or self.disk.failed("signing timestamps", exc)
+            if new and self.log is not None:
+                self.log.error("cannot save the signing timestamps: %s", exc)
+            return
+        if self.disk is not None:
+            self.disk.ok("signing timestamps")
 
     # ------------------------------------------------------------------ plumbing
     @staticmethod
@@ -380,7 +425,7 @@ class GcsLink:
         self.logs.close()
         self.ftp.close()
         if self.tlog is not None:
-            self.tlog.write(self._tlog_buf)
+            self.tlog.append(self._tlog_buf)
             self._tlog_buf = bytearray()
             self.tlog.close()
             self.tlog = None
@@ -392,9 +437,9 @@ class GcsLink:
             return
         chunk, self._tlog_buf = self._tlog_buf, bytearray()
         if self.io is not None:
-            self.io.submit(_write_flush, self.tlog, chunk)
+            self.io.submit(self.tlog.append, chunk)
         else:
-            _write_flush(self.tlog, chunk)
+            self.tlog.append(chunk)
 
     # ------------------------------------------------------------------ receive
     def poll(self, now_s: float) -> int:
@@ -417,9 +462,7 @@ class GcsLink:
                 self.rx_msgs += 1
                 self.wall_due = 0.0     # a new peer or rate request: schedules walked again
                 self._tlog_write(bytes(m.get_msgbuf()))
-                if addr not in self.peers and len(self.peers) >= MAX_PEERS:
-                    self._expire_peers(now_s, force=True)
-                self.peers[addr] = now_s
+                self._heard(addr, now_s, self.signing and m.get_signed())
                 self._rx_addr = addr
                 try:
                     self._handle(m, now_s)
@@ -428,15 +471,38 @@ class GcsLink:
                     self._warn(f"GCS message {m.get_type()} not handled: {exc!r}")
         return n
 
-    def _expire_peers(self, now_s: float, force: bool = False) -> None:
+    def _heard(self, addr, now_s: float, signed: bool) -> None:
+        """Note a message from ``addr`` (``signed``: with a valid signature). A newcomer to a
+        full table makes room (``_expire_peers``); with signing on, an unsigned newcomer that
+        finds only signed peers is not added (its messages are still handled)."""
+        if addr not in self.peers and len(self.peers) >= MAX_PEERS:
+            self._expire_peers(now_s, force=True, newcomer_signed=signed)
+            if len(self.peers) >= MAX_PEERS:
+                self.peers_refused += 1
+                return
+        self.peers[addr] = now_s
+        if signed:
+            self.signed_peers.add(addr)
+
+    def _forget(self, addr) -> None:
+        del self.peers[addr]
+        self.signed_peers.discard(addr)
+        self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
+
+    def _expire_peers(self, now_s: float, force: bool = False,
+                      newcomer_signed: bool = True) -> None:
+        """Forget peers silent for PEER_TIMEOUT_S; ``force``: also the oldest one, to make
+        room (with signing on: the oldest unsigned one, or a signed one for a signed newcomer
+        only)."""
         for addr, t in list(self.peers.items()):
             if now_s - t > PEER_TIMEOUT_S:
-                del self.peers[addr]
-                self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
+                self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
-            oldest = min(self.peers, key=self.peers.get)
-            del self.peers[oldest]
-            self.links.pop(oldest, None)
+            pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
+            if not pool and (newcomer_signed or not self.signing):
+                pool = list(self.peers)
+            if pool:
+                self._forget(min(pool, key=self.peers.get))
 
     def _for_us(self, m) -> bool:
         ts = getattr(m, "target_system", 0)
@@ -522,6 +588,10 @@ class GcsLink:
         if reason is not None:
             self._param_error(m, idx, code)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
+        elif self.disk is not None and self.disk.failing:
+            # set in memory, but the disk refuses writes: it would revert at a restart
+            err = self.disk.error_of("parameters") or "writes failing"
+            self.statustext(ML.MAV_SEVERITY_ERROR, f"{name} set, NOT saved (disk: {err})")
         self.send(self._param_value(idx))   # current value, also when refused
 
     def _param_error(self, m, idx: int, code: int) -> None:
@@ -665,6 +735,8 @@ class GcsLink:
         elif c == ML.MAV_CMD_GUIDED_CHANGE_HEADING:
             if m.param1 not in (0, 1):
                 bad = "param1 heading type must be 0 or 1"
+            elif not abs(m.param2) <= HEADING_LIMIT_DEG:
+                bad = f"heading {m.param2:g} deg beyond +-{HEADING_LIMIT_DEG:g} deg"
             chi = math.radians(m.param2) if math.isfinite(m.param2) else math.nan
         elif c == ML.MAV_CMD_GUIDED_CHANGE_SPEED:
             if m.param1 not in (0, 1):
@@ -686,7 +758,26 @@ class GcsLink:
         mode = mode_from_custom(value)
         if mode is None:
             return False, f"mode {value:g} refused: not a mode"
-        return self.v.request_mode(mode)
+        # a change to another mode takes a token; FAILSAFE (the operator's stop) never waits
+        change = mode != self.v.modes.mode and mode != FlightMode.FAILSAFE
+        if change and not self._mode_change_allowed(time.monotonic()):
+            self.mode_refused += 1
+            return False, (f"mode {value:g} refused: more than {MODE_BURST:g} changes at "
+                           f"once or {MODE_RATE_HZ:g}/s")
+        ok, text = self.v.request_mode(mode)
+        if change and not ok:
+            self._mode_tokens += 1.0          # a refused change costs nothing
+        return ok, text
+
+    def _mode_change_allowed(self, now_s: float) -> bool:
+        """The mode changes' token bucket (MODE_BURST, MODE_RATE_HZ): True takes a token."""
+        self._mode_tokens = min(MODE_BURST, self._mode_tokens
+                                + (now_s - self._mode_refill_s) * MODE_RATE_HZ)
+        self._mode_refill_s = now_s
+        if self._mode_tokens < 1.0:
+            return False
+        self._mode_tokens -= 1.0
+        return True
 
     @staticmethod
     def _set_interval(link: _Streams, msg_id: int, interval_us: float) -> None:
@@ -1037,6 +1128,3 @@ def _u32(x: float) -> int:
     return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
 
 
-def _write_flush(f, chunk: bytes) -> None:
-    f.write(chunk)
-    f.flush()
