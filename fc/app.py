@@ -71,6 +71,8 @@ class FcConfig:
     #: internals log: every row for this long (s of sensor time), then one per slow tick;
     #: None: every row however long the run (fc/internals_log.py)
     internals_full_rate_s: float | None = 60.0
+    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz
+    internals_tail_hz: float | None = None
 
 
 def load_law_module(name: str):
@@ -178,7 +180,8 @@ class FlightController:
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
         self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk,
-                                 full_rate_s=cfg.internals_full_rate_s, tail_hz=cfg.slow_hz)
+                                 full_rate_s=cfg.internals_full_rate_s,
+                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
         self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
                        (self.mission_store.snapshot, self.mission_store.save))

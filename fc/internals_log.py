@@ -21,6 +21,7 @@ npz cannot be written at ``close()``, no partial file is left and the raw compan
 from __future__ import annotations
 
 import json
+import math
 import os
 import queue
 import threading
@@ -45,6 +46,10 @@ class InternalsLog:
                  full_rate_s: float | None = None, tail_hz: float = 100.0) -> None:
         """``full_rate_s``: every row for this long (s of frame stamps from the first row),
         then one row per ``1/tail_hz`` s; None: every row, however long the run."""
+        if full_rate_s is not None and not (math.isfinite(full_rate_s) and full_rate_s >= 0.0
+                                            and math.isfinite(tail_hz) and tail_hz > 0.0):
+            raise ValueError(f"internals log: full rate for {full_rate_s} s then {tail_hz} Hz: "
+                             "need a finite span >= 0 s and a finite rate > 0 Hz")
         self.columns = list(columns)
         self.ncol = len(columns)
         self.col = {c: i for i, c in enumerate(columns)}

@@ -172,3 +172,11 @@ def test_streamed_conversion_equals_numpy_savez_in_bounded_memory(tmp_path):
             assert np.array_equal(z[c], table[:, i])
     assert peak < 1_500_000, peak
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fc_internals.raw", "out.npz"]
+
+
+def test_a_decimation_that_means_nothing_is_refused(tmp_path):
+    import pytest
+    for full_s, hz in ((60.0, 0.0), (60.0, -5.0), (-1.0, 100.0), (float("nan"), 100.0),
+                       (60.0, float("inf"))):
+        with pytest.raises(ValueError):
+            InternalsLog(str(tmp_path), ["t_s"], full_rate_s=full_s, tail_hz=hz)
