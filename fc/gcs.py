@@ -173,7 +173,7 @@ class GcsLink:
         self.outputs = list(outputs)
         self.peers: dict[tuple, float] = {}
         self.signed_peers: set[tuple] = set()      # peers that sent a correctly signed message
-        self.peers_refused = 0                     # unsigned newcomers a full table of signed peers kept out
+        self.peers_refused = 0      # unsigned newcomers kept out by a table of signed peers
         self.disk = disk
         self._mode_tokens = MODE_BURST
         self._mode_refill_s = time.monotonic()
@@ -1126,5 +1126,3 @@ class GcsLink:
 def _u32(x: float) -> int:
     """A non-negative finite value as u32 (rounded, saturated); 0 otherwise."""
     return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
-
-

@@ -336,7 +336,9 @@ class Mission:
         lo, hi, home = self.alt_limits_m()
         if frame in FRAMES_REL:
             if home is None:
-                return None if abs(z_m) <= hi else f"altitude {z_m:g} m above home beyond {hi:.0f} m"
+                if abs(z_m) <= hi:
+                    return None
+                return f"altitude {z_m:g} m above home beyond {hi:.0f} m"
             h = z_m + home
         else:
             h = z_m
