@@ -31,25 +31,14 @@ from fc.control.layout import E_H, E_V
 from fc.guidance.waypoints import NavParams, WaypointNavigator, leg_geometry, local_ne
 from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
 from fc.link import mavlink as ML
-from fc.params import ParamDef, ParamTable
+from fc.mission_params import MISSION_PARAMS
+from fc.params import ParamTable
 from fc.vehicle_view import PlantView
 
 __all__ = ["MissionFlight", "MissionVehicle", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
 
 NAV_DIV = 5                 # navigator steps every NAV_DIV guidance steps
 GNSS_MAX_AGE_S = 1.0        # a GNSS sample older than this (plant time) is not a fix
-
-#: The navigator's parameters (fc/guidance/waypoints.py NavParams), appended to the fc's table.
-MISSION_PARAMS: tuple[ParamDef, ...] = (
-    ParamDef("WP_ACCEPT_M", 2000.0, 100.0, 100000.0, "m", "mission",
-             "Least acceptance radius of a waypoint, measured along the leg; an item's param2 "
-             "> 0 overrides it. A turn is anticipated further out (docs/guidance.md 2a)."),
-    ParamDef("WP_XT_LEN_M", 50000.0, 1000.0, 1000000.0, "m", "mission",
-             "Cross-track length scale L_xt: the course target turns toward the leg by "
-             "WP_XT_ANG_DEG (2/pi) atan(e / L_xt)."),
-    ParamDef("WP_XT_ANG_DEG", 20.0, 1.0, 60.0, "deg", "mission",
-             "Intercept angle toward the leg far from it (cross-track law)."),
-)
 
 
 class _Home(Protocol):

@@ -282,9 +282,9 @@ def set_aside(path: str) -> str:
 
 def build_table(law_params: Iterable | None = None) -> ParamTable:
     """The full table: law parameters (default: ``fc.control.params.LAW_PARAMS``) + process
-    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``) + mission (``fc.mission_mode``)."""
+    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``) + mission (``fc.mission_params``)."""
     from fc.guidance.params import GUIDANCE_PARAMS
-    from fc.mission_mode import MISSION_PARAMS
+    from fc.mission_params import MISSION_PARAMS
     if law_params is None:
         from fc.control.params import LAW_PARAMS
         law_params = LAW_PARAMS
