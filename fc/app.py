@@ -69,6 +69,11 @@ class FcConfig:
     spin_us: int = 0                       # busy-wait the last microseconds before a deadline
     sync: str = "frame"                    # realtime: frame (tick on the sensor frame) | clock
     law_module: str = "fc.control"
+    #: internals log: every row for this long (s of sensor time), then one per slow tick;
+    #: None: every row however long the run (fc/internals_log.py)
+    internals_full_rate_s: float | None = 60.0
+    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz
+    internals_tail_hz: float | None = None
 
 
 def load_law_module(name: str):
@@ -177,7 +182,9 @@ class FlightController:
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
-        self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk)
+        self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk,
+                                 full_rate_s=cfg.internals_full_rate_s,
+                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
         self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
                        (self.mission_store.snapshot, self.mission_store.save))
@@ -456,8 +463,8 @@ class FlightController:
                           g.frame_ticks, g.grid_ticks, g.fallback_ticks, g.absorbed)
         try:
             path = self.ilog.close()
-            self.log.info("internals log: %s (%d rows, %d dropped)", path, self.ilog.rows,
-                          self.ilog.dropped)
+            self.log.info("internals log: %s (%d rows, %d dropped, %d decimated)", path,
+                          self.ilog.rows, self.ilog.dropped, self.ilog.decimated)
         except Exception as exc:  # noqa: BLE001 - the exit stays clean; the raw file is kept
             self.log.error("internals log not closed: %r", exc)
         finally:

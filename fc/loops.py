@@ -223,22 +223,19 @@ class RunLoops:
             gcs_ready = gcs_fd in ready
             now_s = mono()
             self._check_stall(now_s)
-            n = 0
-            while n < 16:   # frames per wake-up: bounded
+            # one frame per wake-up, read only when select says a datagram waits: the plant
+            # sends frame k+1 only after our answer to k, so reading on after a frame would
+            # find nothing (a failed receive per exchange, issue 24); frames that did arrive
+            # together are taken one per wake-up, select returning at once. Housekeeping
+            # follows every frame: the .tlog's sim-paced streams fall due on a frame's stamp,
+            # so the log does not depend on how the frames were batched.
+            if plant_fd in ready:
                 stamp = self.plant.read_frame(self.intake.scratch)
-                if stamp < 0:
-                    break
-                t0 = time.perf_counter_ns()
-                self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
-                self.counters.add_exec(time.perf_counter_ns() - t0)
-                # housekeeping after every frame, also when several arrived together: the
-                # .tlog's sim-paced streams fall due on a frame's stamp, so the log does not
-                # depend on how the frames were batched (the GCS is read once per wake-up)
-                self.housekeeping(now_s, gcs_ready)
-                gcs_ready = False
-                n += 1
-            if not n:
-                self.housekeeping(now_s, gcs_ready)
+                if stamp >= 0:
+                    t0 = time.perf_counter_ns()
+                    self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
+                    self.counters.add_exec(time.perf_counter_ns() - t0)
+            self.housekeeping(now_s, gcs_ready)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
         """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),

@@ -75,7 +75,7 @@ class _OneRow:
     def __init__(self, row: np.ndarray) -> None:
         self._row = row
 
-    def row(self) -> np.ndarray:
+    def row(self, stamp_us: int | None = None) -> np.ndarray:
         return self._row
 
 
@@ -236,7 +236,7 @@ class Telemetry:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
         frame's arrival, in real time the wake-up."""
-        r = ilog.row()
+        r = ilog.row(stamp_us)
         if r is None:
             return
         # the parts' arrays are bound once (__post_init__; they update them in place)
