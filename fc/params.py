@@ -40,7 +40,7 @@ UNITS: dict[str, str] = {
     "us": "microseconds", "Hz": "hertz", "1/s": "per second", "1/s^2": "per second squared",
     "m": "metres", "m/s": "metres per second", "m/s^2": "metres per second squared",
     "kg": "kilograms", "kg m^2": "moment of inertia", "N": "newtons", "N m": "newton metres",
-    "Pa": "pascals", "%": "percent",
+    "Pa": "pascals", "kPa": "kilopascals", "%": "percent",
     "1": "dimensionless number (a ratio, a count)", "-": "dimensionless option or gain",
     "bool": "switch, 0 or 1",
 }

@@ -91,7 +91,8 @@ P_DIST_PHASE = 76  # 76..78: phase added to the roll, pitch, yaw sine arguments 
 P_ENG_CT = 79      # engine: thrust coefficient at full throttle, T = thr C_T qbar S (capped P_TMAX)
 P_ENG_TAU = 80     # engine: first-order lag of the throttle position (s), 0 = none
 P_ENG_RATE = 81    # engine: throttle rate limit (1/s), 0 = none
-P_N = 82
+P_DIST_QREF = 82   # Pa; > 0: d(t) scaled by qbar / P_DIST_QREF (a moment coefficient), 0 = as given
+P_N = 83
 
 SPEED_NONE = 0
 SPEED_HOLD = 1
@@ -144,17 +145,22 @@ def quat_to_dcm_nb(q0, q1, q2, q3):
 
 
 @njit(cache=True)
-def disturbance_components(t_s, p):
+def disturbance_components(t_s, p, qbar_pa):
     """The paper's Section 5 disturbance as body angular acceleration (rad/s^2) at ``t_s``.
 
     d(t) = A [0.5 sin(1.5 t + ph_p), 0.5 cos(2 t + ph_q), 0.5 sin(2 t + ph_r)] with
     A = amplitude x scale (paper: 10, phases 0), converted to rad/s^2 from the scenario unit; a
     disturbance given as a moment (N m) is divided by the inertia (I^-1 d). The phases (rad) let
-    campaigns disperse the disturbance. Returns (d_p, d_q, d_r); zeros when off.
+    campaigns disperse the disturbance. With P_DIST_QREF > 0 (``qbar_ref_Pa``) d is multiplied
+    by qbar_pa / P_DIST_QREF: a moment coefficient, equal to d at the reference dynamic pressure
+    and proportional to the dynamic pressure ``qbar_pa`` (Pa) elsewhere (docs/plant.md s. 8).
+    Returns (d_p, d_q, d_r); zeros when off.
     """
     if p[P_DIST_ON] == 0.0:
         return 0.0, 0.0, 0.0
     a = p[P_DIST_AMP]
+    if p[P_DIST_QREF] > 0.0:
+        a *= qbar_pa / p[P_DIST_QREF]
     d0 = a * 0.5 * math.sin(1.5 * t_s + p[P_DIST_PHASE])
     d1 = a * 0.5 * math.cos(2.0 * t_s + p[P_DIST_PHASE + 1])
     d2 = a * 0.5 * math.sin(2.0 * t_s + p[P_DIST_PHASE + 2])
@@ -318,7 +324,7 @@ def deriv(x, t_s, dl, dr, du, p, w, xdot):
     xdot[X_Q] = p[i + 3] * m0 + p[i + 4] * m1 + p[i + 5] * m2
     xdot[X_R] = p[i + 6] * m0 + p[i + 7] * m1 + p[i + 8] * m2
     if p[P_DIST_ON] != 0.0:
-        d0, d1, d2 = disturbance_components(t_s, p)
+        d0, d1, d2 = disturbance_components(t_s, p, w[o + AX_QBAR])
         xdot[X_P] += d0
         xdot[X_Q] += d1
         xdot[X_R] += d2

@@ -51,6 +51,7 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
     p[dy.P_DIST_MOMENT] = 1.0 if ds["unit"] == "N*m" else 0.0
     for i, k in enumerate(("phase_roll_deg", "phase_pitch_deg", "phase_yaw_deg")):
         p[dy.P_DIST_PHASE + i] = ds[k] * DEG
+    p[dy.P_DIST_QREF] = ds["qbar_ref_Pa"]
     s = d["speed"]
     p[dy.P_SPEED_MODE] = dy.SPEED_HOLD if s["model"] == "hold" else dy.SPEED_NONE
     p[dy.P_VREF] = s["V_ref_m_s"] if s["V_ref_m_s"] > 0.0 else d["initial"]["V_m_s"]

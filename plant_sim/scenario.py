@@ -108,6 +108,9 @@ SCHEMA: dict[str, Any] = {
         "phase_roll_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the roll term's sine argument"),
         "phase_pitch_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the pitch term's cosine argument"),
         "phase_yaw_deg": Key("float", 0.0, -360.0, 360.0, doc="phase added to the yaw term's sine argument"),
+        "qbar_ref_Pa": Key("float", 0.0, 0.0, 1e7,
+                           doc="0: d(t) as given (the paper's); > 0: d(t) x qbar / qbar_ref_Pa, a "
+                               "moment coefficient equal to d at this dynamic pressure"),
     },
     "actuators": {
         "limit_deg": Key("float", vehicle.DEFLECTION_MAX_DEG, 0.1, vehicle.DEFLECTION_MAX_DEG),

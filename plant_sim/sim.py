@@ -92,7 +92,7 @@ def truth_kernel(x, p, w, meas, out):
     for k in range(3):
         out[21 + k] = x[X_CMD_L + k]
         out[24 + k] = x[X_DL + k]
-    d0, d1, d2 = dy.disturbance_components(t, p)
+    d0, d1, d2 = dy.disturbance_components(t, p, w[o + AX_QBAR])
     out[27] = d0
     out[28] = d1
     out[29] = d2

@@ -33,10 +33,12 @@ from fc.control.nominal import B_REF_M, C_REF_M, S_REF_M2, TABLE_PATH
 
 DEG = math.pi / 180.0
 
-# Grids. Mach 4..12 covers the hypersonic branch around the paper's point (M 7.44) with margin
-# for speed and altitude changes; alpha spans the fits' validity (0..12 deg, where the plant
-# clips); altitude 0..60 km.
-MACH_GRID = (4.0, 0.25, 33)        # start, step, count
+# Grids. Mach 4..24 is the hypersonic branch's whole range, where the plant clips the fits
+# (plant_sim.aero MACH_MIN, MACH_MAX): it contains the envelope (Mach 6-15) and the paper's
+# point (M 7.44), and the law's model ends where the plant's does (nodes of the old 4..12 grid
+# unchanged, so the model inside it is unchanged); alpha spans the fits' validity (0..12 deg,
+# where the plant clips); altitude 0..60 km.
+MACH_GRID = (4.0, 0.25, 81)        # start, step, count
 ALPHA_GRID_DEG = (0.0, 0.5, 25)
 H_GRID_M = (0.0, 100.0, 601)
 

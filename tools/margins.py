@@ -53,6 +53,15 @@ from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
 from tools.margins_flight import Flight, stable
 from tools.sitl.closed_loop import law_frame
 
+from hyfc_wire.numba_cache import drop_stale
+
+# _loop inlines the law's and the plant's kernels (numba links a callee into its caller's
+# cache and checks only the caller's file): recompile when any of them changed. Without it,
+# a parameter slot that moved (a parameter added before it) was read from its old index.
+_ROOT = Path(__file__).resolve().parents[1]
+drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire", "tools/sitl")
+                      for f in (_ROOT / pkg).glob("*.py")])
+
 CHANNELS = ("roll", "pitch", "yaw")
 ALL = 3                                   # channel index meaning all three
 MODES = {"none": 0, "gain": 1, "delay": 2, "allpass": 3, "sine": 4, "gain_ac": 5}
@@ -200,11 +209,13 @@ def _loop(n_frames, n_fast, n_slow, dt_fast, dt_slow, frame_dt, cmd, inj,
 
 
 def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: str = "paper",
-                    sensor_noise: bool = True, point: tuple | None = None):
+                    sensor_noise: bool = True, point: tuple | None = None,
+                    initial_beta_deg: float | None = None):
     """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
     on or off (the noise only matters over the wire, where the fc estimates from sensors);
     ``point`` = (Mach, altitude m): flown there instead, surfaces starting at the initial trim
-    (tools.envelope.point_scenario)."""
+    (tools.envelope.point_scenario); ``initial_beta_deg``: the initial sideslip instead of the
+    scenario's (where the paper's 5 deg cannot be trimmed within the surfaces' limits)."""
     from plant_sim.scenario import load, parse
     if point is None:
         sc = load(base)
@@ -214,6 +225,8 @@ def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: s
     d = copy.deepcopy(sc.data)
     d["timing"]["frame_hz"] = float(frame_hz)
     d["disturbance"]["enabled"] = bool(disturbance)
+    if initial_beta_deg is not None:
+        d["initial"]["beta_deg"] = float(initial_beta_deg)
     if not sensor_noise:
         for k in d["sensors"]["noise"]:
             d["sensors"]["noise"][k] = 0.0
@@ -369,26 +382,41 @@ def sweep(scenario, channel: str, omegas, *, coordinated=True, law_overrides=Non
     return out
 
 
+#: The margins one run can measure (``--only``): the sweep (crossover, PM, GM), the all-pass
+#: phase margin (needs the crossover: a sweep runs first), the gain about trim (gain_ac) and of
+#: the whole command (gain), up and down, the delay in each channel and in all three.
+MARGINS = ("sweep", "pm_allpass", "gain_ac", "gain", "delay", "delay_all")
+#: the sweep of the crossover when only the all-pass phase margin needs it (fewer frequencies)
+QUICK_OMEGAS = np.geomspace(1.0, 40.0, 12)
+
+
 def channel_margins(scenario, channel: str, *, coordinated=True, law_overrides=None,
-                    omegas=None, duration_s: float = 20.0) -> dict:
-    """Every margin of one channel: sweep (crossover, PM, GM), gain bisection up and down,
-    all-pass phase margin at the crossover."""
-    omegas = np.geomspace(0.5, 60.0, 18) if omegas is None else np.asarray(omegas)
+                    omegas=None, duration_s: float = 20.0, which=MARGINS) -> dict:
+    """The margins of one channel named in ``which`` (MARGINS): sweep (crossover, PM, GM),
+    gain scans up and down (about trim and whole command), all-pass phase margin at the
+    crossover. Entries not measured are None."""
+    if omegas is None:
+        omegas = np.geomspace(0.5, 60.0, 18) if "sweep" in which else QUICK_OMEGAS
+    omegas = np.asarray(omegas)
     kw = dict(coordinated=coordinated, law_overrides=law_overrides)
-    lv = sweep(scenario, channel, omegas, **kw)
-    ok = np.isfinite(np.abs(lv))
-    cr = crossings(omegas[ok], np.asarray(lv)[ok])
+    cr = {"omega_c": None, "pm_deg": None, "omega_180": None, "gm_db": None,
+          "omega_180_low": None, "gm_low_db": None}
+    lv = []
+    if "sweep" in which or "pm_allpass" in which:
+        lv = sweep(scenario, channel, omegas, **kw)
+        ok = np.isfinite(np.abs(lv))
+        cr = crossings(omegas[ok], np.asarray(lv)[ok])
 
     def st_gain(mode):
         return lambda k: stable(fly(scenario, make_inj(mode, channel, gain=k),
                                     duration_s=duration_s, **kw))
     up = np.geomspace(1.0, 16.0, 13)
     down = np.geomspace(1.0, 1.0 / 16.0, 13)
-    gains = {f"{mode}_{d}": scan_boundary(st_gain(mode), vals, tol)
+    gains = {f"{mode}_{d}": (scan_boundary(st_gain(mode), vals, tol) if mode in which else None)
              for mode in ("gain", "gain_ac")
              for d, vals, tol in (("up", up, 0.02), ("down", down, 0.01))}
     pm_ap = None
-    if cr["omega_c"]:
+    if cr["omega_c"] and "pm_allpass" in which:
         wc = cr["omega_c"]
 
         def st_phase(phi_deg):
@@ -419,7 +447,10 @@ def _db(k):
 
 
 def _bound(b, fmt=".2f", db=False):
-    """'last stable / first unstable' of a boundary pair; dB of the last stable if ``db``."""
+    """'last stable / first unstable' of a boundary pair; dB of the last stable if ``db``;
+    '-' if not measured (None)."""
+    if b is None:
+        return "-"
     good, bad = b
     txt = f"{good:{fmt}} / {'none' if not math.isfinite(bad) else format(bad, fmt)}"
     if db:
@@ -450,6 +481,60 @@ def margins_table(results: list[dict], delays: dict, frame_dt_s: float) -> str:
     return "\n".join(rows)
 
 
+#: the issue-20 targets the summary checks: all-pass PM (deg), gain about trim up and down (dB),
+#: all-channel delay (s)
+TARGET_PM_DEG = 45.0
+TARGET_GM_DB = 6.0
+TARGET_DM_S = 0.050
+
+
+def grid_table(dirs) -> str:
+    """Markdown summary of several runs' margins.json (one row per point, variant and
+    channel): all-pass phase margin, gain about trim up / down, all-channel delay, and whether
+    each meets the issue-20 targets. A variant whose unperturbed loop was not stable reads 0."""
+    from plant_sim.atmosphere import A_N, A_RHO_KG_M3, A_SOUND_M_S, us76
+    rows = ["| point | qbar kPa | variant | channel | PM all-pass deg | gain up about trim dB | "
+            "gain down about trim dB | delay all channels ms | targets met |",
+            "|" + "---|" * 9]
+    for d in dirs:
+        j = json.loads((Path(d) / "margins.json").read_text())
+        pt = j.get("point") or "7.44,21"
+        m, h = (float(x) for x in pt.split(","))
+        atm = np.zeros(A_N)
+        us76(h * 1e3, atm)
+        q_kpa = 0.5 * atm[A_RHO_KG_M3] * (m * atm[A_SOUND_M_S]) ** 2 / 1e3
+        label = pt + ("" if j.get("initial_beta_deg") is None
+                      else f" (beta0 {j['initial_beta_deg']:g} deg)")
+        if j.get("overrides"):
+            label += " " + " ".join(f"{k}={v:g}" for k, v in j["overrides"].items())
+        fdt = j["frame_dt_s"]
+        by_var = {}
+        for r in j["results"]:
+            by_var.setdefault("co" if r["coordinated"] else "unco", []).append(r)
+        for var in ("co", "unco"):
+            dl = j["delays"].get(f"{var}/all")
+            if dl is None:
+                continue
+            dm_s = dl[0] * fdt
+            if var not in by_var:
+                rows.append(f"| {label} | {q_kpa:.0f} | {var} | all | - | - | - | 0 | no: the "
+                            "unperturbed loop is not stable |")
+                continue
+            for r in by_var[var]:
+                pm = r["pm_allpass_deg"][0] if r["pm_allpass_deg"] else None
+                up = _db(r["gain_ac_up"][0]) if r["gain_ac_up"] else None
+                dn = _db(r["gain_ac_down"][0]) if r["gain_ac_down"] else None
+                ok = (pm is not None and pm >= TARGET_PM_DEG and up is not None
+                      and up >= TARGET_GM_DB and dn is not None and -dn >= TARGET_GM_DB
+                      and dm_s >= TARGET_DM_S)
+                rows.append(f"| {label} | {q_kpa:.0f} | {var} | {r['channel']} | "
+                            f"{'-' if pm is None else format(pm, '.0f')} | "
+                            f"{'-' if up is None else format(up, '+.1f')} | "
+                            f"{'-' if dn is None else format(dn, '+.1f')} | "
+                            f"{dm_s * 1e3:.0f} | {'yes' if ok else 'no'} |")
+    return "\n".join(rows)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.margins", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd")
@@ -464,6 +549,12 @@ def main(argv=None) -> int:
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
     ap.add_argument("--point", default=None, metavar="MACH,H_KM",
                     help="fly the paper's case at this flight condition (default: the paper's)")
+    ap.add_argument("--initial-beta", type=float, default=None, metavar="DEG",
+                    help="initial sideslip instead of the paper's 5 deg (a point where that "
+                         "cannot be trimmed)")
+    ap.add_argument("--only", default=",".join(MARGINS),
+                    help="comma-separated margins to measure, of " + ", ".join(MARGINS)
+                         + " (default all; issue 20's three: pm_allpass,gain_ac,delay_all)")
     w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep "
                                     "frames, or wall-clock ms in real time)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
@@ -480,7 +571,12 @@ def main(argv=None) -> int:
     w.add_argument("--realtime-ms", default=None, metavar="MS,MS,...",
                    help="fly in real time instead, the relay holding each servo datagram "
                         "this many wall-clock ms (one flight per value; --frames ignored)")
+    t = sub.add_parser("table", help="summarise runs' margins.json against issue 20's targets")
+    t.add_argument("dirs", nargs="+", type=Path, help="run directories (--out of earlier runs)")
     a = ap.parse_args(argv)
+    if a.cmd == "table":
+        print(grid_table(a.dirs))
+        return 0
     ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":
@@ -494,26 +590,41 @@ def main(argv=None) -> int:
     if a.point:
         m, h = (float(x) for x in a.point.split(","))
         point = (m, h * 1e3)
-    sc = margin_scenario(disturbance=a.disturbance, point=point)
+    sc = margin_scenario(disturbance=a.disturbance, point=point, initial_beta_deg=a.initial_beta)
+    which = tuple(x.strip() for x in a.only.split(",") if x.strip())
+    unknown = set(which) - set(MARGINS)
+    if unknown:
+        ap.error(f"--only: unknown margins {sorted(unknown)} (of {', '.join(MARGINS)})")
     t0 = time.perf_counter()
     results, delays = [], {}
     for var in a.variants.split(","):
         co = var == "co"
+        if not stable(fly(sc, make_inj(), coordinated=co, law_overrides=ov)):
+            print(f"{var}: the unperturbed loop is not stable at this point: no margin",
+                  flush=True)
+            delays[(var, "all")] = (0, 0)
+            continue
         for ch in a.channels.split(","):
-            r = channel_margins(sc, ch, coordinated=co, law_overrides=ov)
+            r = channel_margins(sc, ch, coordinated=co, law_overrides=ov, which=which)
             results.append(r)
-            delays[(var, ch)] = delay_margin(sc, coordinated=co, law_overrides=ov, channel=ch)
+            if "delay" in which:
+                delays[(var, ch)] = delay_margin(sc, coordinated=co, law_overrides=ov,
+                                                 channel=ch)
             brief = {k: r[k] for k in ("omega_c", "pm_deg", "gm_db", "gm_low_db", "gain_up",
                                        "gain_ac_up", "gain_down", "gain_ac_down",
                                        "pm_allpass_deg")}
-            print(f"{var} {ch}: {json.dumps(brief)} delay {delays[(var, ch)]} frames "
+            print(f"{var} {ch}: {json.dumps(brief)} delay {delays.get((var, ch))} frames "
                   f"({time.perf_counter() - t0:.0f} s)", flush=True)
-        delays[(var, "all")] = delay_margin(sc, coordinated=co, law_overrides=ov, channel="all")
-        print(f"{var} all-channel delay margin {delays[(var, 'all')]} frames", flush=True)
+        if "delay_all" in which:
+            delays[(var, "all")] = delay_margin(sc, coordinated=co, law_overrides=ov,
+                                                channel="all")
+            print(f"{var} all-channel delay margin {delays[(var, 'all')]} frames", flush=True)
     fdt = 1.0 / sc.data["timing"]["frame_hz"]
     table = margins_table(results, delays, fdt)
     all_rows = []
     for v in a.variants.split(","):
+        if (v, "all") not in delays:
+            continue
         good, bad = delays[(v, "all")]
         all_rows.append(f"| {v} | all three | {good * fdt * 1e3:.0f} ms stable, "
                         f"{'-' if bad is None else format(bad * fdt * 1e3, '.0f')} ms not |")
@@ -523,6 +634,7 @@ def main(argv=None) -> int:
     (a.out / "margins.json").write_text(json.dumps(
         {"results": results, "delays": {f"{k[0]}/{k[1]}": v for k, v in delays.items()},
          "frame_dt_s": fdt, "overrides": ov, "disturbance": a.disturbance,
+         "point": a.point, "only": list(which), "initial_beta_deg": a.initial_beta,
          "wall_s": time.perf_counter() - t0}, indent=1))
     print(text)
     print(f"wall {time.perf_counter() - t0:.0f} s")

@@ -14,6 +14,8 @@ that carry the paper's equations (``TARGETS[module]``):
     muldiv    * becomes / and vice versa
     const     a float constant c becomes 2 c (0.0 becomes 1.0)
     named     the hand-made wrong laws of ``NAMED`` (a gain halved, an adaptation's sign)
+    index     (the gain schedule only, ``INDEX_FUNCTIONS``) a node index k inside x[...]
+              shifted by +1 or -1: the gains of the wrong flight condition (issue 20)
 
 Index arithmetic (inside ``x[...]``) is left alone: it is layout, not an equation. The
 mutant is written into a temporary copy of the project (never in place); the chosen tests
@@ -61,10 +63,13 @@ TARGETS = {
     "fc/control/observer.py": ("dob_gain", "dob_estimate", "dob_update"),
     "fc/control/fast_loop.py": ("input_filters", "xi_theta", "observer_moment", "fast_kernel"),
     "fc/control/linalg3.py": ("matvec3",),
+    "fc/control/schedule.py": ("schedule_index", "schedule_value", "apply_schedule"),
 }
+#: functions where the "index" kind shifts the schedule's node index ``k`` inside a subscript
+INDEX_FUNCTIONS = ("schedule_index", "schedule_value")
 #: every function of TARGETS (the default of find_mutants)
 FUNCTIONS = tuple(f for fns in TARGETS.values() for f in fns)
-KINDS = ("sign", "drop", "muldiv", "const", "named")
+KINDS = ("sign", "drop", "muldiv", "const", "named", "index")
 
 #: Stage 1: unit tests of each equation, fast without JIT, and the behavioural tests of the
 #: adaptation; file names (and node ids inside them), found under tests/ by ``find_tests``
@@ -79,7 +84,7 @@ DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_an
                  "test_law_units.py::test_observer_converges_to_constant_disturbance",
                  "test_law_units.py::test_projection_identity_inside_and_bounded_outside",
                  "test_law_units.py::test_factors_zero_when_uncoordinated_and_clamped",
-                 "test_adaptation.py")
+                 "test_adaptation.py", "test_schedule.py")
 
 
 @dataclass(frozen=True)
@@ -204,6 +209,12 @@ def _candidates(tree, lines, functions):
                 out.append((node, "sign", f"'{op}=' -> '{other}='", ln, fn.name, eq))
             elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
                 out.append((node, "sign", "unary '-' removed", ln, fn.name, eq))
+            elif (isinstance(node, ast.Subscript) and fn.name in INDEX_FUNCTIONS
+                  and any(isinstance(n, ast.Name) and n.id == "k"
+                          for n in ast.walk(node.slice))):
+                for shift in ("+1", "-1"):
+                    out.append((node, "index", f"node index k {shift} in "
+                                f"'{ast.unparse(node)}'", ln, fn.name, eq))
             elif (isinstance(node, ast.Constant) and type(node.value) is float):
                 new = 1.0 if node.value == 0.0 else 2.0 * node.value
                 out.append((node, "const", f"{node.value!r} -> {new!r} (col {node.col_offset})",
@@ -213,6 +224,14 @@ def _candidates(tree, lines, functions):
 
 def _mutated_source(tree, node, kind, change):
     """The module's source with ONE change at ``node``; ``tree`` is restored afterwards."""
+    if kind == "index":
+        old_slice = node.slice
+        op = ast.Add() if "k +1" in change else ast.Sub()
+        node.slice = ast.BinOp(left=old_slice, op=op, right=ast.Constant(1))
+        try:
+            return ast.unparse(tree)
+        finally:
+            node.slice = old_slice
     if kind == "sign" and isinstance(node, ast.UnaryOp):
         repl = node.operand
     elif kind == "drop" and change.startswith("drop right"):

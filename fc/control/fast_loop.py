@@ -13,26 +13,28 @@ own inertia and its own slice of theta_omega, and numba keeps the scalars in reg
 """
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
-from fc.control.allocation import actuator_model_step, allocate
+from fc.control.allocation import actuator_model_step, allocate, rate_limit_command
 from fc.control.factors import coordinated_factors, coordinated_matrix
 from fc.control.filters import input_ok, lowpass2_step, second_order_phi, second_order_step
-from fc.control.kinematics import gs_t
+from fc.control.kinematics import gs, gs_t
 from fc.control.layout import (
     E_ALPHA, E_BETA, E_MU, E_N, E_P, E_Q, E_R, NM_E, NM_GCO, NM_GFD, NM_MACH, NM_QBAR, NM_XI,
     S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E2, S_E_COUP, S_FROZEN,
     S_INPUT_BAD, S_LAMBDA, S_M_C, S_MACH, S_OMEGA_CF, S_QBAR, S_RHO_F,
     TH_F_N, TH_F_PITCH, TH_F_YAW,
-    X_AF1, X_AF2, X_CF, X_CF_DOT, X_DCMD, X_DM, X_EF, X_FF1, X_FF2, X_LIM, X_OMC, X_RHO_F,
+    X_AF1, X_AF2, X_CF, X_CF_DOT, X_DCMD, X_DM, X_EF, X_FF1, X_FF2, X_FKIN, X_LIM, X_OMC, X_RHO_F,
     X_SAT, X_SIGMA, X_WF1, X_WF2,
 )
-from fc.control.linalg3 import clip, matvec3
+from fc.control.linalg3 import clip, matvec3, wrap_pi
 from fc.control.nominal import eval_model
 from fc.control.observer import dob_estimate, dob_gain, dob_update
 from fc.control.options import DOB_MOMENT_GCO, DOB_MOMENT_MC, option, switch_on
 from fc.control.params import (
-    P_CO_E, P_DOB_ACHIEVED, P_DOB_C, P_DOB_ENABLE, P_FLT_ANG_HZ, P_FLT_RATE_HZ,
+    P_CO_E, P_DOB_ACHIEVED, P_DOB_C, P_DOB_ENABLE, P_FLT_ANG_CF, P_FLT_ANG_HZ, P_FLT_RATE_HZ,
     P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK, P_FST_TH_BND,
     P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_SLW_AW,
 )
@@ -49,11 +51,38 @@ def input_filters(est, dt, par, x, literal):
         ef[i] = est[i]
     for i in range(3):
         ef[E_P + i] = lowpass2_step(est[E_P + i], dt, rate_hz, x, X_WF1 + i, X_WF2 + i, False)
-    angle_hz = 0.0 if literal else par[P_FLT_ANG_HZ]
-    lowpass2_step(est[E_ALPHA], dt, angle_hz, x, X_AF1, X_AF2, False)
-    lowpass2_step(est[E_BETA], dt, angle_hz, x, X_AF1 + 1, X_AF2 + 1, False)
-    lowpass2_step(est[E_MU], dt, angle_hz, x, X_AF1 + 2, X_AF2 + 2, True)
+    cf_hz = 0.0 if literal else par[P_FLT_ANG_CF]
+    if cf_hz > 0.0:
+        complementary_attitude_step(est, dt, cf_hz, x)
+    else:
+        angle_hz = 0.0 if literal else par[P_FLT_ANG_HZ]
+        lowpass2_step(est[E_ALPHA], dt, angle_hz, x, X_AF1, X_AF2, False)
+        lowpass2_step(est[E_BETA], dt, angle_hz, x, X_AF1 + 1, X_AF2 + 1, False)
+        lowpass2_step(est[E_MU], dt, angle_hz, x, X_AF1 + 2, X_AF2 + 2, True)
     return rate_hz
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def complementary_attitude_step(est, dt, cf_hz, x):
+    """One step of the complementary attitude filter (FLT_ANG_CF) on x[X_AF2:X_AF2+3]:
+    Omega_hat_dot = g_s(Omega_hat) omega + f + L (Omega - Omega_hat), L = 2 pi cf_hz (1/s),
+    omega the gyros' body rates (rad/s, unfiltered: no lag on the fast path), f = f1 +
+    Psi^T theta_hat of the last slow step (x[X_FKIN:], Eq. 2), Omega the vanes' alpha, beta
+    and mu (rad). The correction is discretised exactly (stable for any dt); mu wraps.
+    X_AF1 follows the output (a later switch to the low-pass starts from it)."""
+    a_hat = x[X_AF2]
+    b_hat = x[X_AF2 + 1]
+    m_hat = x[X_AF2 + 2]
+    k0, k1, k2 = gs(a_hat, b_hat, est[E_P], est[E_Q], est[E_R])
+    g = 1.0 - math.exp(-2.0 * math.pi * cf_hz * dt)
+    a_hat += dt * (k0 + x[X_FKIN])
+    b_hat += dt * (k1 + x[X_FKIN + 1])
+    m_hat = wrap_pi(m_hat + dt * (k2 + x[X_FKIN + 2]))
+    x[X_AF2] = a_hat + g * (est[E_ALPHA] - a_hat)
+    x[X_AF2 + 1] = b_hat + g * (est[E_BETA] - b_hat)
+    x[X_AF2 + 2] = wrap_pi(m_hat + g * wrap_pi(est[E_MU] - m_hat))
+    for i in range(3):
+        x[X_AF1 + i] = x[X_AF2 + i]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -153,6 +182,7 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
     fallback = coordinated_matrix(par, nm, st, S_LAMBDA)
     e_coup = par[P_CO_E] if par[P_CO_E] > 0.0 else nm[NM_E]
     sat = allocate(par, nm, mc0, mc1, mc2, e_coup, delta_out, st)
+    rate_limit_command(par, nm, x, e_coup, dt, delta_out, st)
     x[X_SAT] = sat
     for i in range(3):
         x[X_DCMD + i] = delta_out[i]

@@ -10,7 +10,7 @@ paper's structure; this module holds the entry points and re-exports the rest:
     fast_loop    fast_kernel: input filters, command filter, Eq. 35 moment command M_c,
                  Eq. 36 adaptive law for theta_omega, factors, allocation, observer
     factors      coordinated_factors (Eqs. 10-14, 19), coordinated_matrix (Eq. 45)
-    allocation   allocate (Eqs. 46-47 with saturation), actuator_model_step
+    allocation   allocate (Eqs. 46-47 with saturation), rate_limit_command, actuator_model_step
     observer     dob_gain, dob_estimate, dob_update (Eq. 37)
     kinematics   gs, gs_inv, gs_t (Eq. 3) and their *_apply forms
     filters      second_order_phi/_step, lowpass2_step, input_ok
@@ -45,7 +45,7 @@ from numba import njit
 
 import numpy as np
 
-from fc.control.allocation import actuator_model_step, allocate
+from fc.control.allocation import actuator_model_step, allocate, rate_limit_command
 from fc.control.factors import coordinated_factors, coordinated_matrix
 from fc.control.fast_loop import fast_kernel
 from fc.control.filters import input_ok, lowpass2_step, second_order_phi, second_order_step
@@ -64,7 +64,8 @@ __all__ = [
     "actuator_model_step", "allocate", "coordinated_factors", "coordinated_matrix",
     "cycle_entry", "cycle_kernel", "det3", "dob_estimate", "dob_gain", "dob_update",
     "fast_entry", "fast_kernel", "gs", "gs_apply", "gs_inv", "gs_inv_apply", "gs_t",
-    "gs_t_apply", "input_ok", "lowpass2_step", "matvec3", "pack_tables", "reset_kernel",
+    "gs_t_apply", "input_ok", "lowpass2_step", "matvec3", "pack_tables", "rate_limit_command",
+    "reset_kernel",
     "second_order_phi", "second_order_step", "slow_entry", "slow_kernel", "solve3",
     "unpack_tables", "clip", "wrap_pi", "PI",
     "MEM_PAR", "MEM_X", "MEM_NM", "MEM_ST", "MEM_DELTA", "MEM_CMD", "MEM_TABLES",

@@ -26,7 +26,8 @@ from fc.control import kernels as K
 from fc.control.layout import (ATM_N, E_N, G_N, G_NALPHA, G_NH, G_NMACH, NM_N, S_N,
                                STATUS_NAMES, T_N, X_N)
 from fc.control.nominal import load_tables
-from fc.control.params import LAW_PARAMS, PARAM_INDEX, P_N, default_si_array, to_si
+from fc.control.params import (LAW_PARAMS, PARAM_INDEX, P_N, SCHEDULED_NAMES,
+                               default_si_array, to_si)
 
 STATUS_N = S_N
 
@@ -93,9 +94,21 @@ class AttitudeLaw:
 
     # -- parameters ---------------------------------------------------------------------------
     def set_param(self, name: str, value: float) -> None:
-        """Set parameter ``name`` to ``value`` in the table's unit (converted to SI here)."""
+        """Set parameter ``name`` to ``value`` in the table's unit (converted to SI here).
+
+        While the schedule is on (CTL_SCHED 1, PAPER_LITERAL 0) the slow loop overwrites the
+        SI slots of the scheduled parameters (params.SCHEDULED_NAMES) with the schedule's
+        values; when it goes off, their fixed values are put back here.
+        """
         self.par[PARAM_INDEX[name]] = to_si(name, value)
         self._values[name] = float(value)
+        if name in ("CTL_SCHED", "PAPER_LITERAL") and not self.scheduled():
+            for fixed in SCHEDULED_NAMES:
+                self.par[PARAM_INDEX[fixed]] = to_si(fixed, self._values[fixed])
+
+    def scheduled(self) -> bool:
+        """True if the gain schedule is on (CTL_SCHED 1 and PAPER_LITERAL 0)."""
+        return self._values["CTL_SCHED"] >= 0.5 and self._values["PAPER_LITERAL"] < 0.5
 
     def get_param(self, name: str) -> float:
         """Current value of ``name`` in the table's unit."""

@@ -131,7 +131,9 @@ X_WF2 = 65           # stage 2 (the filtered value), 3
 X_EF = 68            # the fast loop's effective state: est with p, q, r filtered, E_N
 X_FF1 = X_EF + E_N   # the observer's model acceleration through the same filter, stage 1, 3
 X_FF2 = X_FF1 + 3    # stage 2, 3
-X_N = X_FF2 + 3
+X_FKIN = X_FF2 + 3   # f1 + Psi^T theta_hat of the last slow step (rad/s), 3: the complementary
+                     # attitude filter's model term (FLT_ANG_CF)
+X_N = X_FKIN + 3
 
 # --- Status record (st array) ------------------------------------------------------------------
 S_SIGMA = 0          # 3
@@ -159,7 +161,8 @@ S_RHO_S = 47         # 4 relative estimates of theta_Omega
 S_RHO_F = 51         # 17 relative estimates of theta_omega
 S_XI = 68            # 3 compensation xi: sigma_bar = sigma - xi (rad)
 S_INPUT_BAD = 71     # 1 if the last step rejected its input (non-finite est/cmd, dt <= 0)
-S_N = 72
+S_ALLOC_RATE = 72    # rate-aware allocation: scale of the command's change this step (1 = none)
+S_N = 73
 
 STATUS_NAMES = (
     "sigma_alpha_rad", "sigma_beta_rad", "sigma_mu_rad",
@@ -186,6 +189,7 @@ STATUS_NAMES = (
     "rho_yaw_CYb",
     "xi_alpha_rad", "xi_beta_rad", "xi_mu_rad",
     "input_bad",
+    "alloc_rate_scale",
 )
 
 assert len(STATUS_NAMES) == S_N, (len(STATUS_NAMES), S_N)

@@ -9,7 +9,7 @@ fits at zero uncertainty). It never imports the plant.
 model (layout NM_*):
 - Mach number, dynamic pressure, density, speed of sound, gravity;
 - the aerodynamic coefficients and derivatives (bilinear in Mach and alpha, clamped to the
-  table's box: Mach 4..12, alpha 0..12 deg);
+  table's box: Mach 4..24, the plant's fits' whole hypersonic range, alpha 0..12 deg);
 - g_f_delta (Eq. 45's effectiveness matrix, N m/rad) about the c.g. of the nominal model:
   l = qSb Cl, m = qSc Cm + X_cg qS (CD sin a + CL cos a), n = qSb Cn + X_cg qS CY (Eq. 6);
 - E (Eq. 15) as the rolling-moment effectiveness ratio |Cl_delta_r / Cl_delta_a|;

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fc.control.schedule_data import SCHED_N, load_schedule
+
 DEG = math.pi / 180.0
 
 
@@ -168,7 +170,8 @@ LAW_PARAMS: tuple[Param, ...] = (
     _p("ACT_MAX", 20, 1, 30, "deg", "ACT",
        "Deflection limit of each surface (the aerodynamic data's range).", si_scale=DEG),
     _p("ACT_RATE", 90, 1, 1000, "deg/s", "ACT",
-       "Surface rate limit of the controller's actuator model (observer input only).",
+       "Surface rate limit of the controller's actuator model (the observer's input) and of "
+       "the rate-aware allocation (ALLOC_RATE).",
        si_scale=DEG),
     _p("ACT_TAU", 0.02, 0, 1, "s", "ACT",
        "First-order lag of the controller's actuator model (0 = none)."),
@@ -203,7 +206,56 @@ LAW_PARAMS: tuple[Param, ...] = (
        "1 = on the axis the prose names (elevator loop = pitch row x (1 + lambda_e), aileron "
        "loop = roll row x (1 + lambda_a), rudder loop = yaw row x (1 + lambda_r)).",
        integer=True),
+    _p("ALLOC_RATE", 0, 0, 2, "-", "ACT",
+       "Rate-aware allocation: the change of the surface command per fast step is kept within "
+       "ALLOC_RATE x ACT_RATE x dt by scaling the change vector (the change of moment keeps its "
+       "direction); the shortfall goes to the unallocated moment and the observer sees the "
+       "modelled actuators as before. 1 = the actuators' own rate, 0 = off (the command jumps, "
+       "the actuators rate-limit each surface on their own)."),
+    _p("FLT_ANG_CF", 1, 0, 20, "Hz", "FLT",
+       "Crossover of the complementary attitude filter; > 0 replaces the FLT_ANG_HZ low-pass of "
+       "alpha, beta, mu (e1 of the slow loop) by Omega_hat_dot = g_s(Omega_hat) omega + f1 + "
+       "Psi^T theta_hat + 2 pi FLT_ANG_CF (Omega - Omega_hat) (Eq. 2 with the gyros' omega): "
+       "the vanes' noise is filtered above the crossover, the gyros and the model carry the "
+       "fast motion, without the low-pass's lag. 0 = off."),
 )
+
+#: The scheduled quantities: (family prefix of the SCH_* parameters, npz name, unit, min, max,
+#: the fixed parameter it replaces while CTL_SCHED = 1, si_scale).
+SCHED_FAMILIES: tuple[tuple[str, str, str, float, float, str, float], ...] = (
+    ("SCH_KAP1_", "kappa1", "1/s", 0.0, 100.0, "SLW_KAPPA", 1.0),
+    ("SCH_K_", "K", "1/s", 0.0, 50.0, "SLW_K1", 1.0),
+    ("SCH_KAP2_", "kappa2", "1/s", 0.0, 200.0, "FST_KAPPA", 1.0),
+    ("SCH_DOBC_", "dob_c", "1/s", 1.01, 200.0, "DOB_C", 1.0),
+    ("SCH_CFWN_", "cf_wn", "rad/s", 1.0, 500.0, "FST_CF_WN", 1.0),
+    ("SCH_FLTR_", "flt_rate_hz", "Hz", 0.0, 200.0, "FLT_RATE_HZ", 1.0),
+    ("SCH_FLTA_", "flt_ang_hz", "Hz", 0.0, 100.0, "FLT_ANG_HZ", 1.0),
+    ("SCH_OMC_", "omc_max_deg_s", "deg/s", 0.0, 180.0, "SLW_OMC_MAX", DEG),
+)
+
+
+def _schedule_params() -> tuple[Param, ...]:
+    """CTL_SCHED and the SCH_* table, defaults from fc/control/data/schedule.npz (written by
+    ``python -m tools.schedule_design``; docs/control_law.md "Scheduling")."""
+    tab = load_schedule()
+    out = [_p("CTL_SCHED", 1, 0, 1, "-", "SCH",
+              "1 = the gains and filters of SCH_* are scheduled with the dynamic pressure the law "
+              "computes from the estimated airspeed and altitude (replacing SLW_KAPPA, SLW_K1..3, "
+              "FST_KAPPA, DOB_C, FST_CF_WN, FLT_RATE_HZ, FLT_ANG_HZ, SLW_OMC_MAX); 0 = those "
+              "fixed parameters (the paper's gains, K = 4, kappa = 5).", integer=True)]
+    for i in range(SCHED_N):
+        out.append(_p(f"SCH_Q_{i + 1}", tab["qbar_kpa"][i], 1.0, 1000.0, "kPa", "SCH",
+                      f"Dynamic pressure of schedule node {i + 1} (nodes increasing; below "
+                      "the first and above the last the end values hold).", si_scale=1e3))
+    for prefix, key, unit, lo, hi, target, scale in SCHED_FAMILIES:
+        for i in range(SCHED_N):
+            out.append(_p(f"{prefix}{i + 1}", tab[key][i], lo, hi, unit, "SCH",
+                          f"{target} at schedule node {i + 1} (SCH_Q_{i + 1}), CTL_SCHED 1.",
+                          si_scale=scale))
+    return tuple(out)
+
+
+LAW_PARAMS = LAW_PARAMS + _schedule_params()
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
 
@@ -251,9 +303,26 @@ P_SLW_CFB = PARAM_INDEX["SLW_CFB"]
 P_FLT_RATE_HZ = PARAM_INDEX["FLT_RATE_HZ"]
 P_FLT_ANG_HZ = PARAM_INDEX["FLT_ANG_HZ"]
 P_CO_MAP = PARAM_INDEX["CO_MAP"]
+P_ALLOC_RATE = PARAM_INDEX["ALLOC_RATE"]
+P_FLT_ANG_CF = PARAM_INDEX["FLT_ANG_CF"]
+P_CTL_SCHED = PARAM_INDEX["CTL_SCHED"]
+P_SCH_Q = PARAM_INDEX["SCH_Q_1"]           # SCHED_N nodes, then each family's SCHED_N values
+P_SCH_KAP1 = PARAM_INDEX["SCH_KAP1_1"]
+P_SCH_K = PARAM_INDEX["SCH_K_1"]
+P_SCH_KAP2 = PARAM_INDEX["SCH_KAP2_1"]
+P_SCH_DOBC = PARAM_INDEX["SCH_DOBC_1"]
+P_SCH_CFWN = PARAM_INDEX["SCH_CFWN_1"]
+P_SCH_FLTR = PARAM_INDEX["SCH_FLTR_1"]
+P_SCH_FLTA = PARAM_INDEX["SCH_FLTA_1"]
+P_SCH_OMC = PARAM_INDEX["SCH_OMC_1"]
+#: the fixed parameters the schedule replaces while it is on (restored when it goes off)
+SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3")
 P_N = len(LAW_PARAMS)
 assert [PARAM_INDEX[f"CO_K{i}"] for i in range(1, 10)] == list(range(P_CO_K1, P_CO_K1 + 9))
 assert [PARAM_INDEX[f"SLW_K{i}"] for i in (1, 2, 3)] == list(range(P_SLW_K1, P_SLW_K1 + 3))
+for _f in ("SCH_Q_",) + tuple(f[0] for f in SCHED_FAMILIES):
+    assert [PARAM_INDEX[f"{_f}{i + 1}"] for i in range(SCHED_N)] == list(
+        range(PARAM_INDEX[f"{_f}1"], PARAM_INDEX[f"{_f}1"] + SCHED_N)), _f
 for _prm in LAW_PARAMS:
     assert len(_prm.name) <= 16 and _prm.name == _prm.name.upper(), _prm.name
     assert _prm.min <= _prm.default <= _prm.max, _prm.name

@@ -23,13 +23,15 @@ from fc.control.layout import (
     E_ALPHA, E_BETA, E_GAMMA, E_MU, E_V, NM_G, NM_MACH, NM_PSI, NM_QBAR,
     S_E1, S_FROZEN, S_INPUT_BAD, S_MACH, S_OMC_LIM, S_OMEGA_C, S_OMEGA_REF, S_QBAR, S_RHO_S,
     S_SIGMA, S_XI, TH_S_N,
-    X_AF2, X_INT_E1, X_LIM, X_OMC, X_PF, X_PF_DOT, X_RHO_S, X_SAT, X_SIGMA, X_XI,
+    X_AF2, X_FKIN, X_INT_E1, X_LIM, X_OMC, X_PF, X_PF_DOT, X_RHO_S, X_SAT, X_SIGMA, X_XI,
 )
 from fc.control.linalg3 import clip, wrap_pi
 from fc.control.nominal import COS_MIN, V_MIN_M_S, eval_model
 from fc.control.options import switch_on
+from fc.control.schedule import apply_schedule
 from fc.control.params import (
-    P_FLT_ANG_HZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN, P_REF_PF_ZETA, P_SLW_AW,
+    P_CTL_SCHED, P_FLT_ANG_CF, P_FLT_ANG_HZ, P_PAPER_LITERAL, P_REF_PF_EN, P_REF_PF_WN,
+    P_REF_PF_ZETA, P_SLW_AW,
     P_SLW_CFB, P_SLW_GAMMA, P_SLW_K1, P_SLW_KAPPA, P_SLW_LEAK, P_SLW_OMC_MAX, P_SLW_TH_BND,
 )
 
@@ -56,7 +58,7 @@ def tracking_error(est, par, x, literal):
     """e1 = Omega - Omega_c (rad), mu wrapped. With FLT_ANG_HZ > 0, Omega is the output of
     the input filter that the fast loop runs at its own (higher) rate, so the noise is
     filtered before the slow loop samples it."""
-    if par[P_FLT_ANG_HZ] > 0.0 and not literal:
+    if (par[P_FLT_ANG_HZ] > 0.0 or par[P_FLT_ANG_CF] > 0.0) and not literal:
         alpha_rad = x[X_AF2]
         beta_rad = x[X_AF2 + 1]
         mu_rad = x[X_AF2 + 2]
@@ -117,6 +119,9 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     st[S_INPUT_BAD] = 0.0
     eval_model(est, par, tab, atm, grid, nm)
     literal = switch_on(par, P_PAPER_LITERAL)
+    # gain schedule (CTL_SCHED): the gains at the estimated flight condition's dynamic pressure
+    if switch_on(par, P_CTL_SCHED) and not literal:
+        apply_schedule(nm[NM_QBAR], par, x)
     alpha_rad = est[E_ALPHA]
     beta_rad = est[E_BETA]
     v_m_s = max(est[E_V], V_MIN_M_S)
@@ -140,6 +145,10 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
 
     f1_alpha, f1_beta, f1_mu = f1_gravity(nm[NM_G], beta_rad, est[E_MU], v_m_s, est[E_GAMMA])
     psi_alpha, psi_beta, psi_mu = psi_theta(nm, x)
+    # the complementary attitude filter's model term (FLT_ANG_CF), held until the next slow step
+    x[X_FKIN] = f1_alpha + psi_alpha
+    x[X_FKIN + 1] = f1_beta + psi_beta
+    x[X_FKIN + 2] = f1_mu + psi_mu
 
     # Eq. 29 (Omega_c_dot where the OCR prints Omega_c):
     # omega_c = -g_s^-1 (kappa1 sigma + f1 + Psi^T theta_hat - Omega_c_dot + K e1)

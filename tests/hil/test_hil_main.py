@@ -27,7 +27,7 @@ import pytest
 from tools.hil import rundata
 from tools.hil.cli import format_table
 from tools.hil.rundata import strip_wall_clock
-from tools.hil.runner import parse_progress, shaping_params
+from tools.hil.runner import gains_params, parse_progress, shaping_params
 from tools.sitl.gcs import ScriptedGcs
 from tools.sitl.procs import repo_env as _env
 
@@ -257,6 +257,10 @@ def test_progress_line_parsing():
 def test_command_shaping_parameter():
     assert shaping_params("steps") == {"REF_PF_EN": 0.0}
     assert shaping_params("prefilter") == {"REF_PF_EN": 1.0}
+    assert gains_params("scheduled") == {"CTL_SCHED": 1.0}
+    assert gains_params("paper") == {"CTL_SCHED": 0.0}
+    with pytest.raises(ValueError):
+        gains_params("tuned")
     with pytest.raises(ValueError, match="unknown command shaping"):
         shaping_params("ramp")
 

@@ -62,9 +62,13 @@ def _parser() -> argparse.ArgumentParser:
                         "modes); prefilter: the controller's reference prefilter (REF_PF_EN 1, "
                         "default in the guidance modes: the guidance's 50 Hz commands are not "
                         "steps to track)")
+    r.add_argument("--gains", choices=("scheduled", "paper"), default="scheduled",
+                   help="scheduled: the gain schedule (CTL_SCHED 1, the default); paper: the "
+                        "paper's fixed gains (CTL_SCHED 0), to reproduce its comparison with "
+                        "the law it was made with")
     r.add_argument("--params", type=Path, default=None, metavar="FILE",
                    help="extra controller parameters (MAVProxy 'NAME VALUE' file); the "
-                        "command shaping is applied on top")
+                        "command shaping and the gains are applied on top")
     r.add_argument("--gcs-out", action="append", default=None, metavar="HOST:PORT",
                    help="also stream the controller's telemetry to this ground station "
                         "(repeatable; realtime default 127.0.0.1:14550 for MAVProxy/QGC, "
@@ -261,6 +265,7 @@ def cmd_run(args) -> int:
                     flight_mode=flight_mode, mission_file=mission_file,
                     out_dir=run_dir, duration_s=args.duration, seed=args.seed,
                     command_shaping=args.command_shaping, params_file=args.params,
+                    gains=args.gains,
                     gcs_out=gcs_out, progress_every_s=args.progress_every, quiet=args.quiet,
                     plant_cmd=tuple(shlex.split(args.plant_cmd or "")),
                     fc_cmd=tuple(shlex.split(args.fc_cmd or "")))
@@ -271,6 +276,7 @@ def cmd_run(args) -> int:
     meta = {"scenario": args.scenario, "mode": args.mode, "seed": args.seed,
             "expected_sim_time_s": expected_s,
             "variants": list(variants), "command_shaping": args.command_shaping,
+            "gains": args.gains,
             "flight_mode": flight_mode or "attitude",
             "mission_file": None if mission_file is None else str(mission_file),
             "duration_s": args.duration, "scenario_file": str(scen_path),

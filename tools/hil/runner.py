@@ -40,6 +40,7 @@ class RunConfig:
     duration_s: float | None = None      # None: the scenario's; 0: until Ctrl-C (realtime)
     seed: int = 0
     command_shaping: str = "steps"
+    gains: str = "scheduled"             # "scheduled" (CTL_SCHED 1, the default) or "paper"
     flight_mode: str = ""                # "" the variant's attitude mode, or CRUISE / GUIDED / MISSION
     mission_file: Path | None = None     # QGC WPL 110 file uploaded in MISSION
     params_file: Path | None = None      # extra controller parameters (MAVProxy format)
@@ -79,14 +80,25 @@ def shaping_params(shaping: str) -> dict[str, float]:
     raise ValueError(f"unknown command shaping {shaping!r} (steps or prefilter)")
 
 
+def gains_params(gains: str) -> dict[str, float]:
+    """Controller parameters that select the gains: the schedule (the default) or the paper's
+    fixed gains (CTL_SCHED 0, docs/control_law.md "Scheduling")."""
+    if gains == "scheduled":
+        return {"CTL_SCHED": 1.0}
+    if gains == "paper":
+        return {"CTL_SCHED": 0.0}
+    raise ValueError(f"unknown gains {gains!r} (scheduled or paper)")
+
+
 def controller_params(cfg: RunConfig) -> dict[str, float]:
-    """The parameters tools.hil gives the controller: the user's file, then the shaping, then
-    (lockstep) the failsafe timeout unless the user set it."""
+    """The parameters tools.hil gives the controller: the user's file, then the shaping and
+    the gains, then (lockstep) the failsafe timeout unless the user set it."""
     values: dict[str, float] = {}
     if cfg.params_file is not None:
         from fc.params import ParamTable
         values.update(ParamTable.read_file(str(cfg.params_file)))
     values.update(shaping_params(cfg.command_shaping))
+    values.update(gains_params(cfg.gains))
     if cfg.mode == "lockstep":
         # In lockstep the plant waits for the controller and may itself pause (JIT compile,
         # a loaded CPU); a pause of the sim is not a loss of plant data. The controller's

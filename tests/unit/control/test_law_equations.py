@@ -52,7 +52,7 @@ def _call_fast(law, est, dt):
 # ---------------------------------------------------------------------------------------------
 # Slow loop: Eqs. 26, 27, 29, 30 (+ V1 limit, V1b compensation, V2 freeze)
 # ---------------------------------------------------------------------------------------------
-SLOW_BASE = {"FLT_ANG_HZ": 0, "SLW_K1": 3, "SLW_K2": 4, "SLW_K3": 6, "SLW_KAPPA": 5,
+SLOW_BASE = {"CTL_SCHED": 0, "FLT_ANG_HZ": 0, "SLW_K1": 3, "SLW_K2": 4, "SLW_K3": 6, "SLW_KAPPA": 5,
              "SLW_GAMMA": 0.8, "SLW_LEAK": 0.7, "SLW_OMC_MAX": 0, "SLW_TH_BND": 0.5}
 INT0 = np.array([0.011, -0.023, 0.007])          # integral of e1 (rad s)
 RHO0 = np.array([0.1, -0.2, 0.05, 0.15])         # relative estimates of theta_Omega
@@ -593,7 +593,7 @@ def test_fast_step_input_filters():
     af1 = np.array([2.5 * DEG, 2.2 * DEG, -179.5 * DEG])
     af2 = np.array([2.0 * DEG, 2.5 * DEG, 179.0 * DEG])
     ff1, ff2 = np.array([0.3, -0.2, 0.1]), np.array([0.25, -0.1, 0.05])
-    law = _fast_setup({"CO_ENABLE": 0, "FLT_RATE_HZ": fr, "FLT_ANG_HZ": fa}, est)
+    law = _fast_setup({"CO_ENABLE": 0, "FLT_RATE_HZ": fr, "FLT_ANG_HZ": fa, "FLT_ANG_CF": 0}, est)
     for idx, v in ((L.X_WF1, wf1), (L.X_WF2, wf2), (L.X_AF1, af1), (L.X_AF2, af2),
                    (L.X_FF1, ff1), (L.X_FF2, ff2)):
         law.x[idx:idx + 3] = v

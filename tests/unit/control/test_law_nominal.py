@@ -30,7 +30,9 @@ def _state(alpha_deg, beta_deg, p, q, r, V=2200.0, h=21000.0, mu_deg=0.0, gamma_
 
 
 @pytest.mark.parametrize("alpha_deg,V,h", [(1.0, 2200.0, 21000.0), (5.0, 2200.0, 21000.0),
-                                          (3.3, 2400.0, 25000.0), (7.7, 1900.0, 18000.0)])
+                                          (3.3, 2400.0, 25000.0), (7.7, 1900.0, 18000.0),
+                                          # the envelope's top: Mach 14 / 30 km, Mach 15 / 34 km
+                                          (5.0, 4200.0, 30000.0), (3.0, 4520.0, 34000.0)])
 def test_model_reproduces_plant_moments_and_effectiveness(alpha_deg, V, h):
     from plant_sim.aero import coefficients, effectiveness_matrix
     from plant_sim.atmosphere import A_N, A_RHO_KG_M3, A_SOUND_M_S, us76
@@ -96,6 +98,50 @@ def test_theta_omega_nominal_on_grid_node_is_exact():
     assert nm[L.NM_COEF + L.T_CL0] == pytest.approx(c[0], rel=1e-4)
     assert nm[L.NM_COEF + L.T_CPITCH0] == pytest.approx(c[4], rel=1e-3)
     assert nm[L.NM_TH_S] == nm[L.NM_COEF + L.T_CL0]
+
+
+def test_tables_cover_the_plant_mach_range():
+    """The table's Mach axis is the plant's hypersonic fits' range (4..24): the envelope
+    (Mach 6-15) lies inside, and the law's model ends where the plant clips."""
+    from plant_sim.vehicle import MACH_MAX, MACH_MIN
+    _, _, grid = load_tables()
+    m_top = grid[L.G_MACH0] + grid[L.G_DMACH] * (grid[L.G_NMACH] - 1)
+    assert grid[L.G_MACH0] == MACH_MIN
+    assert m_top == MACH_MAX
+
+
+def _at_mach(mach, alpha_deg=5.0, h=30000.0):
+    """The nominal model at (mach, alpha_deg, h), sound speed from the model's own table."""
+    tab, atm, grid = load_tables()
+    par = default_si_array()
+    nm = np.zeros(L.NM_N)
+    eval_model(_state(alpha_deg, 0.0, 0.0, 0.0, 0.0, V=300.0, h=h), par, tab, atm, grid, nm)
+    V = mach * nm[L.NM_SOUND]
+    eval_model(_state(alpha_deg, 0.0, 0.0, 0.0, 0.0, V=V, h=h), par, tab, atm, grid, nm)
+    return nm
+
+
+def test_mach_15_is_inside_the_model():
+    """At Mach 15 the coefficients are the fits' at Mach 15 (not the old Mach-12 edge's)."""
+    from plant_sim.aero import coefficients
+    c = np.zeros(6)
+    for mach in (12.5, 15.0):
+        nm = _at_mach(mach)
+        coefficients(5.0, nm[L.NM_MACH], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, c)
+        assert nm[L.NM_MACH] == pytest.approx(mach, rel=1e-9)
+        assert nm[L.NM_COEF + L.T_CD0] == pytest.approx(c[1], rel=1e-3)
+        assert nm[L.NM_COEF + L.T_CPITCH0] == pytest.approx(c[4], rel=1e-2, abs=1e-5)
+    # and the model still changes with Mach up there (a table clamped at 12 would not)
+    assert _at_mach(15.0)[L.NM_COEF + L.T_CD0] != _at_mach(13.0)[L.NM_COEF + L.T_CD0]
+
+
+def test_model_is_clamped_beyond_the_top_mach():
+    """Beyond Mach 24 the model uses the Mach-24 edge (as the plant clips its fits)."""
+    a, b = _at_mach(24.0), _at_mach(27.0)
+    assert b[L.NM_MACH] > 26.9
+    c = L.NM_COEF
+    np.testing.assert_array_equal(a[c:c + L.T_N], b[c:c + L.T_N])
+    assert np.all(np.isfinite(b))
 
 
 def test_lookup_clamps_outside_the_box():

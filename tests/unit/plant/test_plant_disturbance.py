@@ -36,3 +36,64 @@ def test_phase_shifts_each_axis():
     d = _dist_at_start(parse(text))
     # THEN at t = 0: 0.5 A sin(90 deg), 0.5 A cos(90 deg), 0.5 A sin(-90 deg)
     assert d == pytest.approx([math.radians(5.0), 0.0, -math.radians(5.0)], abs=1e-12)
+
+
+# ---- d(t) as a moment coefficient (qbar_ref_Pa, envelope map b; docs/plant.md s. 8) ----------
+def _with(text: str, **disturbance) -> str:
+    for key, value in disturbance.items():
+        text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
+        assert n == 1, key
+    return text
+
+
+def _qbar0(scenario) -> float:
+    from plant_sim.atmosphere import A_N, A_RHO_KG_M3, us76
+    o = np.zeros(A_N)
+    us76(scenario.data["initial"]["h_m"], o)
+    return 0.5 * o[A_RHO_KG_M3] * scenario.data["initial"]["V_m_s"] ** 2
+
+
+def _angular_accel_of_disturbance(scenario, t_s: float) -> np.ndarray:
+    """d as the dynamics apply it: omega_dot with d(t) minus omega_dot without (rad/s^2)."""
+    from plant_sim import dynamics as dy
+    sim = PlantSim(scenario)
+    out = []
+    for on in (1.0, 0.0):
+        p = sim.p.copy()
+        p[dy.P_DIST_ON] = on
+        xdot = np.zeros(13)
+        dy.deriv(sim.x[:13].copy(), t_s, 0.0, 0.0, 0.0, p, np.zeros(dy.W_N), xdot)
+        out.append(xdot[dy.X_P:dy.X_R + 1].copy())
+    return out[0] - out[1]
+
+
+def test_coefficient_disturbance_equals_the_papers_at_the_reference_qbar():
+    # GIVEN the paper scenario, d(t) as a coefficient referenced to its own initial qbar
+    paper = load("paper")
+    text = _with(paper.to_toml(), qbar_ref_Pa=repr(float(_qbar0(paper))))
+    coef = parse(text)
+    # THEN at the paper's point it is the paper's d, in the log and in the dynamics
+    assert _dist_at_start(coef) == pytest.approx(_dist_at_start(paper), rel=1e-9, abs=1e-15)
+    t_s = 0.7                                   # all three axes non-zero
+    d_paper = _angular_accel_of_disturbance(paper, t_s)
+    assert np.all(np.abs(d_paper) > 1e-3)
+    np.testing.assert_allclose(_angular_accel_of_disturbance(coef, t_s), d_paper, rtol=1e-9)
+
+
+def test_coefficient_disturbance_is_proportional_to_qbar():
+    # GIVEN the same coefficient (paper's reference qbar) flown at 28 km (qbar ~ 2.5x lower)
+    paper = load("paper")
+    q_ref = _qbar0(paper)
+    high = parse(_with(paper.to_toml(), h_m="28000.0"))
+    coef_high = parse(_with(high.to_toml(), qbar_ref_Pa=repr(float(q_ref))))
+    ratio = _qbar0(high) / q_ref
+    assert 0.3 < ratio < 0.5
+    # THEN the disturbance is the paper's times qbar / qbar_ref, in the log and the dynamics
+    # (the plain d(t) does not change with altitude: it is an angular acceleration)
+    np.testing.assert_allclose(_dist_at_start(coef_high), ratio * _dist_at_start(high),
+                               rtol=1e-6, atol=1e-15)
+    t_s = 0.7
+    np.testing.assert_allclose(_angular_accel_of_disturbance(coef_high, t_s),
+                               ratio * _angular_accel_of_disturbance(high, t_s), rtol=1e-6)
+    np.testing.assert_allclose(_angular_accel_of_disturbance(high, t_s),
+                               _angular_accel_of_disturbance(paper, t_s), rtol=1e-12)

@@ -6,6 +6,10 @@ about 2-3 s (measured), so the last 1 s window of final_error_deg is well after 
 and overshoot and settling time equal those of the 20 s runs of docs/control_law.md.
 Bounds are justified next to each assertion; ``test_documented_figures`` pins the figures
 that docs/control_law.md section 9 reports, with stated tolerances.
+
+Every run here flies the paper's fixed gains (CTL_SCHED 0, the law these figures were measured
+on); the gain-scheduled law, the default since issue 20, is flown in
+tests/unit/tools/test_schedule_corridor.py.
 """
 from __future__ import annotations
 
@@ -14,7 +18,15 @@ import math
 import numpy as np
 import pytest
 
-from tools.sitl.closed_loop import simulate
+from tools.sitl.closed_loop import simulate as _simulate
+
+#: the paper's fixed gains (docs/control_law.md "Scheduling": CTL_SCHED 0)
+PAPER_GAINS = {"CTL_SCHED": 0}
+
+
+def simulate(scenario, *, law_overrides=None, **kw):
+    """tools.sitl.closed_loop.simulate with the paper's fixed gains (overridable)."""
+    return _simulate(scenario, law_overrides={**PAPER_GAINS, **(law_overrides or {})}, **kw)
 
 DURATION_S = 8.0
 DEG = math.pi / 180.0

@@ -48,3 +48,28 @@ def test_spec_and_maps_from_rows():
     assert mp[("unco", "ts")][0, 1] == math.inf
     assert mp[("unco", "div")][1, 0] == 1.0 and np.isnan(mp[("unco", "os")][1, 0])
     assert np.isnan(mp[("unco", "os")][1, 1])                 # not flown
+
+
+def test_map_b_disturbance_is_the_papers_at_the_papers_point():
+    """Map (b): d(t) as a moment coefficient referenced to the paper's 183 kPa; map (a) keeps
+    the paper's angular acceleration (no reference)."""
+    a = E.point_scenario(10.0, 30e3)
+    b = E.point_scenario(10.0, 30e3, disturbance="coefficient")
+    assert a.data["disturbance"]["qbar_ref_Pa"] == 0.0
+    assert b.data["disturbance"]["qbar_ref_Pa"] == pytest.approx(
+        0.5 * 0.0757148627 * 2200.0 ** 2, rel=1e-3)
+    with pytest.raises(ValueError):
+        E.point_scenario(10.0, 30e3, disturbance="gust")
+
+
+def test_summary_counts_unsettled_and_the_target_corridor():
+    base = {"variant": "unco", "diverged": False, "error": "", "alpha_os_pct": 1.0,
+            "beta_os_pct": 1.0, "mu_os_pct": 1.0, "alpha_ts_s": 1.0, "beta_ts_s": 1.0,
+            "mu_ts_s": 1.0}
+    rows = [dict(base, mach=7.0, h_km=22.0, qbar_kPa=139.0),
+            dict(base, mach=7.0, h_km=30.0, qbar_kPa=41.0, mu_ts_s=math.nan),   # unsettled
+            dict(base, mach=6.0, h_km=36.0, qbar_kPa=12.0)]                    # below 24 kPa
+    assert E.unsettled(rows[1]) and not E.unsettled(rows[0])
+    assert [E.in_target_corridor(r) for r in rows] == [True, True, False]
+    text = E.summary(rows)
+    assert "unsettled at 20 s 1" in text and "Mach <= 15: 1 of 2 (50 %)" in text

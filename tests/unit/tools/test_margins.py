@@ -123,12 +123,17 @@ def test_delay_margin_matches_phase_margin_over_crossover():
 
 
 def test_nonlinear_loop_is_stable_nominally_and_a_large_pitch_gain_breaks_it():
+    """With the paper's fixed gains (CTL_SCHED 0: whole-command pitch gain margin x2.3-2.9,
+    docs/margins.md) a pitch gain of 8 breaks the loop; the scheduled law's margin about
+    trim is x12 (issue 20), so it is the paper's law that checks the verdict here."""
     sc = M.margin_scenario()
-    nominal = M.fly(sc, M.make_inj(), duration_s=12.0)
+    paper = {"CTL_SCHED": 0}
+    nominal = M.fly(sc, M.make_inj(), duration_s=12.0, law_overrides=paper)
     assert not nominal.diverged and M.stable(nominal)
     # the law's command reaches the plant unchanged without a perturbation
     assert np.array_equal(nominal.v_c_rad, nominal.v_out_rad)
-    broken = M.fly(sc, M.make_inj("gain", "pitch", gain=8.0), duration_s=12.0)
+    broken = M.fly(sc, M.make_inj("gain", "pitch", gain=8.0), duration_s=12.0,
+                   law_overrides=paper)
     assert not M.stable(broken)
 
 
@@ -139,3 +144,26 @@ def test_margin_scenario_options():
     assert sc.data["initial"]["h_m"] == 26e3
     assert all(v == 0.0 for v in sc.data["sensors"]["noise"].values())
     assert M.margin_scenario(disturbance=True).data["disturbance"]["enabled"] is True
+    assert M.margin_scenario(initial_beta_deg=0.0).data["initial"]["beta_deg"] == 0.0
+    assert M.margin_scenario().data["initial"]["beta_deg"] == 5.0
+
+
+def test_grid_table_checks_the_issue_20_targets(tmp_path):
+    """`python -m tools.margins table DIR...`: one row per variant and channel, 'yes' only when
+    all-pass PM >= 45 deg, gain about trim >= 6 dB up and down and the all-channel delay
+    >= 50 ms; a variant without results (unperturbed loop unstable) reads 0 ms, 'no'."""
+    import json
+
+    def res(ch, pm, up, down):
+        return {"channel": ch, "coordinated": True, "pm_allpass_deg": [pm, pm + 1],
+                "gain_ac_up": [up, up * 1.01], "gain_ac_down": [down, down * 0.99]}
+    j = {"point": "8,26", "frame_dt_s": 0.001, "overrides": {}, "initial_beta_deg": None,
+         "results": [res("roll", 50.0, 2.0 ** 0.5 * 2.0, 0.4), res("pitch", 44.0, 4.0, 0.3),
+                     res("yaw", 50.0, 1.9, 0.3)],
+         "delays": {"co/all": [60, 61], "unco/all": [0, 0]}}
+    (tmp_path / "margins.json").write_text(json.dumps(j))
+    rows = [r for r in M.grid_table([tmp_path]).splitlines()[2:]]
+    assert [r.split("|")[4].strip() for r in rows] == ["roll", "pitch", "yaw", "all"]
+    assert [r.rstrip(" |").split("|")[-1].strip()[:3] for r in rows] == [
+        "yes", "no", "no", "no:"]
+    assert "| 98 |" in rows[0]                                   # Mach 8 / 26 km, US76

@@ -1,0 +1,170 @@
+"""The gain schedule (fc/control/schedule.py): interpolation, clamping at the table's edges,
+continuity, bumpless application, and the SCH_* parameters reaching the law (issue 20)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fc.control import layout as L
+from fc.control.law import AttitudeLaw
+from fc.control.params import (
+    LAW_PARAMS, PARAM_INDEX, P_DOB_C, P_FLT_ANG_HZ, P_FLT_RATE_HZ, P_FST_CF_WN, P_FST_KAPPA,
+    P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
+    default_si_array,
+)
+from fc.control.schedule import apply_schedule, schedule_index
+from fc.control.schedule_data import SCHED_N, SCHED_QUANTITIES, load_schedule
+
+DEG = math.pi / 180.0
+TAB = load_schedule()
+NODES_PA = TAB["qbar_kpa"] * 1e3
+# (SI slot the schedule writes, npz name, SI scale)
+TARGETS = ((P_SLW_KAPPA, "kappa1", 1.0), (P_SLW_K1, "K", 1.0), (P_SLW_K1 + 1, "K", 1.0),
+           (P_SLW_K1 + 2, "K", 1.0), (P_FST_KAPPA, "kappa2", 1.0), (P_DOB_C, "dob_c", 1.0),
+           (P_FST_CF_WN, "cf_wn", 1.0), (P_FLT_RATE_HZ, "flt_rate_hz", 1.0),
+           (P_FLT_ANG_HZ, "flt_ang_hz", 1.0), (P_SLW_OMC_MAX, "omc_max_deg_s", DEG))
+
+
+def scheduled_par(qbar_pa: float) -> np.ndarray:
+    """A default parameter array after the schedule was applied at ``qbar_pa``."""
+    par = default_si_array()
+    apply_schedule(qbar_pa, par, np.zeros(L.X_N))
+    return par
+
+
+def expected(name: str, qbar_pa: float) -> float:
+    """The table's value, interpolated independently (numpy, clamped at the ends)."""
+    return float(np.interp(qbar_pa, NODES_PA, TAB[name]))
+
+
+def test_the_parameter_defaults_are_the_committed_table():
+    assert PARAM_INDEX["CTL_SCHED"] < PARAM_INDEX["SCH_Q_1"]
+    for i in range(SCHED_N):
+        assert LAW_PARAMS[PARAM_INDEX[f"SCH_Q_{i + 1}"]].default == pytest.approx(
+            TAB["qbar_kpa"][i])
+        for prefix, key, *_ in SCHED_FAMILIES:
+            assert LAW_PARAMS[PARAM_INDEX[f"{prefix}{i + 1}"]].default == pytest.approx(
+                TAB[key][i])
+    assert {f[1] for f in SCHED_FAMILIES} == {q[0] for q in SCHED_QUANTITIES}
+    assert LAW_PARAMS[PARAM_INDEX["CTL_SCHED"]].default == 1.0
+
+
+@pytest.mark.parametrize("i", range(SCHED_N))
+def test_at_each_node_the_law_takes_that_nodes_values(i):
+    """GIVEN the dynamic pressure of node i THEN every scheduled slot holds node i's value
+    (a schedule indexed one node off, or with the fraction reversed, fails here)."""
+    par = scheduled_par(NODES_PA[i])
+    for slot, name, scale in TARGETS:
+        assert par[slot] == pytest.approx(TAB[name][i] * scale, rel=1e-12), (i, name)
+
+
+@pytest.mark.parametrize("frac", [0.25, 0.5, 0.9])
+def test_between_nodes_the_values_are_interpolated_linearly(frac):
+    for i in range(SCHED_N - 1):
+        q = NODES_PA[i] + frac * (NODES_PA[i + 1] - NODES_PA[i])
+        k, f = schedule_index(q, default_si_array())
+        assert (k, f) == (i, pytest.approx(frac))
+        par = scheduled_par(q)
+        for slot, name, scale in TARGETS:
+            assert par[slot] == pytest.approx(expected(name, q) * scale, rel=1e-12)
+
+
+@pytest.mark.parametrize("q_pa", [0.0, 1.0, -5.0, math.nan, 0.5 * NODES_PA[0]])
+def test_below_the_first_node_the_first_nodes_values_hold(q_pa):
+    assert schedule_index(q_pa, default_si_array()) == (0, 0.0)
+    par = scheduled_par(q_pa)
+    for slot, name, scale in TARGETS:
+        assert par[slot] == pytest.approx(TAB[name][0] * scale, rel=1e-12)
+
+
+@pytest.mark.parametrize("q_pa", [NODES_PA[-1], 2.0 * NODES_PA[-1], 1e9, math.inf])
+def test_above_the_last_node_the_last_nodes_values_hold(q_pa):
+    assert schedule_index(q_pa, default_si_array()) == (SCHED_N - 2, 1.0)
+    par = scheduled_par(q_pa)
+    for slot, name, scale in TARGETS:
+        assert par[slot] == pytest.approx(TAB[name][-1] * scale, rel=1e-12)
+
+
+def test_the_schedule_is_continuous_in_dynamic_pressure():
+    """No jump anywhere (nodes included): over a fine sweep each value moves by at most the
+    table's steepest slope times the step."""
+    qs = np.linspace(0.5 * NODES_PA[0], 1.2 * NODES_PA[-1], 4001)
+    dq = qs[1] - qs[0]
+    for slot, name, scale in TARGETS:
+        v = np.array([scheduled_par(q)[slot] for q in qs])
+        slope = np.max(np.abs(np.diff(TAB[name] * scale) / np.diff(NODES_PA)))
+        tol = 1e-12 * max(1.0, float(np.max(np.abs(v))))
+        assert np.max(np.abs(np.diff(v))) <= slope * dq * (1 + 1e-9) + tol, name
+
+
+def test_non_increasing_nodes_do_not_break_the_kernel():
+    """A ground station may write nodes out of order: the kernel stays finite and in range."""
+    par = default_si_array()
+    par[P_SCH_Q:P_SCH_Q + SCHED_N] = par[P_SCH_Q:P_SCH_Q + SCHED_N][::-1]
+    for q in (0.0, 5e4, 1e5, 3e5, 1e6):
+        k, f = schedule_index(q, par)
+        assert 0 <= k <= SCHED_N - 2 and 0.0 <= f <= 1.0
+
+
+def test_application_is_bumpless_for_the_integral_and_the_observer():
+    """K int(e1) and d_hat = z + c omega keep their values when the gains change."""
+    par = default_si_array()
+    x = np.zeros(L.X_N)
+    x[L.X_INT_E1:L.X_INT_E1 + 3] = (0.01, -0.02, 0.03)
+    x[L.X_Z:L.X_Z + 3] = (0.1, 0.2, -0.3)
+    x[L.X_EF + L.E_P:L.X_EF + L.E_P + 3] = (0.05, -0.04, 0.02)
+    k_int = par[P_SLW_K1:P_SLW_K1 + 3] * x[L.X_INT_E1:L.X_INT_E1 + 3]
+    d_hat = x[L.X_Z:L.X_Z + 3] + par[P_DOB_C] * x[L.X_EF + L.E_P:L.X_EF + L.E_P + 3]
+    node = next(i for i in range(SCHED_N)
+                if TAB["K"][i] != par[P_SLW_K1] and TAB["dob_c"][i] != par[P_DOB_C])
+    apply_schedule(NODES_PA[node], par, x)
+    assert par[P_SLW_K1] == TAB["K"][node] and par[P_DOB_C] == TAB["dob_c"][node]
+    np.testing.assert_allclose(par[P_SLW_K1:P_SLW_K1 + 3] * x[L.X_INT_E1:L.X_INT_E1 + 3],
+                               k_int, rtol=1e-12)
+    np.testing.assert_allclose(
+        x[L.X_Z:L.X_Z + 3] + par[P_DOB_C] * x[L.X_EF + L.E_P:L.X_EF + L.E_P + 3], d_hat,
+        rtol=1e-12)
+
+
+def _est_at(qbar_pa: float, law: AttitudeLaw) -> np.ndarray:
+    """An estimated state at Mach 8 whose nominal dynamic pressure is ``qbar_pa``."""
+    from tools.schedule_design import altitude_for, atm_at
+    h = altitude_for(8.0, qbar_pa, law.atm, law.grid)
+    est = np.zeros(L.E_N)
+    est[L.E_ALPHA] = 5 * DEG
+    est[L.E_V] = 8.0 * atm_at(h, law.atm, law.grid)[L.ATM_SOUND]
+    est[L.E_H] = h
+    return est
+
+
+def test_the_sch_parameters_reach_the_law_through_its_estimated_air_data():
+    """GIVEN a law whose SCH_KAP2_3 is set by name WHEN it flies a slow step at node 3's
+    dynamic pressure (from the estimated airspeed and altitude) THEN kappa2 in use is that
+    value; at CTL_SCHED 0 the fixed FST_KAPPA is back."""
+    law = AttitudeLaw({"SCH_KAP2_3": 7.25, "FST_KAPPA": 5.0})
+    est = _est_at(NODES_PA[2], law)
+    law.reset(est)
+    law.slow_step(est, (5 * DEG, 0.0, 0.0), 0.01)
+    assert law.status_dict()["qbar_Pa"] == pytest.approx(NODES_PA[2], rel=1e-6)
+    assert law.par[P_FST_KAPPA] == pytest.approx(7.25, rel=1e-6)
+    assert law.par[P_SLW_KAPPA] == pytest.approx(TAB["kappa1"][2], rel=1e-5)
+    law.set_param("CTL_SCHED", 0)
+    for name in SCHEDULED_NAMES:
+        assert law.par[PARAM_INDEX[name]] == pytest.approx(
+            LAW_PARAMS[PARAM_INDEX[name]].default * LAW_PARAMS[PARAM_INDEX[name]].si_scale)
+    law.slow_step(est, (5 * DEG, 0.0, 0.0), 0.01)
+    assert law.par[P_FST_KAPPA] == 5.0                        # the paper's fixed gain
+    law.set_param("CTL_SCHED", 1)
+    law.slow_step(est, (5 * DEG, 0.0, 0.0), 0.01)
+    assert law.par[P_FST_KAPPA] == pytest.approx(7.25, rel=1e-6)
+
+
+def test_paper_literal_flies_the_papers_gains():
+    law = AttitudeLaw({"PAPER_LITERAL": 1})
+    est = _est_at(NODES_PA[1], law)
+    law.reset(est)
+    law.slow_step(est, (5 * DEG, 0.0, 0.0), 0.01)
+    assert law.par[P_SLW_KAPPA] == 5.0 and law.par[P_SLW_K1] == 4.0
+    assert law.par[P_DOB_C] == 10.0

@@ -1,0 +1,59 @@
+"""The gain-scheduled law (the default since issue 20) flies the paper's case across the
+corridor: in process, the fc's estimator on the scenario's seeded sensor noise, the paper's
+d(t) as a moment coefficient (tools.envelope map b: it scales with dynamic pressure).
+
+Measured (seed 3, 20 s; overshoot % / final error deg, worst channel), scheduled vs the
+paper's fixed gains (CTL_SCHED 0):
+    Mach 8 / 26 km (98 kPa)     co 3.9 / 0.068   unco 3.5 / 0.068   paper gains 20 / 0.15, 17 / 0.15
+    Mach 7.5 / 28 km (64 kPa)   co 7.1 / 0.071   unco 6.6 / 0.072   paper gains 28 / 0.84, 20 / 0.58
+    Mach 8 / 30 km (54 kPa)     co 8.3 / 0.075   unco 7.8 / 0.076   paper gains 26 / 0.56, 24 / 0.77
+The paper's gains overshoot 17-28 % in mu and at 64 and 54 kPa end in a lateral limit cycle
+(final errors 0.3-0.8 deg): every bound below fails with them (the last test checks it at
+54 kPa).
+"""
+from __future__ import annotations
+
+import pytest
+
+from tools.envelope import point_scenario
+from tools.sitl.closed_loop import simulate
+
+POINTS = [(8.0, 26e3), (7.5, 28e3), (8.0, 30e3)]
+DURATION_S = 12.0
+SEED = 3
+#: the paper's spec bound on overshoot (issue 20), and a final error below the 0.2 deg
+#: settling band of the 4-5 deg steps (measured 0.03-0.08 deg)
+OVERSHOOT_MAX_PCT = 10.0
+FINAL_ERROR_MAX_DEG = 0.12
+#: every channel inside its band by then (measured mu 5.1-6.0 s at 54-64 kPa, others < 3 s)
+SETTLING_MAX_S = 8.0
+
+
+def _fly(mach, h_m, coordinated, overrides=None):
+    sc = point_scenario(mach, h_m, disturbance="coefficient")
+    res = simulate(sc, coordinated=coordinated, duration_s=DURATION_S, seed=SEED,
+                   estimate="sensors", law_overrides=overrides)
+    return res, res.metrics()
+
+
+@pytest.mark.parametrize("coordinated", [True, False], ids=["co", "unco"])
+@pytest.mark.parametrize("point", POINTS, ids=lambda p: f"M{p[0]:g}-{p[1] / 1e3:g}km")
+def test_scheduled_law_meets_the_spec_across_the_corridor(point, coordinated):
+    res, m = _fly(*point, coordinated)
+    assert not res.diverged
+    for name in ("alpha", "beta", "mu"):
+        c = m[name]
+        assert c.overshoot_pct is not None and c.overshoot_pct <= OVERSHOOT_MAX_PCT, (name, c)
+        assert c.final_error_deg < FINAL_ERROR_MAX_DEG, (name, c)
+        assert c.settling_time_s is not None and c.settling_time_s < SETTLING_MAX_S, (name, c)
+    # a surface touches its limit for 0.03-0.07 s in the first transient at 54-64 kPa (the
+    # initial 5 deg sideslip); bound as the paper case's tests (test_closed_loop.py)
+    assert m["surfaces"]["saturated_s"] < 0.2
+
+
+def test_the_papers_gains_fail_these_bounds_at_54_kpa():
+    """The comparison the bounds were chosen against: the same flight with CTL_SCHED 0."""
+    res, m = _fly(8.0, 30e3, True, {"CTL_SCHED": 0})
+    worst_os = max(m[n].overshoot_pct or 0.0 for n in ("alpha", "beta", "mu"))
+    worst_final = max(m[n].final_error_deg for n in ("alpha", "beta", "mu"))
+    assert res.diverged or worst_os > OVERSHOOT_MAX_PCT or worst_final > FINAL_ERROR_MAX_DEG
