@@ -13,7 +13,7 @@ from tools.bench import profile
 
 def test_profile_reports_every_frame_part(tmp_path, capsys):
     out = tmp_path / "p.json"
-    assert profile.main(["--frames", "300", "--top", "10", "--chore-every", "100",
+    assert profile.main(["--frames", "300", "--top", "500", "--chore-every", "100",
                          "--json", str(out)]) == 0
     d = json.loads(out.read_text())
     rows = {r["part"]: r for r in d["parts"]}
@@ -31,6 +31,7 @@ def test_profile_reports_every_frame_part(tmp_path, capsys):
         assert rows[part]["calls_per_frame"] > 0.0, part
     assert rows["total"]["mean_us_per_frame"] > 0.0
     assert d["plain"]["frames"] == 300 and d["plain"]["wall_median_us"] > 0.0
+    # every function is listed (--top above the count), so the frame entry is there whatever the load
     assert "lockstep_frame" in d["cprofile"]
     assert "| total |" in capsys.readouterr().out
 
