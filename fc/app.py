@@ -311,12 +311,13 @@ class FlightController:
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
-            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d",
+            "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d, "
+            "gnss samples %d, gnss dropped %d",
             c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
             c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
             self.telemetry.skipped_ticks(), self.counters.law_errors,
-            self.counters.reordered_frames)
+            self.counters.reordered_frames, c.gnss, c.gnss_rejected)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "
