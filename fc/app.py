@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fc.cruise_track import CruiseTrack
 from fc.estimator import E_N, Estimator
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
@@ -36,6 +37,7 @@ from fc.loops import Housekeeping, RunLoops
 from fc.scheduler import FrameGate, LoopStats, TickPlanner
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 from fc.timeline import Timeline, load_timeline
+from hyfc_wire.earth import EARTH_RADIUS_M
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
@@ -118,6 +120,7 @@ class FlightController:
         # the stored mission (fc/mission.py, its protocol in fc/gcs.py) and MISSION mode
         self.mission = Mission()
         self.mission_flight = MissionFlight(self.mission)
+        self.cruise_track = CruiseTrack(EARTH_RADIUS_M)
 
         # --- state
         self.meas = np.zeros(M_N)
@@ -244,9 +247,11 @@ class FlightController:
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
-                    if (self.guid.tick(self.est.est, self.meas)
-                            and modes.mode == FlightMode.MISSION):
-                        self.gcs.mission_send(self.mission_flight.tick(self))
+                    if self.guid.tick(self.est.est, self.meas):
+                        if modes.mode == FlightMode.MISSION:
+                            self.gcs.mission_send(self.mission_flight.tick(self))
+                        elif modes.mode == FlightMode.CRUISE:
+                            self.cruise_track.tick(self)     # the great circle (fc/cruise_track.py)
                     out.cmd_active = self.guid.cmd_rad
                 else:
                     out.cmd_active = self.settings.cmd_rad
