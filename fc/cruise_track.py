@@ -8,8 +8,9 @@ every ``NAV_DIV``-th guidance step (10 Hz) :class:`CruiseTrack` sets the course 
 course, at the vehicle's position, of the great circle it was on when CRUISE began (or when
 the course target was last changed by someone else: the circle then starts at that course,
 from where the vehicle is). The position is the newest GNSS sample moved along the circle by
-the ground speed times the sample's age, so the target refers to where the vehicle is now,
-as the measured course does (within one guidance step, 45 m at Mach 7.5, even over a pole).
+the ground speed times the sample's age, so the target refers to where the vehicle is when
+it is set, as the measured course does; it then holds for NAV_DIV guidance steps (0.1 s,
+225 m at Mach 7.5): straight over a pole the two can disagree for at most that long.
 
 No cross-track term: the circle is the one the vehicle is on (a drift sideways moves the
 circle with it, as a course hold does on a flat earth). Geometry in fc/guidance/waypoints.py
