@@ -29,12 +29,15 @@ from fc.iothread import IoThread
 from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
+from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
 from fc.mode_control import ModeControl
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
 from fc.param_service import ParamService, load_param_file
 from fc.params import ParamTable, build_table
 from fc.loops import Housekeeping, RunLoops
 from fc.scheduler import FrameGate, LoopStats, TickPlanner
+from fc.signing import FILE_NAME as SIGNING_FILE
+from fc.storage import DiskHealth
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 from fc.timeline import Timeline, load_timeline
 from hyfc_wire.earth import EARTH_RADIUS_M
@@ -105,6 +108,10 @@ class FlightController:
         self.params: ParamTable = build_table(law_params)
         law_names = {p.name for p in law_params}
         params_path = cfg.params or os.path.join(cfg.out, "params.parm")
+        # what the fc keeps across restarts sits beside the parameters: the signing stream
+        # timestamps (fc/signing.py), the mission and home
+        state_dir = os.path.dirname(os.path.abspath(params_path))
+        self.disk = DiskHealth()
         startup_texts = load_param_file(self.params, params_path, self.log)
         overrides = {n: self.params.get(n) for n in law_names}
         self.law = law_cls(overrides)
@@ -128,7 +135,7 @@ class FlightController:
         self.est = Estimator(self.params.get("EST_STALE_S"))
         # parameter changes after start-up, the process's own parameters in SI
         self.param_svc = ParamService(self.params, law_names, self.law, self.guid, self.est,
-                                      params_path, self.log)
+                                      params_path, self.log, disk=self.disk)
         self.settings = self.param_svc.settings
         self.out = TickOutput(self.settings.cmd_rad)
         self.pwm_us = self.out.pwm_us           # VehicleView (the same array)
@@ -141,7 +148,21 @@ class FlightController:
         self.io = IoThread(self.log)
         self.gcs = GcsLink(self, cfg.gcs_bind, cfg.gcs, os.path.join(cfg.out, "fc.tlog"),
                            signing_key=key, log=self.log, io=self.io,
-                           sim_time=cfg.mode == "lockstep")
+                           sim_time=cfg.mode == "lockstep",
+                           signing_path=os.path.join(state_dir, SIGNING_FILE), disk=self.disk)
+        self.mission.alt_limits_m = self._mission_alt_limits    # checked at upload
+        # the mission and home of the last run (fc/mission_store.py): a restart flies on
+        self.mission_store = MissionStore(self.mission, os.path.join(state_dir, MISSION_FILE),
+                                          self._home, self.log, self.disk)
+        restored_home = self.mission_store.load()
+        if restored_home is not None:
+            self.gcs.home = restored_home
+            startup_texts.append((ML.MAV_SEVERITY_INFO, "home restored: %.7f %.7f %.0f m"
+                                  % restored_home))
+        if self.mission.count:
+            startup_texts.append((ML.MAV_SEVERITY_INFO,
+                                  f"mission restored: {self.mission.count} items, "
+                                  f"current {self.mission.current}"))
         if key is not None:
             self.log.info("MAVLink 2 signing enabled on the GCS link (key from %s)",
                           cfg.signing_key_file)
@@ -156,10 +177,14 @@ class FlightController:
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
-        self.ilog = InternalsLog(cfg.out, self.telemetry.columns())
+        self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk)
+        # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
+        self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
+                       (self.mission_store.snapshot, self.mission_store.save))
         housekeeping = Housekeeping(self.gcs, self.plant, self.intake, self.mode_ctl, self.stats,
                                     self.planner, self.counters, self.telemetry, self.param_svc,
-                                    self.io, self._event, self.log)
+                                    self.io, self._event, self.log, disk=self.disk,
+                                    savers=self.savers)
         self.loops = RunLoops(cfg.mode, cfg.sync, cfg.spin_us, cfg.realtime_priority, self.plant,
                               self.gcs, self.intake, self.planner, self.gate, self.stats,
                               self.counters, self.telemetry, self.ilog, self.modes,
@@ -219,6 +244,16 @@ class FlightController:
                           self.guid.targets()[0], math.degrees(self.guid.targets()[1]),
                           self.guid.targets()[2])
         return reason
+
+    def _home(self) -> tuple[float, float, float] | None:
+        return self.gcs.home
+
+    def _mission_alt_limits(self) -> tuple[float, float, float | None]:
+        """(GT_ALT_MIN m, GT_ALT_MAX m, home altitude m MSL or None): a mission's waypoint
+        altitudes are checked against them at upload (fc/mission.py)."""
+        home = self.gcs.home
+        return (self.params.get("GT_ALT_MIN"), self.params.get("GT_ALT_MAX"),
+                None if home is None else home[2])
 
     def guidance_targets(self) -> tuple[float, float, float]:
         """(altitude m, course rad, speed m/s) the guidance flies (or last flew)."""
@@ -282,7 +317,10 @@ class FlightController:
         return self.intake.stamp_us
 
     def health_failed_bits(self) -> int:
-        return self.mode_ctl.health_failed_bits()
+        bits = self.mode_ctl.health_failed_bits()
+        if self.disk.failing:
+            bits |= ML.MAV_SYS_STATUS_LOGGING     # a write failed and has not succeeded since
+        return bits
 
     def load_permille(self) -> int:
         return self.counters.load_permille
@@ -310,8 +348,16 @@ class FlightController:
     def close(self) -> None:
         """Flush and close logs and sockets (SIGINT/SIGTERM path)."""
         self.io.close()
+        # every save below reports its own failure (fc/storage.py): a full disk must not turn
+        # a clean exit into a traceback
         if self.param_svc.dirty:
             self.param_svc.save()
+        if self.gcs.guard is not None:
+            self.gcs.guard.dirty = True        # the fc's own timestamp, stored at every exit
+        for snapshot, save in self.savers:
+            data = snapshot()
+            if data is not None:
+                save(data)
         c = self.plant.counters
         self.log.info(
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
@@ -332,6 +378,8 @@ class FlightController:
             path = self.ilog.close()
             self.log.info("internals log: %s (%d rows, %d dropped)", path, self.ilog.rows,
                           self.ilog.dropped)
+        except Exception as exc:  # noqa: BLE001 - the exit stays clean; the raw file is kept
+            self.log.error("internals log not closed: %r", exc)
         finally:
             self.gcs.close()
             self.plant.endpoint.close()

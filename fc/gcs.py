@@ -14,6 +14,11 @@ direction) is in docs/fc.md. As a PX4/ArduPilot SITL session:
   (fc/ratelimit.py), long texts chunked;
 - integer parameters are INT32, bytewise (fc/params.py ``encode_value``); a refused set is
   answered at once with PARAM_ERROR and the unchanged PARAM_VALUE.
+- the protocol services are modules of their own, each with its state (docs/fc.md section
+  7a): TIMESYNC (fc/gcs_timesync.py), log download (fc/gcs_logs.py), read-only FTP
+  (fc/gcs_ftp.py); this link dispatches their requests and sends their answers to the
+  requester only (``_service_out``), paced within ``max_tx``; fc/gcs_streams.py holds the
+  field rules of the streamed state (landed state, speeds that do not fit a field).
 
 Work per call is bounded (``poll`` reads at most ``max_rx`` datagrams, ``service`` sends
 at most ``max_tx`` messages), so a flood of ground-station traffic cannot stall the control
@@ -25,17 +30,24 @@ The vehicle (fc/app.py) is reached through a typed interface, fc/vehicle_view.py
 from __future__ import annotations
 
 import math
+import os
 import struct
 import time
 from collections import deque
 
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_HEADING, LeanFramer, UdpEndpoint,
-                     decode_datagram, mavlink, mavlink_dev, new_codec)
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, LeanFramer,
+                     UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
+from fc.gcs_ftp import FtpService
+from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
+from fc.gcs_streams import cm_s_i16, cm_s_u16, landed_state, local_ned
+from fc.gcs_timesync import answer as timesync_answer
 from fc.mission import MSG_IDS as MISSION_MSGS, encode as mission_encode
 from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
+from fc.signing import SigningGuard, clock_timestamp
+from fc.storage import AppendFile, DiskHealth
 from fc.vehicle_view import VehicleView
 
 __all__ = ["GcsLink", "STREAM_DEFAULTS_S", "UNSIGNED_ALLOWED", "CMD_ATTITUDE"]
@@ -60,6 +72,8 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
     ML.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
     ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.1,  # from the first GNSS fix on
+    ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.1,   # from the first GNSS fix on (true velocity)
+    ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,   # landed state (fc/gcs_streams.py)
     ML.MAVLINK_MSG_ID_HOME_POSITION: 5.0,        # from the first GNSS fix on
     ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: 0.25,  # in the guidance modes only
     ML.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,      # and on every change (fc/mission.py)
@@ -79,8 +93,10 @@ DATA_STREAMS = {
                                          MD.MAVLINK_MSG_ID_CURRENT_MODE,
                                          ML.MAVLINK_MSG_ID_GPS_RAW_INT,
                                          ML.MAVLINK_MSG_ID_SYSTEM_TIME,
-                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT),
+                                         ML.MAVLINK_MSG_ID_MISSION_CURRENT,
+                                         ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),
     ML.MAV_DATA_STREAM_POSITION: (ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                                  ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
                                   ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT),
     ML.MAV_DATA_STREAM_RC_CHANNELS: (ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,),
     ML.MAV_DATA_STREAM_EXTRA1: (ML.MAVLINK_MSG_ID_ATTITUDE,),
@@ -104,7 +120,8 @@ LOG_STREAMS_S = {k: v for k, v in {ML.MAVLINK_MSG_ID_HEARTBEAT: 1.0, **STREAM_DE
                  if k in ML.mavlink_map}
 #: A GNSS sample older than this (plant time) is stale: GPS health off, fix reported as NO_FIX.
 GNSS_STALE_S = 1.0
-SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
+#: A peer table of this many addresses is full: a newcomer evicts the oldest peer, but with
+#: signing on an unsigned newcomer evicts only an unsigned peer (never a signed ground station)
 MAX_PEERS = 8
 PEER_TIMEOUT_S = 10.0
 STATUSTEXT_CHUNK = 50          # STATUSTEXT.text is char[50]
@@ -114,6 +131,13 @@ PARAM_ERR_UNKNOWN = MD.MAV_PARAM_ERROR_DOES_NOT_EXIST
 PARAM_ERR_RANGE = MD.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
 PARAM_ERR_READ_ONLY = MD.MAV_PARAM_ERROR_READ_ONLY
 PARAM_ERR_TYPE = getattr(MD, "MAV_PARAM_ERROR_TYPE_MISMATCH", 7)
+#: GUIDED_CHANGE_HEADING's heading (deg) is refused beyond +-this (a wrapped 1e9 deg is a turn
+#: to an arbitrary course, not what anyone typed)
+HEADING_LIMIT_DEG = 360.0
+#: Mode changes from the ground stations: at most MODE_BURST at once, MODE_RATE_HZ sustained;
+#: more are refused with a STATUSTEXT (each change resets the law and the guidance's state)
+MODE_BURST = 4.0
+MODE_RATE_HZ = 1.0
 
 
 class _Streams:
@@ -141,12 +165,19 @@ class GcsLink:
     def __init__(self, vehicle: VehicleView, bind: tuple[str, int], outputs: list[tuple[str, int]],
                  tlog_path: str | None = None, signing_key: bytes | None = None,
                  log=None, max_rx: int = 8, max_tx: int = 6, io=None,
-                 sim_time: bool = False) -> None:
+                 sim_time: bool = False, signing_path: str | None = None,
+                 disk: DiskHealth | None = None) -> None:
         self.v = vehicle
         self.log = log
         self.endpoint = UdpEndpoint(*bind)
         self.outputs = list(outputs)
         self.peers: dict[tuple, float] = {}
+        self.signed_peers: set[tuple] = set()      # peers that sent a correctly signed message
+        self.peers_refused = 0      # unsigned newcomers kept out by a table of signed peers
+        self.disk = disk
+        self._mode_tokens = MODE_BURST
+        self._mode_refill_s = time.monotonic()
+        self.mode_refused = 0
         self.mav = new_codec(vehicle.sysid, vehicle.compid)
         self.max_rx = max_rx
         self.max_tx = max_tx
@@ -189,7 +220,7 @@ class GcsLink:
         self.ignored_target = 0
         # tlog: frames collect in memory; flush() hands the chunk to the I/O thread (``io``,
         # fc/iothread.py) so a slow disk never stalls the loop
-        self.tlog = open(tlog_path, "wb") if tlog_path else None
+        self.tlog = AppendFile(tlog_path, "tlog", disk) if tlog_path else None
         self._tlog_buf = bytearray()
         # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
         # paced by the time base (sim time in lockstep), not by the wall clock
@@ -200,18 +231,52 @@ class GcsLink:
         self._log_next = 0
         self._log_last_us = 0
         self.io = io
+        # the protocol services (one module each): log download of this .tlog, read-only FTP
+        # of the run directory; their answers go to the requester only, never to the .tlog
+        self.logs = LogService(tlog_path, self.epoch_us // 1_000_000)
+        self.ftp = FtpService(os.path.dirname(tlog_path) if tlog_path else None, vehicle.params)
+        self.services = {**{i: self.logs for i in LOG_MSGS},
+                         ML.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL: self.ftp}
         self.signing = signing_key is not None
         self.signing_key = signing_key
+        # signatures verified before any timestamp bookkeeping, stream timestamps persisted
+        # (fc/signing.py: pymavlink's own check stores the timestamp of a forged frame)
+        self.guard = (SigningGuard(signing_key, signing_path, log) if signing_key is not None
+                      else None)
         if signing_key is not None:
             self._sign(self.mav, 0)
+            self.mav.signing.timestamp = self.guard.start_timestamp()
             self.mav.signing.allow_unsigned_callback = self._allow_unsigned
+            self.guard.install(self.mav)
 
     def _sign(self, mav, link_id: int) -> None:
         s = mav.signing
         s.secret_key = self.signing_key
         s.sign_outgoing = True
         s.link_id = link_id
-        s.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
+        # never behind a timestamp already used (the links' own or the stored one)
+        s.timestamp = max(clock_timestamp(), self.mav.signing.timestamp)
+
+    def signing_snapshot(self) -> bytes | None:
+        """The signing state file's bytes when a stream timestamp changed, else None (saved
+        on the I/O thread with ``save_signing``; fc/signing.py)."""
+        if self.guard is None or self.guard.path is None:
+            return None
+        own = max(link.mav.signing.timestamp for link in (self.default, *self.links.values()))
+        return self.guard.snapshot(max(own, clock_timestamp()))
+
+    def save_signing(self, data: bytes) -> None:
+        """Write a ``signing_snapshot`` (I/O thread); a failure goes to the disk health."""
+        try:
+            self.guard.save(data)
+        except OSError as exc:
+            self.guard.dirty = True          # tried again at the next save
+            new = self.disk is None or self.disk.failed("signing timestamps", exc)
+            if new and self.log is not None:
+                self.log.error("cannot save the signing timestamps: %s", exc)
+            return
+        if self.disk is not None:
+            self.disk.ok("signing timestamps")
 
     # ------------------------------------------------------------------ plumbing
     @staticmethod
@@ -281,6 +346,20 @@ class GcsLink:
         elif self.links.get(link.addr) is link:     # not forgotten meanwhile
             self.endpoint.send(buf, link.addr)
 
+    def _send_to(self, addr, msg) -> None:
+        """Send ``msg`` to one peer only (a service's answer), with that peer's codec."""
+        buf = self._pack(self._link_of(addr).mav, msg)
+        if buf is not None:
+            self.endpoint.send(buf, addr)
+
+    def _service_out(self, outputs: list) -> None:
+        """Send a protocol service's outputs: ``(peer, message)`` or ``("text", sev, text)``."""
+        for out in outputs:
+            if out[0] == "text":
+                self.statustext(out[1], out[2])
+            else:
+                self._send_to(*out)
+
     def _link_of(self, addr) -> _Streams:
         return self.links.get(addr, self.default)
 
@@ -343,8 +422,10 @@ class GcsLink:
 
     def close(self) -> None:
         """Write what is pending (synchronously: the loop has stopped) and close."""
+        self.logs.close()
+        self.ftp.close()
         if self.tlog is not None:
-            self.tlog.write(self._tlog_buf)
+            self.tlog.append(self._tlog_buf)
             self._tlog_buf = bytearray()
             self.tlog.close()
             self.tlog = None
@@ -356,9 +437,9 @@ class GcsLink:
             return
         chunk, self._tlog_buf = self._tlog_buf, bytearray()
         if self.io is not None:
-            self.io.submit(_write_flush, self.tlog, chunk)
+            self.io.submit(self.tlog.append, chunk)
         else:
-            _write_flush(self.tlog, chunk)
+            self.tlog.append(chunk)
 
     # ------------------------------------------------------------------ receive
     def poll(self, now_s: float) -> int:
@@ -381,9 +462,7 @@ class GcsLink:
                 self.rx_msgs += 1
                 self.wall_due = 0.0     # a new peer or rate request: schedules walked again
                 self._tlog_write(bytes(m.get_msgbuf()))
-                if addr not in self.peers and len(self.peers) >= MAX_PEERS:
-                    self._expire_peers(now_s, force=True)
-                self.peers[addr] = now_s
+                self._heard(addr, now_s, self.signing and m.get_signed())
                 self._rx_addr = addr
                 try:
                     self._handle(m, now_s)
@@ -392,15 +471,38 @@ class GcsLink:
                     self._warn(f"GCS message {m.get_type()} not handled: {exc!r}")
         return n
 
-    def _expire_peers(self, now_s: float, force: bool = False) -> None:
+    def _heard(self, addr, now_s: float, signed: bool) -> None:
+        """Note a message from ``addr`` (``signed``: with a valid signature). A newcomer to a
+        full table makes room (``_expire_peers``); with signing on, an unsigned newcomer that
+        finds only signed peers is not added (its messages are still handled)."""
+        if addr not in self.peers and len(self.peers) >= MAX_PEERS:
+            self._expire_peers(now_s, force=True, newcomer_signed=signed)
+            if len(self.peers) >= MAX_PEERS:
+                self.peers_refused += 1
+                return
+        self.peers[addr] = now_s
+        if signed:
+            self.signed_peers.add(addr)
+
+    def _forget(self, addr) -> None:
+        del self.peers[addr]
+        self.signed_peers.discard(addr)
+        self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
+
+    def _expire_peers(self, now_s: float, force: bool = False,
+                      newcomer_signed: bool = True) -> None:
+        """Forget peers silent for PEER_TIMEOUT_S; ``force``: also the oldest one, to make
+        room (with signing on: the oldest unsigned one, or a signed one for a signed newcomer
+        only)."""
         for addr, t in list(self.peers.items()):
             if now_s - t > PEER_TIMEOUT_S:
-                del self.peers[addr]
-                self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
+                self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
-            oldest = min(self.peers, key=self.peers.get)
-            del self.peers[oldest]
-            self.links.pop(oldest, None)
+            pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
+            if not pool and (newcomer_signed or not self.signing):
+                pool = list(self.peers)
+            if pool:
+                self._forget(min(pool, key=self.peers.get))
 
     def _for_us(self, m) -> bool:
         ts = getattr(m, "target_system", 0)
@@ -420,7 +522,9 @@ class GcsLink:
         elif t == ML.MAVLINK_MSG_ID_PARAM_REQUEST_READ:
             if self._for_us(m):
                 idx = self._param_index(m.param_id, m.param_index)
-                if idx is not None and len(self.param_queue) < 4 * len(self.v.params):
+                if idx is None:                 # answered at once: no client time-out
+                    self._param_error(m, m.param_index, PARAM_ERR_UNKNOWN)
+                elif len(self.param_queue) < 4 * len(self.v.params):
                     self.param_queue.append(idx)
         elif t == ML.MAVLINK_MSG_ID_PARAM_SET:
             if self._for_us(m):
@@ -441,6 +545,13 @@ class GcsLink:
         elif t in MISSION_MSGS:
             if self._for_us(m):
                 self.mission_send(self.mission.handle(m, now_s))
+        elif t == ML.MAVLINK_MSG_ID_TIMESYNC:
+            reply = timesync_answer(m, self.time_us() * 1000, self.v.sysid, self.v.compid)
+            if reply is not None:
+                self._send_to(self._rx_addr, reply)
+        elif t in self.services:
+            if self._for_us(m):
+                self._service_out(self.services[t].handle(m, self._rx_addr, now_s))
 
     # ------------------------------------------------------------------ parameters
     def _param_index(self, param_id, index: int) -> int | None:
@@ -477,6 +588,10 @@ class GcsLink:
         if reason is not None:
             self._param_error(m, idx, code)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
+        elif self.disk is not None and self.disk.failing:
+            # set in memory, but the disk refuses writes: it would revert at a restart
+            err = self.disk.error_of("parameters") or "writes failing"
+            self.statustext(ML.MAV_SEVERITY_ERROR, f"{name} set, NOT saved (disk: {err})")
         self.send(self._param_value(idx))   # current value, also when refused
 
     def _param_error(self, m, idx: int, code: int) -> None:
@@ -620,6 +735,8 @@ class GcsLink:
         elif c == ML.MAV_CMD_GUIDED_CHANGE_HEADING:
             if m.param1 not in (0, 1):
                 bad = "param1 heading type must be 0 or 1"
+            elif not abs(m.param2) <= HEADING_LIMIT_DEG:
+                bad = f"heading {m.param2:g} deg beyond +-{HEADING_LIMIT_DEG:g} deg"
             chi = math.radians(m.param2) if math.isfinite(m.param2) else math.nan
         elif c == ML.MAV_CMD_GUIDED_CHANGE_SPEED:
             if m.param1 not in (0, 1):
@@ -641,7 +758,26 @@ class GcsLink:
         mode = mode_from_custom(value)
         if mode is None:
             return False, f"mode {value:g} refused: not a mode"
-        return self.v.request_mode(mode)
+        # a change to another mode takes a token; FAILSAFE (the operator's stop) never waits
+        change = mode != self.v.modes.mode and mode != FlightMode.FAILSAFE
+        if change and not self._mode_change_allowed(time.monotonic()):
+            self.mode_refused += 1
+            return False, (f"mode {value:g} refused: more than {MODE_BURST:g} changes at "
+                           f"once or {MODE_RATE_HZ:g}/s")
+        ok, text = self.v.request_mode(mode)
+        if change and not ok:
+            self._mode_tokens += 1.0          # a refused change costs nothing
+        return ok, text
+
+    def _mode_change_allowed(self, now_s: float) -> bool:
+        """The mode changes' token bucket (MODE_BURST, MODE_RATE_HZ): True takes a token."""
+        self._mode_tokens = min(MODE_BURST, self._mode_tokens
+                                + (now_s - self._mode_refill_s) * MODE_RATE_HZ)
+        self._mode_refill_s = now_s
+        if self._mode_tokens < 1.0:
+            return False
+        self._mode_tokens -= 1.0
+        return True
 
     @staticmethod
     def _set_interval(link: _Streams, msg_id: int, interval_us: float) -> None:
@@ -810,7 +946,7 @@ class GcsLink:
         if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
             g, fix = self._gnss()
             spd = math.hypot(g[G_VN], g[G_VE])
-            vel = int(round(spd * 100.0)) if spd * 100.0 < 65534.5 else 65535   # u16: unknown
+            vel = cm_s_u16(spd)                          # UINT16_MAX (unknown) above 655 m/s
             cog = (int(round(math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0)) % 36000
                    if fix and spd > 0.0 else 65535)
             return self.mav.gps_raw_int_encode(
@@ -827,7 +963,17 @@ class GcsLink:
             return self.mav.global_position_int_encode(
                 ms, int(round(g[G_LAT_DEG] * 1e7)), int(round(g[G_LON_DEG] * 1e7)),
                 int(round(g[G_ALT_M] * 1000.0)), int(round((g[G_ALT_M] - self.home[2]) * 1000.0)),
-                _i16(g[G_VN] * 100.0), _i16(g[G_VE] * 100.0), _i16(g[G_VD] * 100.0), hdg)
+                cm_s_i16(g[G_VN]), cm_s_i16(g[G_VE]), cm_s_i16(g[G_VD]), hdg)
+        if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
+            g, fix = self._gnss()
+            if self.home is None:
+                return None
+            x, y, z = local_ned(self.home, g[G_LAT_DEG], g[G_LON_DEG], g[G_ALT_M])
+            return self.mav.local_position_ned_encode(ms, x, y, z, g[G_VN], g[G_VE], g[G_VD])
+        if msg_id == ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            has_data = v.plant.counters.frames > 0 and not v.modes.data_lost
+            return self.mav.extended_sys_state_encode(ML.MAV_VTOL_STATE_UNDEFINED,
+                                                      landed_state(has_data, m[M_AIRSPEED]))
         if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
             nav = v.nav_controller_output()
             return None if nav is None else self.mav.nav_controller_output_encode(*nav)
@@ -889,6 +1035,7 @@ class GcsLink:
             self.mission_send(mission_out)
         if (now_s < self.wall_due and not self.oneshot and not self.text_queue
                 and not self.param_queue and self.list_next < 0
+                and not self.logs.busy and not self.ftp.busy
                 and self.v.modes.mode == self.last_mode_sent):
             return 0                       # nothing due, nothing queued: most frames
         sent = 0
@@ -926,6 +1073,11 @@ class GcsLink:
             self.send(self._param_value(idx))
             n_param += 1
             sent += 1
+        for svc in (self.logs, self.ftp):             # streamed answers, paced
+            if svc.busy and sent < self.max_tx:
+                out = svc.take(now_s, self.max_tx - sent)
+                self._service_out(out)
+                sent += len(out)
         sent = self._streams(self.default, now_s, sent)
         for link in list(self.links.values()):
             sent = self._streams(link, now_s, sent)
@@ -974,15 +1126,3 @@ class GcsLink:
 def _u32(x: float) -> int:
     """A non-negative finite value as u32 (rounded, saturated); 0 otherwise."""
     return min(int(round(x)), 0xFFFFFFFF) if math.isfinite(x) and x > 0.0 else 0
-
-
-def _i16(x: float) -> int:
-    """A value as i16 (rounded, saturated at +-32767: MAVLink's cm/s fields end at 327 m/s)."""
-    if not math.isfinite(x):
-        return 0
-    return max(-32767, min(32767, int(round(x))))
-
-
-def _write_flush(f, chunk: bytes) -> None:
-    f.write(chunk)
-    f.flush()

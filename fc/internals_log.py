@@ -5,6 +5,11 @@ chunks; a full chunk is handed to a writer thread that appends it to the crash-s
 companion ``fc_internals.raw`` (column names in ``fc_internals.cols.json``), so the loop
 never waits on the disk. ``close()`` converts the raw file into ``fc_internals.npz``
 (one array per column). ``load(path)`` reads either.
+
+A full disk costs rows, never the log (fc/storage.py): a chunk that cannot be written is
+dropped whole (counted in ``lost_rows``, reported to the disk health), the raw file keeps only
+whole rows, and the next chunk is tried again, so the log resumes when space returns. If the
+npz cannot be written at ``close()``, no partial file is left and the raw companion is kept.
 """
 from __future__ import annotations
 
@@ -14,6 +19,8 @@ import queue
 import threading
 
 import numpy as np
+
+from fc.storage import AppendFile, DiskHealth, atomic_write, open_for_write
 
 __all__ = ["InternalsLog", "load"]
 
@@ -26,16 +33,22 @@ class InternalsLog:
     """Row logger. ``row()`` returns the next preallocated row to fill in place."""
 
     def __init__(self, out_dir: str, columns: list[str], chunk_rows: int = 2048,
-                 n_chunks: int = 8) -> None:
+                 n_chunks: int = 8, disk: DiskHealth | None = None) -> None:
         self.columns = list(columns)
         self.ncol = len(columns)
         self.col = {c: i for i, c in enumerate(columns)}
         self.dir = out_dir
         self.raw_path = os.path.join(out_dir, RAW_NAME)
         self.npz_path = os.path.join(out_dir, NPZ_NAME)
-        with open(os.path.join(out_dir, COLS_NAME), "w", encoding="utf-8") as f:
-            json.dump({"columns": self.columns, "dtype": "float64"}, f)
-        self._raw = open(self.raw_path, "wb")
+        self.disk = disk
+        try:
+            atomic_write(os.path.join(out_dir, COLS_NAME),
+                         json.dumps({"columns": self.columns, "dtype": "float64"}).encode())
+        except OSError as exc:
+            if disk is None:
+                raise
+            disk.failed("internals log", exc)
+        self._raw = AppendFile(self.raw_path, "internals log", disk)
         self._free: queue.Queue = queue.Queue()
         for _ in range(n_chunks):
             self._free.put(np.zeros((chunk_rows, self.ncol)))
@@ -44,7 +57,8 @@ class InternalsLog:
         self._chunk_rows = chunk_rows
         self.n = 0
         self.rows = 0
-        self.dropped = 0
+        self.dropped = 0           # rows not logged: no free buffer (the writer is behind)
+        self.lost_rows = 0         # rows not written: the disk refused them
         self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
         self._thread.start()
         self.closed = False
@@ -75,8 +89,8 @@ class InternalsLog:
                 self._full.task_done()
                 break
             chunk, n = item
-            self._raw.write(chunk[:n].data)   # no copy: the rows are contiguous
-            self._raw.flush()
+            if not self._raw.append(chunk[:n].data):   # no copy: the rows are contiguous
+                self.lost_rows += n
             self._free.put(chunk)
             self._full.task_done()
 
@@ -102,11 +116,23 @@ class InternalsLog:
         self._raw.close()
         # from a read-only map of the raw file, one column at a time (np.savez streams each
         # into the archive): bounded memory however long the fc has run
-        data = _read_raw(self.raw_path, self.columns, mapped=True)
-        tmp = self.npz_path + ".tmp.npz"
-        np.savez(tmp, **data)
-        del data
-        os.replace(tmp, self.npz_path)
+        tmp = self.npz_path + ".tmp"
+        try:
+            data = _read_raw(self.raw_path, self.columns, mapped=True)
+            with open_for_write(tmp) as f:
+                np.savez(f, **data)
+            del data
+            os.replace(tmp, self.npz_path)
+        except OSError as exc:
+            # a full disk: no partial npz; the raw companion stays (``load`` reads it)
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            if self.disk is None:
+                raise
+            self.disk.failed("internals log", exc)
+            return self.raw_path
         os.unlink(self.raw_path)
         return self.npz_path
 

@@ -29,6 +29,7 @@ from fc.param_service import ParamService
 from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
                           hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
                           try_realtime)
+from fc.storage import DiskHealth
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 
 __all__ = ["GCS_POLL_S", "HOLD_AFTER_S", "Housekeeping", "RunLoops"]
@@ -60,6 +61,11 @@ class Housekeeping:
     io: IoThread
     event: Callable[[str, int], None]
     log: logging.Logger
+    #: disk faults, said once per minute (fc/storage.py)
+    disk: DiskHealth | None = None
+    #: small state files saved at 1 Hz when changed: (snapshot() -> data or None, save(data)),
+    #: the snapshot taken in the loop, the save run on the I/O thread (signing, mission)
+    savers: tuple = ()
     goodbyes_seen: int = 0
     relocks_seen: int = 0
     gnss_dropped_seen: int = 0      # plant.counters.gnss_rejected already reported
@@ -104,6 +110,13 @@ class Housekeeping:
                 values = self.param_svc.snapshot()
                 if values is not None:
                     self.io.submit(self.param_svc.save, values)
+                for snapshot, save in self.savers:
+                    data = snapshot()
+                    if data is not None:
+                        self.io.submit(save, data)
+                text = self.disk.report(now_s) if self.disk is not None else None
+                if text is not None:
+                    self.event(text, ML.MAV_SEVERITY_ERROR)
             if stage == 3:
                 self.chore = 0
                 self.next_1hz = now_s + 1.0

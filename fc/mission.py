@@ -134,6 +134,9 @@ class Mission:
         self._next = 0
         self._sent_s = 0.0
         self._tries = 0
+        #: the guidance's altitude limits at upload: () -> (lowest m MSL, highest m MSL, home
+        #: altitude m MSL or None); None: not checked (the caller sets it, fc/app.py)
+        self.alt_limits_m = None
 
     # ------------------------------------------------------------------ stored items
     @property
@@ -223,6 +226,29 @@ class Mission:
         self._changed()
         return [("current",)]
 
+    def restore(self, items: list[dict], current: int, finished: bool = False) -> str | None:
+        """Make ``items`` (dicts of MISSION_ITEM_INT fields, as ``item`` gives them) the stored
+        mission, at item ``current`` (a mission kept across a restart, fc/mission_store.py).
+        Every item is checked as at upload; None on success, else why nothing was stored."""
+        if len(items) > self.capacity:
+            return f"{len(items)} items, capacity {self.capacity}"
+        b = self._staging
+        for seq, it in enumerate(items):
+            p = (float(it["param1"]), float(it["param2"]), float(it["param3"]),
+                 float(it["param4"]))
+            x, y, z = int(it["x"]), int(it["y"]), float(it["z"])
+            result = _check_item(int(it["command"]), int(it["frame"]), p, x, y, z)
+            if result != ML.MAV_MISSION_ACCEPTED:
+                return f"item {seq} refused ({result})"
+            b.ints[seq] = (int(it["command"]), int(it["frame"]), int(it["autocontinue"]), x, y)
+            b.flts[seq] = (*p, z)
+        b.count = len(items)
+        self._active, self._staging = self._staging, self._active
+        self.current = int(current) if 0 <= int(current) < b.count else 0
+        self.version += 1
+        self.finished = bool(finished) and b.count > 0
+        return None
+
     def tick(self, now_s: float) -> list:
         """Retries and the timeout of an upload in progress. Returns the outputs."""
         if self._partner is None or now_s - self._sent_s < self.retry_s:
@@ -269,6 +295,10 @@ class Mission:
         if not 0 <= seq < self._staging.count:
             return self._cancel(ML.MAV_MISSION_INVALID_SEQUENCE)
         if seq != self._next:                  # a repeat, or one ahead: ask again
+            if self._tries >= self.retries:    # ... a bounded number of times
+                return self._cancel(ML.MAV_MISSION_OPERATION_CANCELLED,
+                                    f"mission upload cancelled: item {seq} sent again while "
+                                    f"item {self._next} was asked {self.retries + 1} times")
             return self._request(now_s, retry=True)
         x, y = (int(m.x), int(m.y)) if is_int else (_deg_e7(m.x), _deg_e7(m.y))
         p = (float(m.param1), float(m.param2), float(m.param3), float(m.param4))
@@ -277,6 +307,10 @@ class Mission:
         if result != ML.MAV_MISSION_ACCEPTED:
             return self._cancel(result, f"mission item {seq}: command {m.command} "
                                         f"frame {m.frame} refused ({result}): mission kept")
+        bad_alt = self._altitude_refusal(int(m.command), int(m.frame), z)
+        if bad_alt is not None:
+            return self._cancel(ML.MAV_MISSION_INVALID_PARAM7,
+                                f"mission item {seq}: {bad_alt}: mission kept")
         b = self._staging
         b.ints[seq] = (m.command, m.frame, m.autocontinue, x, y)
         b.flts[seq] = (*p, z)
@@ -292,6 +326,25 @@ class Mission:
         self._changed()
         return [("ack", *partner, ML.MAV_MISSION_ACCEPTED, MISSION), ("current",),
                 ("text", ML.MAV_SEVERITY_INFO, f"mission: {b.count} items stored")]
+
+    def _altitude_refusal(self, cmd: int, frame: int, z_m: float) -> str | None:
+        """Why a waypoint's altitude ``z_m`` is outside the guidance's limits (``alt_limits_m``;
+        a relative altitude is taken above home, or as a height bounded by the highest limit
+        before home is known), or None."""
+        if cmd != CMD_WAYPOINT or self.alt_limits_m is None:
+            return None
+        lo, hi, home = self.alt_limits_m()
+        if frame in FRAMES_REL:
+            if home is None:
+                if abs(z_m) <= hi:
+                    return None
+                return f"altitude {z_m:g} m above home beyond {hi:.0f} m"
+            h = z_m + home
+        else:
+            h = z_m
+        if lo <= h <= hi:
+            return None
+        return f"altitude {h:g} m MSL outside [{lo:.0f}, {hi:.0f}] m (GT_ALT_*)"
 
     def _cancel(self, result: int, text: str | None = None) -> list:
         """End an upload in progress with ``result``; the stored mission is untouched."""

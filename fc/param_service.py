@@ -20,6 +20,7 @@ from fc.estimator import Estimator
 from fc.guided import GUIDANCE_NAMES, GuidanceRunner
 from fc.link import mavlink as ML
 from fc.params import PROCESS_DRIVEN, ParamFileError, ParamTable, set_aside
+from fc.storage import DiskHealth
 
 __all__ = ["ProcessSettings", "ParamService", "load_param_file"]
 
@@ -82,6 +83,7 @@ class ParamService:
     path: str                   # the parameter file
     log: logging.Logger
     dirty: bool = False         # a setting changed since the last save
+    disk: DiskHealth | None = None   # a save that fails is reported there (fc/storage.py)
     settings: ProcessSettings = field(default_factory=ProcessSettings)
 
     def __post_init__(self) -> None:
@@ -135,4 +137,9 @@ class ParamService:
                     saved.values[i] = d.default
             saved.save(self.path)
         except OSError as exc:
-            self.log.error("cannot save parameters to %s: %s", self.path, exc)
+            self.dirty = True               # tried again at the next save
+            if self.disk is None or self.disk.failed("parameters", exc):
+                self.log.error("cannot save parameters to %s: %s", self.path, exc)
+            return
+        if self.disk is not None:
+            self.disk.ok("parameters")

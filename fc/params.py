@@ -16,13 +16,13 @@ import os
 import re
 import struct
 import sys
-import tempfile
 import time
 from typing import Iterable
 
 import numpy as np
 
 from fc.control.params import Param, checked_value
+from fc.storage import atomic_write
 
 __all__ = ["ParamDef", "PROCESS_PARAMS", "ParamTable", "ParamFileError", "build_table",
            "render_markdown", "law_param_defs", "UNITS", "encode_value", "decode_set_value"]
@@ -216,22 +216,9 @@ class ParamTable:
         Format: MAVProxy ``param save`` (``NAME value`` per line, ``#`` comments), which
         MAVProxy ``param load`` reads back.
         """
-        directory = os.path.dirname(os.path.abspath(path)) or "."
-        fd, tmp = tempfile.mkstemp(prefix=".params.", dir=directory)
-        try:
-            with os.fdopen(fd, "w") as f:
-                f.write(f"# hyfc parameters, {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}\n")
-                for n, v in zip(self.names, self.values):
-                    f.write(f"{n:<16.16s} {float(v):.9g}\n")
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            raise
+        lines = [f"# hyfc parameters, {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}\n"]
+        lines += [f"{n:<16.16s} {float(v):.9g}\n" for n, v in zip(self.names, self.values)]
+        atomic_write(path, "".join(lines).encode("ascii"))
 
     @staticmethod
     def read_file(path: str) -> dict[str, float]:

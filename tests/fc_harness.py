@@ -248,3 +248,14 @@ class ClosedLoop:
 
     def close(self) -> None:
         self.plant.close()
+
+
+def received(msg, sysid: int = 255, compid: int = 190):
+    """``msg`` packed by a ground station (``sysid``/``compid``) and decoded by the fc's codec,
+    as the fc receives it (header, source ids, payload bytes): the input of the GCS link's
+    protocol services in their unit tests."""
+    from fc.link import decode_datagram, new_codec
+    tx = mavlink.MAVLink(_Null(), srcSystem=sysid, srcComponent=compid)
+    msgs, bad = decode_datagram(new_codec(1, 1), msg.pack(tx))
+    assert bad == 0 and len(msgs) == 1
+    return msgs[0]

@@ -248,6 +248,19 @@ def corpus() -> dict[str, bytes]:
     b[2] |= 0x01                                 # claims to be signed, no signature
     out["gcs_fake_signed_flag"] = bytes(b)
     out["gcs_signed_garbage_signature"] = good_gcs[:-2] + bytes(2) + bytes(13)
+    # the protocol services of docs/fc.md section 7a (issue 21)
+    out["gcs_ftp_all_ff"] = pack(mav, mav.file_transfer_protocol_encode(0, 1, 1, [255] * 251))
+    path = b"../../../../etc/passwd"
+    ftp_open = [0, 0, 0, 4, len(path), 0, 0, 0, 0, 0, 0, 0] + list(path)
+    out["gcs_ftp_open_outside"] = pack(mav, mav.file_transfer_protocol_encode(
+        0, 1, 1, ftp_open + [0] * (251 - len(ftp_open))))
+    burst = [0, 0, 7, 15, 255, 0, 0, 0, 255, 255, 255, 255]       # no session, offset u32 max
+    out["gcs_ftp_burst_no_session"] = pack(mav, mav.file_transfer_protocol_encode(
+        0, 1, 1, burst + [0] * (251 - len(burst))))
+    out["gcs_log_data_u32max"] = pack(mav, mav.log_request_data_encode(
+        1, 1, 1, 2**32 - 1, 2**32 - 1))
+    out["gcs_log_list_reversed"] = pack(mav, mav.log_request_list_encode(1, 1, 65535, 0))
+    out["gcs_timesync_extremes"] = pack(mav, mav.timesync_encode(0, -2**63))
     rng = random.Random(20261122)
     for i in range(24):
         t = TARGETS[i % 3]

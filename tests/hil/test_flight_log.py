@@ -33,6 +33,7 @@ TIME_FIELDS = {"ATTITUDE": ("time_boot_ms", 1e-3), "AOA_SSA": ("time_usec", 1e-6
                "DEBUG_VECT": ("time_usec", 1e-6), "NAMED_VALUE_FLOAT": ("time_boot_ms", 1e-3),
                "SYSTEM_TIME": ("time_boot_ms", 1e-3), "GPS_RAW_INT": ("time_usec", 1e-6),
                "GLOBAL_POSITION_INT": ("time_boot_ms", 1e-3),
+               "LOCAL_POSITION_NED": ("time_boot_ms", 1e-3),
                "HOME_POSITION": ("time_usec", 1e-6), "SERVO_OUTPUT_RAW": ("time_usec", 1e-6)}
 
 

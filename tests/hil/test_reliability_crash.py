@@ -157,26 +157,14 @@ def test_promise3_interrupted_save_leaves_the_previous_file_intact(tmp_path, mon
         raise _Crash(where)
 
     if where == "write":
-        real_fdopen = os.fdopen
+        import fc.storage as storage
+        real_write_all = storage.write_all
 
-        class _Half:
-            def __init__(self, f):
-                self.f = f
+        def half_then_crash(fd, data):       # the one write call of the fc (fc/storage.py)
+            real_write_all(fd, bytes(data)[: len(data) // 2])
+            raise _Crash("write")
 
-            def __enter__(self):
-                return self
-
-            def __exit__(self, *e):
-                self.f.close()
-
-            def write(self, text):
-                self.f.write(text[: len(text) // 2])
-                raise _Crash("write")
-
-            def __getattr__(self, n):
-                return getattr(self.f, n)
-
-        monkeypatch.setattr(fp.os, "fdopen", lambda fd, mode: _Half(real_fdopen(fd, mode)))
+        monkeypatch.setattr(storage, "write_all", half_then_crash)
     elif where == "fsync":
         monkeypatch.setattr(fp.os, "fsync", boom)
     else:

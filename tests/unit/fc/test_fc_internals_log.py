@@ -35,13 +35,13 @@ def test_full_buffers_drop_rows_and_count_them(tmp_path):
     import threading
     log = InternalsLog(str(tmp_path), ["a"], chunk_rows=4, n_chunks=1)
     disk_free = threading.Event()
-    real_write = log._raw.write
+    real_append = log._raw.append
 
     def slow_disk(buf):          # GIVEN a disk that blocks the writer thread
         disk_free.wait(10)
-        return real_write(buf)
+        return real_append(buf)
 
-    log._raw.write = slow_disk
+    log._raw.append = slow_disk
     for _ in range(4):           # WHEN the only chunk fills and goes to the writer
         log.row()[:] = 1.0
     results = [log.row() for _ in range(3)]
