@@ -65,6 +65,16 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--law-module", default="fc.control",
                     help="module providing AttitudeLaw and LAW_PARAMS (default fc.control; "
                          "tests inject stand-ins)")
+    ap.add_argument("--internals-full-s", type=float, default=60.0, metavar="S",
+                    help="internals log (fc_internals.npz): every fast tick for the first S s "
+                         "of sensor time, then --internals-tail-hz rows per second "
+                         "(default %(default)g)")
+    ap.add_argument("--internals-tail-hz", type=float, default=None, metavar="HZ",
+                    help="internals log: rows per second of sensor time after "
+                         "--internals-full-s (default: the slow-loop rate, --slow-hz)")
+    ap.add_argument("--internals-full-rate", action="store_true",
+                    help="internals log: every fast tick however long the run (816 bytes a "
+                         "row: about 1.5 GB per hour at 500 Hz)")
     return ap
 
 
@@ -104,7 +114,9 @@ def _run(args, out: str, log: logging.Logger) -> int:
                    timeline=args.timeline, out=out, arm=args.arm, flight_mode=args.flight_mode,
                    sysid=args.sysid, signing_key_file=args.signing_key_file,
                    realtime_priority=args.rt_priority, spin_us=args.spin_us, sync=args.sync,
-                   law_module=args.law_module)
+                   law_module=args.law_module,
+                   internals_full_rate_s=None if args.internals_full_rate else args.internals_full_s,
+                   internals_tail_hz=args.internals_tail_hz)
     stopping = []
 
     def _stop(signum, _frame):

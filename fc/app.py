@@ -32,6 +32,7 @@ from fc.mission_mode import MissionFlight
 from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
 from fc.mode_control import ModeControl
 from fc.modes import GUIDANCE_MODES, FlightMode, ModeManager
+from fc.point_mode import PointFlight
 from fc.param_service import ParamService, load_param_file
 from fc.params import ParamTable, build_table
 from fc.loops import Housekeeping, RunLoops
@@ -70,6 +71,11 @@ class FcConfig:
     spin_us: int = 0                       # busy-wait the last microseconds before a deadline
     sync: str = "frame"                    # realtime: frame (tick on the sensor frame) | clock
     law_module: str = "fc.control"
+    #: internals log: every row for this long (s of sensor time), then one per slow tick;
+    #: None: every row however long the run (fc/internals_log.py)
+    internals_full_rate_s: float | None = 60.0
+    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz
+    internals_tail_hz: float | None = None
 
 
 def load_law_module(name: str):
@@ -128,6 +134,8 @@ class FlightController:
         self.mission = Mission()
         self.mission_flight = MissionFlight(self.mission)
         self.cruise_track = CruiseTrack(EARTH_RADIUS_M)
+        # RTL, DO_REPOSITION and DO_ORBIT: a point flown by the guidance (fc/point_mode.py)
+        self.point_flight = PointFlight()
 
         # --- state
         self.meas = np.zeros(M_N)
@@ -177,7 +185,9 @@ class FlightController:
         self.telemetry = Telemetry(self.out, self.counters, self.est, self.modes, self.plant,
                                    self.gcs, self.stats, self.planner, self.gate, self.law,
                                    self.status_names, self.guid)
-        self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk)
+        self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk,
+                                 full_rate_s=cfg.internals_full_rate_s,
+                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
         self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
                        (self.mission_store.snapshot, self.mission_store.save))
@@ -227,23 +237,79 @@ class FlightController:
             reason = self.mission_flight.entry_refusal(self)
             if reason is not None:
                 return False, reason
-        return self.mode_ctl.request_mode(mode)
+        if mode == FlightMode.RTL:
+            reason = self.point_flight.entry_refusal(self)
+            if reason is not None:
+                return False, f"RTL refused: {reason}"
+        return self.mode_ctl.request_mode(mode)     # RTL: home is set at the next step
 
-    def arm(self, armed: bool) -> tuple[bool, str]:
-        return self.mode_ctl.arm(armed)
+    def arm(self, armed: bool, forced: bool = False) -> tuple[bool, str]:
+        return self.mode_ctl.arm(armed, forced)
 
     def set_guidance_targets(self, h_m: float | None = None, chi_rad: float | None = None,
                              V_m_s: float | None = None) -> str | None:
         """Targets of the guidance (altitude m AMSL, course rad, airspeed m/s; None keeps one),
         validated against the envelope (GT_ALT_*, GT_SPD_*, GE_QBAR_*); the guidance clips
         what it flies by its own envelope limits. None on success, else the reason. GUIDED's
-        ground-station commands and the mission manager call it."""
-        reason = self.guid.set_targets(h_m, chi_rad, V_m_s)
-        if reason is None:
-            self.log.info("guidance targets: %.0f m, %.2f deg, %.1f m/s",
-                          self.guid.targets()[0], math.degrees(self.guid.targets()[1]),
-                          self.guid.targets()[2])
-        return reason
+        ground-station commands and the navigators (mission, point) call it: it does not log
+        (a navigator calls it at 10 Hz; the ground-station link logs its own commands)."""
+        return self.guid.set_targets(h_m, chi_rad, V_m_s)
+
+    def change_speed(self, v_m_s: float) -> str | None:
+        """DO_CHANGE_SPEED in a guidance mode: the speed target from now on (in MISSION until
+        a speed item changes it). None on success, else the reason."""
+        if not self.modes.guidance_active:
+            return "only in a guidance mode (CRUISE, GUIDED, MISSION, RTL)"
+        if self.modes.mode == FlightMode.MISSION:
+            return self.mission_flight.set_speed(self, v_m_s)
+        return self.set_guidance_targets(V_m_s=v_m_s)
+
+    def go_to(self, lat_deg: float, lon_deg: float, h_m: float | None,
+              v_m_s: float | None) -> str | None:
+        """DO_REPOSITION: GUIDED, flying to (lat, lon) deg at ``h_m`` m AMSL and ``v_m_s``
+        (None: the present targets), then circling over it. None on success, else why not."""
+        return self._point(lambda: self.point_flight.start_point(self, lat_deg, lon_deg,
+                                                                 h_m, v_m_s))
+
+    def orbit(self, lat_deg: float, lon_deg: float, radius_m: float,
+              h_m: float | None) -> str | None:
+        """DO_ORBIT: GUIDED, circling (lat, lon) deg at ``radius_m`` (> 0 clockwise) and
+        ``h_m`` (None: the present target). None on success, else why not."""
+        reason = self.point_flight.orbit_refusal(self, radius_m)   # before the mode changes
+        return reason or self._point(lambda: self.point_flight.start_orbit(
+            self, lat_deg, lon_deg, radius_m, h_m))
+
+    def _point(self, start) -> str | None:
+        """Enter GUIDED (unless in it) and start a point target with ``start()``."""
+        if not self.modes.armed:
+            return "disarmed"
+        reason = self.point_flight.entry_refusal(self)
+        if reason is not None:
+            return reason
+        if self.modes.mode != FlightMode.GUIDED:
+            ok, text = self.mode_ctl.request_mode(FlightMode.GUIDED)
+            if not ok:
+                return text
+        if not self.guid.engaged:
+            return "the guidance is not engaged yet (no healthy estimate)"
+        return start()
+
+    def hold(self, why: str) -> None:
+        """Leave MISSION/RTL/a point for CRUISE (the current altitude, course and speed held),
+        saying why (the navigators' ``("hold", why)``)."""
+        self.point_flight.stop()
+        self._event(why, ML.MAV_SEVERITY_WARNING)
+        self.mode_ctl.request_mode(FlightMode.CRUISE)
+
+    def _nav_out(self, out: list) -> None:
+        """The navigators' outputs: protocol messages and texts to the ground station, a
+        ``("hold", why)`` to :meth:`hold`."""
+        hold = [o[1] for o in out if o[0] == "hold"]
+        rest = [o for o in out if o[0] != "hold"]
+        if rest:
+            self.gcs.mission_send(rest)
+        if hold:
+            self.hold(hold[0])
 
     def _home(self) -> tuple[float, float, float] | None:
         return self.gcs.home
@@ -277,16 +343,14 @@ class FlightController:
         ``held``: no new data, the last command held), the surface and throttle outputs."""
         modes = self.modes
         out = self.out
+        fresh = False
         if held and modes.law_active:
             src = out.delta_rad         # hold the last command: no new data to act on
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
                     if self.guid.tick(self.est.est, self.meas):
-                        if modes.mode == FlightMode.MISSION:
-                            self.gcs.mission_send(self.mission_flight.tick(self))
-                        elif modes.mode == FlightMode.CRUISE:
-                            self.cruise_track.tick(self)     # the great circle (fc/cruise_track.py)
+                        self._navigate()
                     out.cmd_active = self.guid.cmd_rad
                 else:
                     out.cmd_active = self.settings.cmd_rad
@@ -294,18 +358,45 @@ class FlightController:
                     self.law.slow_step(self.est.est, out.cmd_active, self.planner.slow_dt_s)
                 self.law.fast_step(self.est.est, self.planner.fast_dt_s)
                 src = self.law.delta_cmd_rad
+                fresh = True
             except Exception as exc:  # noqa: BLE001 - a law fault must not stop the outputs
                 self.counters.law_errors += 1
                 self.log.exception("law raised: %r", exc)
                 self.mode_ctl.law_fault()
-                src = self.settings.trim_rad
+                src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
+        elif modes.armed and modes.mode == FlightMode.FAILSAFE:
+            # hold the trim the law flew (not the TRIM_* defaults: 0 deg while the cruise
+            # trims at 5.4 / 5.4 / 0 deg), as the plant holds a silent fc's commands averaged
+            src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
         else:
             src = self.settings.trim_rad
+        if fresh:
+            self.mode_ctl.hold.update(src, self.planner.fast_dt_s)
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
         surfaces_pwm(src, out.delta_rad,
                      self.guid.throttle_pwm() if modes.guidance_active else 0, self.pwm_us)
+
+    def _navigate(self) -> None:
+        """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
+        the targets; in CRUISE the course follows the great circle flown at entry. Ground-station state enters the guidance here only, and never as an
+        exception (the navigators answer ``("hold", why)`` instead, fc/mission_mode.py)."""
+        mode = self.modes.mode
+        if mode == FlightMode.MISSION:
+            self._nav_out(self.mission_flight.tick(self))
+        elif mode == FlightMode.RTL:
+            pf = self.point_flight
+            if not pf.active or pf.stale(self):        # entered before the guidance engaged
+                reason = pf.start_home(self)
+                if reason is not None:
+                    self._nav_out([("hold", f"RTL cannot go home ({reason}): holding (CRUISE)")])
+                    return
+            self._nav_out(pf.tick(self))
+        elif mode == FlightMode.GUIDED and self.point_flight.active:
+            self._nav_out(self.point_flight.tick(self))
+        elif mode == FlightMode.CRUISE:
+            self.cruise_track.tick(self)      # the great circle flown at entry (fc/cruise_track.py)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
@@ -363,12 +454,13 @@ class FlightController:
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
             "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d, "
-            "gnss samples %d, gnss dropped %d",
+            "fc stalls %d (longest %.2f s), gnss samples %d, gnss dropped %d",
             c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
             c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
             self.telemetry.skipped_ticks(), self.counters.law_errors,
-            self.counters.reordered_frames, c.gnss, c.gnss_rejected)
+            self.counters.reordered_frames, self.counters.fc_stalls,
+            self.counters.fc_stall_max_s, c.gnss, c.gnss_rejected)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "
@@ -376,8 +468,8 @@ class FlightController:
                           g.frame_ticks, g.grid_ticks, g.fallback_ticks, g.absorbed)
         try:
             path = self.ilog.close()
-            self.log.info("internals log: %s (%d rows, %d dropped)", path, self.ilog.rows,
-                          self.ilog.dropped)
+            self.log.info("internals log: %s (%d rows, %d dropped, %d decimated)", path,
+                          self.ilog.rows, self.ilog.dropped, self.ilog.decimated)
         except Exception as exc:  # noqa: BLE001 - the exit stays clean; the raw file is kept
             self.log.error("internals log not closed: %r", exc)
         finally:

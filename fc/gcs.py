@@ -43,7 +43,8 @@ from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
 from fc.gcs_streams import cm_s_i16, cm_s_u16, landed_state, local_ned
 from fc.gcs_timesync import answer as timesync_answer
 from fc.mission import MSG_IDS as MISSION_MSGS, encode as mission_encode
-from fc.modes import STANDARD_MODE, FlightMode, custom_mode_of, mode_from_custom
+from fc.modes import (FORCE_DISARM, MODE_OF_STANDARD, STANDARD_MODE, FlightMode, custom_mode_of,
+                      decode_mode_request)
 from fc.params import PROCESS_DRIVEN, decode_set_value, encode_value
 from fc.ratelimit import RateLimiter
 from fc.signing import SigningGuard, clock_timestamp
@@ -86,6 +87,44 @@ GUIDED_COMMANDS = {
     ML.MAV_CMD_DO_CHANGE_ALTITUDE: "DO_CHANGE_ALTITUDE",
     ML.MAV_CMD_DO_CHANGE_SPEED: "DO_CHANGE_SPEED",
 }
+#: Commands whose param5/param6 are a position (COMMAND_INT: x, y in degE7; z in m by frame).
+POSITION_COMMANDS = frozenset({ML.MAV_CMD_DO_REPOSITION, ML.MAV_CMD_DO_ORBIT})
+#: COMMAND_INT frames of a position: altitude AMSL, or above home
+FRAMES_AMSL = (ML.MAV_FRAME_GLOBAL, ML.MAV_FRAME_GLOBAL_INT)
+FRAMES_ABOVE_HOME = (ML.MAV_FRAME_GLOBAL_RELATIVE_ALT, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+INT32_MAX = 2**31 - 1          # COMMAND_INT x/y "not given"
+
+
+class _Command:
+    """One COMMAND_LONG or COMMAND_INT, as the command handler reads it: ``param1`` ..
+    ``param7`` (COMMAND_INT: x, y as numbers, z), ``lat_deg``/``lon_deg`` of a position
+    command (NaN when not given: COMMAND_LONG NaN, COMMAND_INT INT32_MAX), ``frame`` (-1 for
+    COMMAND_LONG) and the sender."""
+
+    __slots__ = ("command", "param1", "param2", "param3", "param4", "param5", "param6",
+                 "param7", "frame", "lat_deg", "lon_deg", "src")
+
+    def __init__(self, m, is_int: bool) -> None:
+        self.command = m.command
+        self.param1, self.param2, self.param3, self.param4 = m.param1, m.param2, m.param3, m.param4
+        self.src = (m.get_srcSystem(), m.get_srcComponent())
+        if is_int:
+            self.param5, self.param6, self.param7 = float(m.x), float(m.y), m.z
+            self.frame = m.frame
+            self.lat_deg = m.x * 1e-7 if m.x != INT32_MAX else math.nan
+            self.lon_deg = m.y * 1e-7 if m.y != INT32_MAX else math.nan
+        else:
+            self.param5, self.param6, self.param7 = m.param5, m.param6, m.param7
+            self.frame = -1
+            self.lat_deg, self.lon_deg = m.param5, m.param6
+
+    def get_srcSystem(self) -> int:
+        return self.src[0]
+
+    def get_srcComponent(self) -> int:
+        return self.src[1]
+
+
 #: REQUEST_DATA_STREAM stream id -> message ids.
 DATA_STREAMS = {
     ML.MAV_DATA_STREAM_RAW_SENSORS: (ML.MAVLINK_MSG_ID_AOA_SSA,),
@@ -531,13 +570,13 @@ class GcsLink:
                 self._param_set(m)
         elif t == ML.MAVLINK_MSG_ID_COMMAND_LONG:
             if self._for_us(m):
-                self._command(m, now_s)
+                self._command(_Command(m, False), now_s)
         elif t == ML.MAVLINK_MSG_ID_COMMAND_INT:
             if self._for_us(m):
-                self._ack(m, m.command, ML.MAV_RESULT_UNSUPPORTED)
+                self._command(_Command(m, True), now_s)
         elif t == ML.MAVLINK_MSG_ID_SET_MODE:
             if m.target_system in (0, self.v.sysid):
-                ok, text = self._request_mode(float(m.custom_mode))
+                ok, text = self._request_mode(float(m.custom_mode), 0.0)
                 self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
         elif t == ML.MAVLINK_MSG_ID_REQUEST_DATA_STREAM:
             if self._for_us(m):
@@ -611,8 +650,11 @@ class GcsLink:
         self.send(self.mav.command_ack_encode(command, result, 0, 0, m.get_srcSystem(),
                                               m.get_srcComponent()))
 
-    def _command(self, m, now_s: float) -> None:
-        """Every COMMAND_LONG addressed to us gets exactly one COMMAND_ACK."""
+    def _command(self, m: _Command, now_s: float) -> None:
+        """Every COMMAND_LONG and COMMAND_INT addressed to us gets exactly one COMMAND_ACK.
+        Both go through the one handler (``_command_result``): every command is accepted in
+        either form; a position command's COMMAND_INT x/y are degE7, z its altitude in
+        ``frame``."""
         try:
             r = self._command_result(m)
         except Exception as exc:  # noqa: BLE001 - a bad command must still be answered
@@ -634,15 +676,23 @@ class GcsLink:
             if flag not in (0, 1):
                 self.statustext(ML.MAV_SEVERITY_WARNING, "arm/disarm refused: param1 must be 1 or 0")
                 return ML.MAV_RESULT_DENIED
-            ok, text = self.v.arm(flag == 1)
+            ok, text = self.v.arm(flag == 1, forced=m.param2 == FORCE_DISARM)
             self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
             return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
         if c == ML.MAV_CMD_DO_SET_MODE:
-            ok, text = self._request_mode(m.param2)
-            self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
-            return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+            return self._mode_result(*self._request_mode(m.param2, m.param3))
         if c == ML.MAV_CMD_DO_SET_STANDARD_MODE:
-            return ML.MAV_RESULT_FAILED      # no standard mode (yet): the spec's answer
+            std = self._whole(m.param1)
+            if std not in MODE_OF_STANDARD:
+                self.statustext(ML.MAV_SEVERITY_WARNING,
+                                f"standard mode {m.param1:g} refused: not one of ours")
+                return ML.MAV_RESULT_DENIED
+            return self._mode_result(*self._change_mode(MODE_OF_STANDARD[std],
+                                                        f"standard mode {std}"))
+        if c == ML.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return self._mode_result(*self._change_mode(FlightMode.RTL, "RTL"))
+        if c in POSITION_COMMANDS:
+            return self._position_command(m)
         if c == CMD_ATTITUDE:
             reason = self.v.set_attitude_command(m.param1, m.param2, m.param3)
             if reason is not None:
@@ -706,6 +756,45 @@ class GcsLink:
             return ML.MAV_RESULT_ACCEPTED if m.param1 == 1 else ML.MAV_RESULT_UNSUPPORTED
         return ML.MAV_RESULT_UNSUPPORTED
 
+    def _mode_result(self, ok: bool, text: str) -> int:
+        self.statustext(ML.MAV_SEVERITY_INFO if ok else ML.MAV_SEVERITY_WARNING, text)
+        return ML.MAV_RESULT_ACCEPTED if ok else ML.MAV_RESULT_DENIED
+
+    def _position_command(self, m: _Command) -> int:
+        """DO_REPOSITION (192): param1 ground speed m/s (< 0 or NaN: keep), param5/6 (x/y)
+        the point, param7 (z) its altitude (NaN: keep), m AMSL (COMMAND_LONG; COMMAND_INT
+        frames GLOBAL(_INT); GLOBAL_RELATIVE_ALT(_INT): above home). DO_ORBIT (34): param1
+        radius m (> 0 clockwise, < 0 counter-clockwise), param5/6 the centre (not given: here),
+        param7 altitude as above; param2 (speed) and param3 (yaw) are ignored: the speed
+        target is kept and the nose points along the flight path. Both fly in GUIDED."""
+        name = "DO_REPOSITION" if m.command == ML.MAV_CMD_DO_REPOSITION else "DO_ORBIT"
+        h = m.param7 if math.isfinite(m.param7) else None
+        if m.frame >= 0 and m.frame not in FRAMES_AMSL + FRAMES_ABOVE_HOME:
+            reason = f"frame {m.frame} not supported (GLOBAL or GLOBAL_RELATIVE_ALT)"
+        elif h is not None and m.frame in FRAMES_ABOVE_HOME and self.home is None:
+            reason = "no home yet for a relative altitude"
+        else:
+            reason = None
+            if h is not None and m.frame in FRAMES_ABOVE_HOME:
+                h += self.home[2]
+        lat, lon = m.lat_deg, m.lon_deg
+        if reason is None and m.command == ML.MAV_CMD_DO_REPOSITION:
+            if not (math.isfinite(lat) and math.isfinite(lon)):
+                reason = "a position is needed"
+            else:
+                spd = m.param1 if math.isfinite(m.param1) and m.param1 > 0.0 else None
+                reason = self.v.go_to(lat, lon, h, spd)
+        elif reason is None:
+            if not (math.isfinite(lat) and math.isfinite(lon)):
+                g, _ = self._gnss()
+                lat, lon = float(g[G_LAT_DEG]), float(g[G_LON_DEG])
+            reason = self.v.orbit(lat, lon, m.param1, h)
+        if reason is not None:
+            self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: {reason}")
+            return ML.MAV_RESULT_DENIED
+        self._info(f"{name} {lat:.5f} {lon:.5f} accepted")
+        return ML.MAV_RESULT_ACCEPTED
+
     def _guided_command(self, m) -> int:
         """GUIDED's target commands (docs/fc.md section 5): accepted in GUIDED only, each
         target validated by ``set_guidance_targets`` (DENIED with a STATUSTEXT otherwise).
@@ -716,11 +805,25 @@ class GcsLink:
         heading: the course is flown either way), param2 deg from north. DO_CHANGE_ALTITUDE
         (186): param1 altitude m, param2 frame (MAV_FRAME_GLOBAL, 0, only). DO_CHANGE_SPEED
         (178): param1 speed type (0/1 air/ground speed; 2, 3 climb/descent refused), param2
-        speed m/s (-1 or NaN: no change), param3 throttle (ignored: the speed loop owns it).
+        speed m/s (-1 or NaN: no change), param3 throttle (ignored: the speed loop owns it);
+        DO_CHANGE_SPEED is accepted in every guidance mode (in MISSION it holds until a speed
+        item of the mission changes it).
         The commands' rate/acceleration limits are ignored: the guidance's own (GA_HDOT_MAX,
         GH_CHIDOT_MAX, GS_ACC_MAX) apply."""
         c = m.command
         name = GUIDED_COMMANDS[c]
+        if c == ML.MAV_CMD_DO_CHANGE_SPEED and self.v.modes.mode != FlightMode.GUIDED:
+            if m.param1 not in (0, 1):
+                reason = "speed type must be 0 or 1 (air/ground speed)"
+            elif m.param2 == -1 or math.isnan(m.param2):
+                return ML.MAV_RESULT_ACCEPTED          # no change
+            else:
+                reason = self.v.change_speed(m.param2)
+            if reason is not None:
+                self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: {reason}")
+                return ML.MAV_RESULT_DENIED
+            self._info(f"{name} {m.param2:.1f} m/s accepted")
+            return ML.MAV_RESULT_ACCEPTED
         if self.v.modes.mode != FlightMode.GUIDED:
             self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: only in GUIDED")
             return ML.MAV_RESULT_DENIED
@@ -751,18 +854,31 @@ class GcsLink:
         if reason is not None:
             self.statustext(ML.MAV_SEVERITY_WARNING, f"{name} refused: {reason}")
             return ML.MAV_RESULT_DENIED
+        self._info(f"{name} {m.param1:g} {m.param2:g} accepted")
         return ML.MAV_RESULT_ACCEPTED
 
-    def _request_mode(self, value: float) -> tuple[bool, str]:
-        """DO_SET_MODE param2 / SET_MODE custom_mode: a hyfc mode number or a wire value."""
-        mode = mode_from_custom(value)
+    def _info(self, text: str) -> None:
+        """An accepted ground-station command in fc.log (INFO), rate-limited like STATUSTEXT."""
+        if self.log is not None and self.log_limit.allow(time.monotonic(), 6, text):
+            self.log.info(text)
+
+    def _request_mode(self, param2: float, param3: float = 0.0) -> tuple[bool, str]:
+        """DO_SET_MODE param2/param3, SET_MODE custom_mode (param3 0): decoded by
+        fc/modes.py ``decode_mode_request`` (PX4 main/sub, or the hyfc number / HEARTBEAT
+        value); no match is refused."""
+        mode, why = decode_mode_request(param2, param3)
         if mode is None:
-            return False, f"mode {value:g} refused: not a mode"
-        # a change to another mode takes a token; FAILSAFE (the operator's stop) never waits
+            return False, why
+        return self._change_mode(mode, f"mode {param2:g}")
+
+    def _change_mode(self, mode: FlightMode, what: str) -> tuple[bool, str]:
+        """Ask the vehicle for ``mode`` (a decoded request; ``what`` names it in a refusal)
+        through the mode changes' rate limit: a change to another mode takes a token;
+        FAILSAFE (the operator's stop) never waits."""
         change = mode != self.v.modes.mode and mode != FlightMode.FAILSAFE
         if change and not self._mode_change_allowed(time.monotonic()):
             self.mode_refused += 1
-            return False, (f"mode {value:g} refused: more than {MODE_BURST:g} changes at "
+            return False, (f"{what} refused: more than {MODE_BURST:g} changes at "
                            f"once or {MODE_RATE_HZ:g}/s")
         ok, text = self.v.request_mode(mode)
         if change and not ok:

@@ -55,6 +55,7 @@ class GuidanceRunner:
         self.steps = 0                  # guidance steps since start (tests, telemetry)
         self.engaged = False
         self.mode = -1                  # the guidance mode it was last engaged or re-targeted in
+        self.mode_before_off = -1       # the mode it flew when last disengaged (resume)
         self.gest = np.zeros(E_N)
         self.chi_rad = 0.0
         self.cmd_rad = self.g.out[0:3]  # a view: the kernel writes ``out`` in place
@@ -113,8 +114,26 @@ class GuidanceRunner:
         self.nav_wp = None
 
     def disengage(self) -> None:
+        self.mode_before_off = self.mode
         self.engaged = False
         self.mode = -1
+
+    def resume(self, est: np.ndarray, meas: np.ndarray, keep_state: bool) -> None:
+        """Engage again in the mode it flew before :meth:`disengage` (after a data-loss
+        FAILSAFE), with the targets it had. ``keep_state``: nothing flew meanwhile (the plant
+        froze), so it runs on exactly where it stopped. Otherwise its integrals (the learned
+        model errors) and targets are kept and its commands start from the current state, the
+        throttle from its last command (what the plant kept)."""
+        if not keep_state:
+            gx = self.g.gx
+            kept = (gx[G.GX_H_INT], gx[G.GX_V_INT], gx[G.GX_G_INT])
+            thr = float(self.g.out[G.GO_THR])
+            self._inputs(est, meas)
+            self.g.reset(self.gest, thr if 0.0 <= thr <= 1.0 else -1.0)
+            gx[G.GX_H_INT], gx[G.GX_V_INT], gx[G.GX_G_INT] = kept
+        self.mode = self.mode_before_off
+        self.count = 0
+        self.engaged = True
 
     # ------------------------------------------------------------------ the tick
     def tick(self, est: np.ndarray, meas: np.ndarray) -> bool:

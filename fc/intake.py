@@ -77,7 +77,7 @@ class FrameIntake:
         self.last_stamp_us = stamp
         self.stamp_us = stamp
         self.est.accept(self.scratch, self.meas)       # meas = scratch, the estimator on it
-        self.mode_ctl.on_frame(now_s)
+        self.mode_ctl.on_frame(now_s, stamp * 1e-6)
         if self.timeline is not None:
             self._timeline_due()
         return True

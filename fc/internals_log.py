@@ -1,10 +1,17 @@
-"""fc/internals_log.py - full-rate log of estimator and law internals (``fc_internals.npz``).
+"""fc/internals_log.py - log of estimator and law internals (``fc_internals.npz``).
 
 One row per fast tick, float64 columns (names carry units). Rows go into preallocated
 chunks; a full chunk is handed to a writer thread that appends it to the crash-safe raw
 companion ``fc_internals.raw`` (column names in ``fc_internals.cols.json``), so the loop
 never waits on the disk. ``close()`` converts the raw file into ``fc_internals.npz``
-(one array per column). ``load(path)`` reads either.
+(one array per column), streaming: bounded memory however long the run. ``load(path)``
+reads either.
+
+Sized for long runs (issue 24): a row is 816 bytes, so every fast tick of an hour at 500 Hz
+is 1.5 GB. By default (``python -m fc``) the first ``full_rate_s`` seconds of sensor time are
+logged at the full rate, then one row per ``1/tail_hz`` s (the slow-loop rate); ``full_rate_s``
+None keeps every row (``python -m fc --internals-full-rate``). The rows kept are the same rows
+a full-rate log holds (``t_s`` says when each was taken).
 
 A full disk costs rows, never the log (fc/storage.py): a chunk that cannot be written is
 dropped whole (counted in ``lost_rows``, reported to the disk health), the raw file keeps only
@@ -14,9 +21,11 @@ npz cannot be written at ``close()``, no partial file is left and the raw compan
 from __future__ import annotations
 
 import json
+import math
 import os
 import queue
 import threading
+import zipfile
 
 import numpy as np
 
@@ -33,7 +42,14 @@ class InternalsLog:
     """Row logger. ``row()`` returns the next preallocated row to fill in place."""
 
     def __init__(self, out_dir: str, columns: list[str], chunk_rows: int = 2048,
-                 n_chunks: int = 8, disk: DiskHealth | None = None) -> None:
+                 n_chunks: int = 8, disk: DiskHealth | None = None,
+                 full_rate_s: float | None = None, tail_hz: float = 100.0) -> None:
+        """``full_rate_s``: every row for this long (s of frame stamps from the first row),
+        then one row per ``1/tail_hz`` s; None: every row, however long the run."""
+        if full_rate_s is not None and not (math.isfinite(full_rate_s) and full_rate_s >= 0.0
+                                            and math.isfinite(tail_hz) and tail_hz > 0.0):
+            raise ValueError(f"internals log: full rate for {full_rate_s} s then {tail_hz} Hz: "
+                             "need a finite span >= 0 s and a finite rate > 0 Hz")
         self.columns = list(columns)
         self.ncol = len(columns)
         self.col = {c: i for i, c in enumerate(columns)}
@@ -43,7 +59,9 @@ class InternalsLog:
         self.disk = disk
         try:
             atomic_write(os.path.join(out_dir, COLS_NAME),
-                         json.dumps({"columns": self.columns, "dtype": "float64"}).encode())
+                         json.dumps({"columns": self.columns, "dtype": "float64",
+                                     "full_rate_s": full_rate_s,
+                                     "tail_hz": None if full_rate_s is None else tail_hz}).encode())
         except OSError as exc:
             if disk is None:
                 raise
@@ -59,14 +77,24 @@ class InternalsLog:
         self.rows = 0
         self.dropped = 0           # rows not logged: no free buffer (the writer is behind)
         self.lost_rows = 0         # rows not written: the disk refused them
+        self.decimated = 0         # rows not logged by choice: past full_rate_s, between tail rows
+        self._full_us = None if full_rate_s is None else int(round(full_rate_s * 1e6))
+        self._tail_us = max(1, int(round(1e6 / tail_hz)))
+        self._t0_us: int | None = None
+        self._next_us = 0
         self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
         self._thread.start()
         self.closed = False
 
-    def row(self) -> np.ndarray | None:
-        """The next row (zeroed is not guaranteed: fill every column). None if no buffer free.
+    def row(self, stamp_us: int | None = None) -> np.ndarray | None:
+        """The next row (zeroed is not guaranteed: fill every column). None if no buffer free,
+        or if the row of frame stamp ``stamp_us`` (us) is not kept (past ``full_rate_s``,
+        between two tail rows; without a stamp every row is kept).
         A full chunk goes to the writer on the next call (or ``flush``), after the caller has
         filled its last row."""
+        if self._full_us is not None and stamp_us is not None and not self._keep(stamp_us):
+            self.decimated += 1
+            return None
         if self.n == self._chunk_rows or self.chunk is None:
             if self.chunk is not None:
                 self._full.put((self.chunk, self.n))
@@ -81,6 +109,19 @@ class InternalsLog:
         self.n += 1
         self.rows += 1
         return r
+
+    def _keep(self, stamp_us: int) -> bool:
+        """Is the row of this frame stamp (us) kept? Every one in the first ``full_rate_s``,
+        then the first at or after each multiple of the tail period (from the first stamp)."""
+        if self._t0_us is None:
+            self._t0_us = stamp_us
+        since_us = stamp_us - self._t0_us
+        if since_us < self._full_us:
+            return True
+        if stamp_us < self._next_us:
+            return False
+        self._next_us = self._t0_us + (since_us // self._tail_us + 1) * self._tail_us
+        return True
 
     def _writer(self) -> None:
         while True:
@@ -114,14 +155,13 @@ class InternalsLog:
         self._full.put(None)
         self._thread.join(timeout=10.0)
         self._raw.close()
-        # from a read-only map of the raw file, one column at a time (np.savez streams each
-        # into the archive): bounded memory however long the fc has run
+        # streamed: the raw rows are turned into columns one block at a time (a column-major
+        # temp file), then each column is copied into its archive member: memory bounded by
+        # the block, however long the fc has run
         tmp = self.npz_path + ".tmp"
         try:
-            data = _read_raw(self.raw_path, self.columns, mapped=True)
             with open_for_write(tmp) as f:
-                np.savez(f, **data)
-            del data
+                write_npz_from_raw(self.raw_path, self.columns, f)
             os.replace(tmp, self.npz_path)
         except OSError as exc:
             # a full disk: no partial npz; the raw companion stays (``load`` reads it)
@@ -137,13 +177,53 @@ class InternalsLog:
         return self.npz_path
 
 
-def _read_raw(raw_path: str, columns: list[str], mapped: bool = False) -> dict[str, np.ndarray]:
-    """One array per column; ``mapped``: views of a read-only map of the file (no copy)."""
+#: rows per block of the streamed conversion (x 8 bytes x columns: about 6 MB at 100 columns)
+BLOCK_ROWS = 8192
+
+
+def write_npz_from_raw(raw_path: str, columns: list[str], f, block_rows: int = BLOCK_ROWS) -> None:
+    """Write the npz of a raw row-major float64 file (whole rows only) to the binary file
+    ``f``: the archive ``np.savez`` writes (one uncompressed ``<column>.npy`` member each),
+    in bounded memory. A column-major temp file beside ``raw_path`` holds the columns
+    meanwhile; it is removed on return, failure included."""
     ncol = len(columns)
     n = os.path.getsize(raw_path) // (8 * ncol)
-    if mapped and n:
-        table = np.memmap(raw_path, dtype=np.float64, mode="r", shape=(n, ncol))
-        return {c: table[:, i] for i, c in enumerate(columns)}
+    col_path = raw_path + ".columns.tmp"
+    try:
+        with open(raw_path, "rb") as src, open_for_write(col_path) as dst:
+            for r0 in range(0, n, block_rows):
+                m = min(block_rows, n - r0)
+                block = np.fromfile(src, dtype="<f8", count=m * ncol).reshape(m, ncol)
+                cols = np.ascontiguousarray(block.T)
+                for i in range(ncol):
+                    dst.seek((i * n + r0) * 8)
+                    dst.write(cols[i].data)
+        header = {"descr": np.lib.format.dtype_to_descr(np.dtype("<f8")),
+                  "fortran_order": False, "shape": (n,)}
+        with open(col_path, "rb") as src, \
+                zipfile.ZipFile(f, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+            for i, name in enumerate(columns):
+                with zf.open(name + ".npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array_header_1_0(member, header)
+                    src.seek(i * n * 8)
+                    left = n * 8
+                    while left:
+                        buf = src.read(min(left, 1 << 20))
+                        if not buf:
+                            raise OSError(f"{col_path}: short read")
+                        member.write(buf)
+                        left -= len(buf)
+    finally:
+        try:
+            os.unlink(col_path)
+        except OSError:
+            pass
+
+
+def _read_raw(raw_path: str, columns: list[str]) -> dict[str, np.ndarray]:
+    """One array per column (whole rows only)."""
+    ncol = len(columns)
+    n = os.path.getsize(raw_path) // (8 * ncol)
     table = np.fromfile(raw_path, dtype=np.float64, count=n * ncol).reshape(n, ncol)
     return {c: table[:, i].copy() for i, c in enumerate(columns)}
 

@@ -32,7 +32,7 @@ from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, fr
 from fc.storage import DiskHealth
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 
-__all__ = ["GCS_POLL_S", "HOLD_AFTER_S", "Housekeeping", "RunLoops"]
+__all__ = ["FC_STALL_S", "GCS_POLL_S", "HOLD_AFTER_S", "Housekeeping", "RunLoops"]
 
 #: Real time: with no new plant frame for this long (wall clock, 5 frame periods at 500 Hz) the
 #: law is not stepped and the last surface command is held until data comes back or FAILSAFE
@@ -43,6 +43,11 @@ HOLD_AFTER_S = 0.01
 #: the previous read found datagrams (a burst is drained at the tick rate). A ground station
 #: is served within 2.5 frames at 500 Hz; lockstep reads it when its ``select`` says so.
 GCS_POLL_S = 0.005
+#: The fc's own loop stopped for longer than this (wall clock between two passes: the process
+#: was not scheduled, stopped, or blocked) is a stall: counted (FC_STALLS), logged in fc.log
+#: and said by STATUSTEXT (WARNING; at most one per STALL_TEXT_EVERY_S, with the count).
+FC_STALL_S = 0.2
+STALL_TEXT_EVERY_S = 5.0
 
 
 @dataclass
@@ -72,6 +77,21 @@ class Housekeeping:
     chore: int = 0                  # which of the 1 Hz chores the next call does
     next_1hz: float = 0.0           # wall clock of the next round of 1 Hz chores
     next_gcs_poll: float = 0.0      # wall clock of the next GCS read when readiness is unknown
+    next_stall_text: float = 0.0    # wall clock before which a stall is logged but not said
+
+    def fc_stalled(self, gap_s: float, now_s: float) -> None:
+        """The loop did not run for ``gap_s`` (wall clock) before ``now_s``: count it, log it,
+        say it (rate-limited STATUSTEXT). In real time the plant flew on its own meanwhile (it
+        holds the last command after its no-command time, docs/reliability.md)."""
+        c = self.counters
+        c.fc_stalls += 1
+        c.fc_stall_max_s = max(c.fc_stall_max_s, gap_s)
+        text = (f"fc stalled {gap_s:.2f} s: no tick ran (stall {c.fc_stalls}, "
+                f"plant t={self.intake.meas[0]:.3f} s)")
+        self.log.warning(text)
+        if now_s >= self.next_stall_text:
+            self.next_stall_text = now_s + STALL_TEXT_EVERY_S
+            self.event(text, ML.MAV_SEVERITY_WARNING)
 
     def __call__(self, now_s: float, gcs_ready: bool | None = None) -> None:
         """Ground station, failsafe, 1 Hz chores. Bounded work per call.
@@ -174,6 +194,13 @@ class RunLoops:
     # stepped on the frozen estimate (it would wind up); the last command is held
     law_held: bool = False
     last_frame_wall_s: float = -1.0
+    last_pass_wall_s: float = -1.0  # wall clock of the loop's previous pass (stall check)
+
+    def _check_stall(self, now_s: float) -> None:
+        """A pass of the loop at ``now_s``: a stall if the previous one was FC_STALL_S ago."""
+        if self.last_pass_wall_s >= 0.0 and now_s - self.last_pass_wall_s > FC_STALL_S:
+            self.housekeeping.fc_stalled(now_s - self.last_pass_wall_s, now_s)
+        self.last_pass_wall_s = now_s
 
     def run(self, stop: Callable[[], bool]) -> None:
         """Loop until ``stop()`` returns True."""
@@ -208,22 +235,20 @@ class RunLoops:
                 ready = fds                 # unknown: read both
             gcs_ready = gcs_fd in ready
             now_s = mono()
-            n = 0
-            while n < 16:   # frames per wake-up: bounded
+            self._check_stall(now_s)
+            # one frame per wake-up, read only when select says a datagram waits: the plant
+            # sends frame k+1 only after our answer to k, so reading on after a frame would
+            # find nothing (a failed receive per exchange, issue 24); frames that did arrive
+            # together are taken one per wake-up, select returning at once. Housekeeping
+            # follows every frame: the .tlog's sim-paced streams fall due on a frame's stamp,
+            # so the log does not depend on how the frames were batched.
+            if plant_fd in ready:
                 stamp = self.plant.read_frame(self.intake.scratch)
-                if stamp < 0:
-                    break
-                t0 = time.perf_counter_ns()
-                self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
-                self.counters.add_exec(time.perf_counter_ns() - t0)
-                # housekeeping after every frame, also when several arrived together: the
-                # .tlog's sim-paced streams fall due on a frame's stamp, so the log does not
-                # depend on how the frames were batched (the GCS is read once per wake-up)
-                self.housekeeping(now_s, gcs_ready)
-                gcs_ready = False
-                n += 1
-            if not n:
-                self.housekeeping(now_s, gcs_ready)
+                if stamp >= 0:
+                    t0 = time.perf_counter_ns()
+                    self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
+                    self.counters.add_exec(time.perf_counter_ns() - t0)
+            self.housekeeping(now_s, gcs_ready)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
         """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),
@@ -328,6 +353,7 @@ class RunLoops:
     def _rt_tick(self, wake_ns: int, lateness_ns: int) -> None:
         """One real-time fast tick (woken at ``wake_ns``), its answer and the housekeeping."""
         now_s = wake_ns * 1e-9
+        self._check_stall(now_s)
         have_frame = self.last_frame_wall_s >= 0.0
         if (have_frame and not self.law_held and self.modes.law_active
                 and now_s - self.last_frame_wall_s > HOLD_AFTER_S):

@@ -115,6 +115,9 @@ class Mission:
     finished : True once the last item was reached (MISSION_STATE_COMPLETE).
     version : bumped whenever the stored mission or the current item changes other than by
         ``advance`` (the navigator restarts its leg on it).
+    generation : bumped whenever the stored items change (an upload completed, a clear, an
+        empty upload); not by MISSION_SET_CURRENT. MISSION mode holds when it changes under
+        it (fc/mission_mode.py).
     """
 
     def __init__(self, capacity: int = CAPACITY, retry_s: float = RETRY_S,
@@ -127,6 +130,7 @@ class Mission:
         self.current = 0
         self.finished = False
         self.version = 0
+        self.generation = 0
         self.uploads_ok = 0
         self.uploads_failed = 0
         # upload in progress: partner (sysid, compid) or None, next seq, last request time, tries
@@ -194,7 +198,7 @@ class Mission:
                 return [("ack", *src, ML.MAV_MISSION_ACCEPTED, mtype)]   # none stored: done
             out = self._cancel(ML.MAV_MISSION_OPERATION_CANCELLED)
             self._active.count = 0
-            self._changed()
+            self._changed(items=True)
             return out + [("ack", *src, ML.MAV_MISSION_ACCEPTED, mtype), ("current",)]
         if t == "MISSION_SET_CURRENT":
             return self.set_current(int(m.seq))[1]
@@ -275,7 +279,7 @@ class Mission:
         if n == 0:                             # an empty upload clears the mission
             self._partner = None
             self._active.count = 0
-            self._changed()
+            self._changed(items=True)
             return [("ack", *src, ML.MAV_MISSION_ACCEPTED, mtype), ("current",)]
         self._partner = src                    # a repeated COUNT restarts the upload
         self._staging.count = n
@@ -323,7 +327,7 @@ class Mission:
         self._active, self._staging = self._staging, self._active
         self.uploads_ok += 1
         self.current = 0
-        self._changed()
+        self._changed(items=True)
         return [("ack", *partner, ML.MAV_MISSION_ACCEPTED, MISSION), ("current",),
                 ("text", ML.MAV_SEVERITY_INFO, f"mission: {b.count} items stored")]
 
@@ -358,11 +362,13 @@ class Mission:
             out.append(("text", ML.MAV_SEVERITY_WARNING, text))
         return out
 
-    def _changed(self) -> None:
+    def _changed(self, items: bool = False) -> None:
         if self.current >= self._active.count:
             self.current = 0
         self.finished = False
         self.version += 1
+        if items:
+            self.generation += 1
 
 
 def _deg_e7(deg: float) -> int:

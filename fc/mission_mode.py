@@ -13,6 +13,12 @@ no sockets, clocks or logging. The fc calls
   returns the mission's outputs for ``GcsLink.mission_send`` (MISSION_ITEM_REACHED,
   MISSION_CURRENT, texts).
 
+Safety (docs/fc.md section 5, "ground-station input"): the navigator is the one place where
+the ground station's mission reaches the guidance while it flies. A mission replaced or
+cleared under it (``Mission.generation`` changed since entry), or any exception of the
+navigator, never reaches the law: ``tick`` returns ``("hold", why)`` and the fc switches to
+CRUISE (holding the current altitude, course and speed) with a STATUSTEXT saying why.
+
 On entry (any mode change seen through ``ModeManager.changes``) the first leg starts at the
 current position, the targets start at the current altitude, course and speed, and a finished
 mission starts over from item 0. The navigator's parameters are the fc's (:data:`MISSION_PARAMS`,
@@ -32,26 +38,28 @@ from fc.guidance.waypoints import (NavParams, WaypointNavigator, gc_azimuth_rad,
                                    unit_vector)
 from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
 from fc.link import mavlink as ML
-from fc.params import ParamDef, ParamTable
+from fc.mission_params import MISSION_PARAMS
+from fc.params import ParamTable
 from fc.vehicle_view import PlantView
 from hyfc_wire.earth import EARTH_RADIUS_M
 
-__all__ = ["MissionFlight", "MissionVehicle", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S"]
+__all__ = ["MissionFlight", "MissionVehicle", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S",
+           "nav_params"]
 
 NAV_DIV = 5                 # navigator steps every NAV_DIV guidance steps
 GNSS_MAX_AGE_S = 1.0        # a GNSS sample older than this (plant time) is not a fix
 
-#: The navigator's parameters (fc/guidance/waypoints.py NavParams), appended to the fc's table.
-MISSION_PARAMS: tuple[ParamDef, ...] = (
-    ParamDef("WP_ACCEPT_M", 2000.0, 100.0, 100000.0, "m", "mission",
-             "Least acceptance radius of a waypoint, measured along the leg; an item's param2 "
-             "> 0 overrides it. A turn is anticipated further out (docs/guidance.md 2a)."),
-    ParamDef("WP_XT_LEN_M", 50000.0, 1000.0, 1000000.0, "m", "mission",
-             "Cross-track length scale L_xt: the course target turns toward the leg by "
-             "WP_XT_ANG_DEG (2/pi) atan(e / L_xt)."),
-    ParamDef("WP_XT_ANG_DEG", 20.0, 1.0, 60.0, "deg", "mission",
-             "Intercept angle toward the leg far from it (cross-track law)."),
-)
+
+def nav_params(par: ParamTable, p: NavParams) -> None:
+    """A navigator's parameters ``p`` from the fc's table ``par`` (SI): WP_ACCEPT_M,
+    WP_XT_LEN_M, WP_XT_ANG_DEG, and the bank the guidance commands (GE_MU_MAX less
+    GE_MU_MARGIN). Read at every navigator step, so a PARAM_SET applies while flying."""
+    if "WP_ACCEPT_M" in par:
+        p.accept_m = par.get("WP_ACCEPT_M")
+        p.xt_len_m = par.get("WP_XT_LEN_M")
+        p.chi_int_rad = math.radians(par.get("WP_XT_ANG_DEG"))
+    if "GE_MU_MAX" in par:
+        p.mu_max_rad = math.radians(par.get("GE_MU_MAX") - par.get("GE_MU_MARGIN"))
 
 
 class _Home(Protocol):
@@ -96,6 +104,7 @@ class MissionFlight:
         self.mission = mission
         self.nav = WaypointNavigator(params or NavParams(earth_radius_m=EARTH_RADIUS_M))
         self._changes_seen = -1
+        self._generation = -1                  # the mission's items flown since entry
         self._count = 0
         self._refused: tuple | None = None     # the last refused targets (reported once)
 
@@ -115,13 +124,7 @@ class MissionFlight:
 
     def _params(self, fc: MissionVehicle) -> None:
         """The navigator's parameters from the fc's table (SI)."""
-        p, par = self.nav.p, fc.params
-        if "WP_ACCEPT_M" in par:
-            p.accept_m = par.get("WP_ACCEPT_M")
-            p.xt_len_m = par.get("WP_XT_LEN_M")
-            p.chi_int_rad = math.radians(par.get("WP_XT_ANG_DEG"))
-        if "GE_MU_MAX" in par:      # the bank the guidance commands: the limit less its margin
-            p.mu_max_rad = math.radians(par.get("GE_MU_MAX") - par.get("GE_MU_MARGIN"))
+        nav_params(fc.params, self.nav.p)
 
     def _start(self, fc: MissionVehicle) -> list:
         out = self.mission.restart() if self.mission.finished else []
@@ -130,16 +133,38 @@ class MissionFlight:
         _, chi, _ = fc.guidance_targets()
         self.nav.start(self.mission, fc.gcs.home, (float(g[G_LAT_DEG]), float(g[G_LON_DEG])),
                        float(fc.est.est[E_H]), chi, float(fc.est.est[E_V]))
+        self._generation = self.mission.generation
         self._count = 0
         self._refused = None
         return out
 
+    def set_speed(self, fc: MissionVehicle, v_m_s: float) -> str | None:
+        """DO_CHANGE_SPEED while the mission flies: the speed target from now on (until a
+        speed item of the mission changes it again), validated against the envelope. None on
+        success, else the reason."""
+        reason = fc.set_guidance_targets(V_m_s=v_m_s)
+        if reason is None:
+            self.nav.v_t = float(v_m_s)
+        return reason
+
     def tick(self, fc: MissionVehicle) -> list:
-        """One call per guidance step in MISSION. Returns outputs for ``mission_send``."""
+        """One call per guidance step in MISSION. Returns outputs for ``mission_send``, and
+        ``("hold", why)`` when MISSION must hold instead (the mission changed under it, or the
+        navigator failed): the caller switches to CRUISE."""
+        try:
+            return self._tick(fc)
+        except Exception as exc:  # noqa: BLE001 - GCS-made state must never reach the law
+            return [("hold", f"mission navigation failed ({exc!r}): holding (CRUISE)")]
+
+    def _tick(self, fc: MissionVehicle) -> list:
         out = []
         if fc.modes.changes != self._changes_seen:
             self._changes_seen = fc.modes.changes
             out += self._start(fc)
+        elif self.mission.generation != self._generation:
+            what = "cleared" if self.mission.count == 0 else "replaced"
+            return [("hold", f"mission {what} while flying it: holding altitude, course and "
+                             f"speed (CRUISE); set MISSION to fly the new one")]
         due = self._count == 0
         self._count = (self._count + 1) % NAV_DIV
         if not due or not self._fix(fc):

@@ -108,7 +108,7 @@ class ParamService:
                 self.law.set_param(name, new)
             except (KeyError, ValueError) as exc:
                 p.force(name, old)
-                return f"{name}: {exc}"
+                return str(exc.args[0])          # the law's reasons name the parameter
             self.guid.set_param(name, new)       # the nominal model's MDL_MASS / MDL_XCG
         elif name in GUIDANCE_NAMES:
             self.guid.set_param(name, new)

@@ -66,18 +66,22 @@ PROCESS_PARAMS: tuple[ParamDef, ...] = (
              "for FS_RECOVER_S; 0: stay in FAILSAFE until the ground station sets a mode.",
              integer=True),
     ParamDef("FS_RECOVER_S", 0.2, 0.0, 10.0, "s", "failsafe",
-             "Time valid plant data must be back before automatic recovery from FAILSAFE."),
+             "Plant time valid plant data must be back before automatic recovery from "
+             "FAILSAFE; none after a plant freeze (plant time moved on less than FS_TIMEOUT_S)."),
     ParamDef("EST_STALE_S", 0.1, 0.002, 5.0, "s", "estimator",
              "A measurement whose last valid value is older than this (sensor time) is stale; "
              "the estimator holds the last good value and flags it."),
     ParamDef("TRIM_ELEVL_DEG", 0.0, -20.0, 20.0, "deg", "trim",
-             "Left elevon position in MANUAL, FAILSAFE and disarmed (trailing edge up +)."),
+             "Left elevon position in MANUAL, disarmed, and FAILSAFE before the law flew (then it "
+             "holds the law's trim) (trailing edge up +)."),
     ParamDef("TRIM_ELEVR_DEG", 0.0, -20.0, 20.0, "deg", "trim",
-             "Right elevon position in MANUAL, FAILSAFE and disarmed (trailing edge up +)."),
+             "Right elevon position in MANUAL, disarmed, and FAILSAFE before the law flew (then it "
+             "holds the law's trim) (trailing edge up +)."),
     ParamDef("TRIM_RUD_DEG", 0.0, -20.0, 20.0, "deg", "trim",
-             "Rudder position in MANUAL, FAILSAFE and disarmed (trailing edge left +)."),
+             "Rudder position in MANUAL, disarmed, and FAILSAFE before the law flew (then it "
+             "holds the law's trim) (trailing edge left +)."),
     ParamDef("GUID_INNER_CO", 1.0, 0.0, 1.0, "bool", "guidance",
-             "Inner loop in the guidance modes (CRUISE, GUIDED, MISSION): 1 the coordinated law "
+             "Inner loop in the guidance modes (CRUISE, GUIDED, MISSION, RTL): 1 the coordinated law "
              "(CO_ENABLE 1), 0 the uncoordinated (CO_ENABLE 0).", integer=True),
     ParamDef("GT_ALT_MIN", 20000.0, 0.0, 100000.0, "m", "guidance",
              "Lowest altitude target a ground station or mission may set (AMSL); lower is refused."),
@@ -282,9 +286,9 @@ def set_aside(path: str) -> str:
 
 def build_table(law_params: Iterable | None = None) -> ParamTable:
     """The full table: law parameters (default: ``fc.control.params.LAW_PARAMS``) + process
-    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``) + mission (``fc.mission_mode``)."""
+    + guidance (``fc.guidance.params.GUIDANCE_PARAMS``) + mission (``fc.mission_params``)."""
     from fc.guidance.params import GUIDANCE_PARAMS
-    from fc.mission_mode import MISSION_PARAMS
+    from fc.mission_params import MISSION_PARAMS
     if law_params is None:
         from fc.control.params import LAW_PARAMS
         law_params = LAW_PARAMS

@@ -75,7 +75,7 @@ class _OneRow:
     def __init__(self, row: np.ndarray) -> None:
         self._row = row
 
-    def row(self) -> np.ndarray:
+    def row(self, stamp_us: int | None = None) -> np.ndarray:
         return self._row
 
 
@@ -99,6 +99,8 @@ class FcCounters:
     plant_resets: int = 0           # plant time went backwards
     law_errors: int = 0             # the law raised (FAILSAFE)
     law_holds: int = 0              # real time: law not stepped on a frozen estimate
+    fc_stalls: int = 0              # the fc's own loop stopped > FC_STALL_S (fc/loops.py)
+    fc_stall_max_s: float = 0.0     # the longest of them, s (wall clock)
     gc_us: float = 0.0              # last 1 Hz garbage collection, us
     exec_ns_sum: int = 0            # tick execution time since the last load figure, ns
     exec_n: int = 0
@@ -185,6 +187,7 @@ class Telemetry:
             (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
             (b"FS_CAUSE", float(self.modes.fs_cause)),
             (b"DUP_FRAMES", float(self.counters.duplicate_frames)),
+            (b"FC_STALLS", float(self.counters.fc_stalls)),
         ]
         for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
             nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
@@ -234,7 +237,7 @@ class Telemetry:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
         frame's arrival, in real time the wake-up."""
-        r = ilog.row()
+        r = ilog.row(stamp_us)
         if r is None:
             return
         # the parts' arrays are bound once (__post_init__; they update them in place)

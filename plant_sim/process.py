@@ -11,8 +11,8 @@ Real time: frame k is due at wall time t0 + k T (absolute deadlines; select() wa
 microsecond timeouts while receiving, then a busy poll for the last 200 us). At each deadline the plant applies the newest servo
 command it has (newest by stamp), measures, sends, logs and advances. If no command has been
 accepted for ``no_command_s`` (or none yet) it applies the scenario's ``servo.no_command``:
-``hold`` keeps the last command, ``trim`` goes to the initial-state trim; such frames are
-counted. A frame more than one period late counts as late; more than 50 periods behind, the
+``hold`` keeps the commands' recent mean (:data:`HOLD_TAU_S`; the last command before any
+came), ``trim`` goes to the initial-state trim; such frames are counted. A frame more than one period late counts as late; more than 50 periods behind, the
 schedule is re-based on the current time (counted as a resync) instead of bursting.
 """
 from __future__ import annotations
@@ -43,6 +43,9 @@ from plant_sim.truthlog import TruthWriter
 U32 = 1 << 32
 DEG = math.pi / 180.0
 SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
+#: real time, ``servo.no_command = "hold"``: time constant of the commands' mean it holds, s
+#: (the fc's FAILSAFE holds its law's commands averaged the same way: fc/mode_control.py)
+HOLD_TAU_S = 3.0
 
 
 @dataclass
@@ -288,6 +291,11 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
         trim[:] = trim_at(sc, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG).deflection_rad
     x = sim.x
     gnss = sim.gnss
+    # ``hold``: the commands' recent mean (running mean over the first HOLD_TAU_S of commands,
+    # a first-order low-pass after): the trim they flew, not the last command, which may be a
+    # transient (issue 22: a law answering late frames at -16 deg, held for 1 s, departed)
+    mean = np.zeros(3)
+    flown_s = 0.0
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t0 = perf()                # the schedule's base: re-based by a resync
@@ -318,7 +326,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
                 link.wait_readable(rem - SPIN_S)     # select(): microsecond timeouts
             # within SPIN_S of the deadline: spin on the socket (timer slack and wake-up latency
             # are 50-100 us here, perf_anchors.md section 2)
-        if link.cmd_count != last_count:
+        fresh = link.cmd_count != last_count       # a command arrived since the last frame
+        if fresh:
             last_count = link.cmd_count
             if silent:
                 silent = False
@@ -340,9 +349,11 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
                 stats.no_command_episodes += 1
                 log.warning("no servo command for %.2f s (t=%.3f s): %s", now - last_cmd_wall,
                             k * frame_dt, "surfaces to trim" if to_trim
-                            else "holding the last command")
+                            else "holding the commands' recent mean")
             if to_trim:
                 cmd[:] = trim
+            elif flown_s > 0.0:
+                cmd[:] = mean
             else:
                 cmd[:] = x[dy.X_CMD_L:dy.X_CMD_L + 3]
         else:
@@ -350,6 +361,12 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             cmd[0] = c[0]
             cmd[1] = c[1]
             cmd[2] = c[2]
+            if fresh:                              # the mean of the commands received
+                flown_s += frame_dt
+                g = frame_dt / min(flown_s, HOLD_TAU_S)
+                mean[0] += g * (cmd[0] - mean[0])
+                mean[1] += g * (cmd[1] - mean[1])
+                mean[2] += g * (cmd[2] - mean[2])
             if link.cmd_throttle >= 0.0:      # servo4 (engine model only; else ignored)
                 x[dy.X_CMD_THR] = link.cmd_throttle
         stamp = int(round(k * frame_dt * 1e6))

@@ -123,7 +123,7 @@ SCHEMA: dict[str, Any] = {
         "no_command_s": Key("float", 0.5, 0.0, 1e6,
                             doc="real time: after this long without SERVO_OUTPUT_RAW apply no_command"),
         "no_command": Key("str", "hold", choices=("hold", "trim"),
-                          doc="hold the last command, or go to the initial-state trim"),
+                          doc="hold the commands' recent mean (3 s), or go to the initial-state trim"),
     },
     "sensors": {
         "enabled": Key("bool", True, doc="false: exact measurements (no noise, bias, latency)"),

@@ -48,6 +48,17 @@ from pymavlink.dialects.v20 import ardupilotmega as ml  # noqa: E402
 from tools.linkimpair import Impairment, mutate  # noqa: E402
 
 TARGETS = ("fc-plant", "fc-gcs", "plant")
+#: Commands that arm, change the mode or steer the vehicle (COMMAND_LONG and COMMAND_INT share
+#: one handler): a random command number that hits one is sent as an unknown one instead, so
+#: the fuzzer never flies the vehicle (the real ARM/DO_SET_MODE go only with hostile values).
+FLYING_COMMANDS = frozenset({ml.MAV_CMD_COMPONENT_ARM_DISARM, ml.MAV_CMD_DO_SET_MODE,
+                             ml.MAV_CMD_NAV_RETURN_TO_LAUNCH, ml.MAV_CMD_DO_REPOSITION,
+                             ml.MAV_CMD_DO_ORBIT, ml.MAV_CMD_DO_SET_STANDARD_MODE,
+                             ml.MAV_CMD_DO_CHANGE_SPEED, ml.MAV_CMD_DO_CHANGE_ALTITUDE,
+                             ml.MAV_CMD_GUIDED_CHANGE_SPEED, ml.MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+                             ml.MAV_CMD_GUIDED_CHANGE_HEADING, ml.MAV_CMD_USER_1,
+                             ml.MAV_CMD_DO_SET_MISSION_CURRENT})
+UNKNOWN_COMMAND = 31999
 HOSTILE_FLOATS = (float("nan"), float("inf"), float("-inf"), 1e38, -1e38, 3.4e38, 0.0, -0.0,
                   1e-45, 65535.0, -1.0)
 
@@ -84,6 +95,12 @@ def _f(rng: random.Random) -> float:
     return rng.choice(HOSTILE_FLOATS) if rng.random() < 0.6 else rng.uniform(-1e6, 1e6)
 
 
+def _random_command(rng) -> int:
+    """A random MAV_CMD number that is none of FLYING_COMMANDS."""
+    cmd = rng.randrange(65536)
+    return UNKNOWN_COMMAND if cmd in FLYING_COMMANDS else cmd
+
+
 def gcs_message(mav, rng: random.Random) -> bytes:
     """A well-formed ground-station message with hostile field values."""
     k = rng.randrange(10)
@@ -97,7 +114,7 @@ def gcs_message(mav, rng: random.Random) -> bytes:
         cmd = rng.choice((ml.MAV_CMD_COMPONENT_ARM_DISARM, ml.MAV_CMD_DO_SET_MODE, ml.MAV_CMD_USER_1,
                           ml.MAV_CMD_SET_MESSAGE_INTERVAL, ml.MAV_CMD_REQUEST_MESSAGE,
                           ml.MAV_CMD_GET_MESSAGE_INTERVAL, ml.MAV_CMD_PREFLIGHT_STORAGE,
-                          rng.randrange(65536)))
+                          _random_command(rng)))
         # the real arm/mode commands only with hostile values: the fuzzer must not fly it
         p = [_f(rng) for _ in range(7)]
         if cmd in (ml.MAV_CMD_COMPONENT_ARM_DISARM, ml.MAV_CMD_DO_SET_MODE) and all(
@@ -105,7 +122,7 @@ def gcs_message(mav, rng: random.Random) -> bytes:
             p[0] = p[1] = float("nan")
         return pack(mav, mav.command_long_encode(tgt, 1, cmd, rng.randrange(256), *p))
     if k == 2:
-        return pack(mav, mav.command_int_encode(tgt, 1, rng.randrange(256), rng.randrange(65536),
+        return pack(mav, mav.command_int_encode(tgt, 1, rng.randrange(256), _random_command(rng),
                                                 0, 0, *[_f(rng) for _ in range(4)],
                                                 rng.randrange(-2**31, 2**31),
                                                 rng.randrange(-2**31, 2**31), _f(rng)))

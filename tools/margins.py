@@ -42,7 +42,6 @@ import copy
 import json
 import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +50,7 @@ from numba import njit
 from fc.control import layout as L
 from plant_sim import dynamics as dy
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
+from tools.margins_flight import Flight, stable
 from tools.sitl.closed_loop import law_frame
 
 CHANNELS = ("roll", "pitch", "yaw")
@@ -199,21 +199,6 @@ def _loop(n_frames, n_fast, n_slow, dt_fast, dt_slow, frame_dt, cmd, inj,
     return n_frames
 
 
-@dataclass
-class Flight:
-    """One injected flight. Arrays per frame: t_s (n,), att_rad / rate_rad_s / v_c_rad /
-    v_out_rad (n, 3); cmd_rad (3,) the step command; diverged: stopped early."""
-
-    t_s: np.ndarray
-    att_rad: np.ndarray
-    rate_rad_s: np.ndarray
-    v_c_rad: np.ndarray
-    v_out_rad: np.ndarray
-    cmd_rad: np.ndarray
-    diverged: bool
-    frame_dt_s: float
-
-
 def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: str = "paper",
                     sensor_noise: bool = True, point: tuple | None = None):
     """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
@@ -269,22 +254,6 @@ def fly(scenario, inj: np.ndarray, *, coordinated: bool = True, law_overrides: d
 
 
 # ------------------------------------------------------------------------ verdicts and finders
-def stable(fl: Flight, tail_s: float = 4.0, att_tol_deg: float = 0.25,
-           rate_tol_deg_s: float = 0.5) -> bool:
-    """True if the flight ends settled: not diverged, and over the last ``tail_s`` the
-    attitude error stays within ``att_tol_deg`` (about the 5 % settling band of the paper's
-    4-5 deg steps) and each rate within ``rate_tol_deg_s`` of its mean over that window (the
-    steady pull-up keeps q near 0.4 deg/s). A limit cycle or a divergence fails one of them."""
-    if fl.diverged:
-        return False
-    n = int(round(tail_s / fl.frame_dt_s))
-    e = np.degrees(np.abs(fl.att_rad[-n:] - fl.cmd_rad))
-    r = np.degrees(fl.rate_rad_s[-n:])
-    osc = np.abs(r - r.mean(axis=0))
-    return bool(np.all(np.isfinite(e)) and np.all(np.isfinite(osc)) and e.max() < att_tol_deg
-                and osc.max() < rate_tol_deg_s)
-
-
 def bisect_boundary(is_stable, good: float, bad: float, tol: float, max_iter: int = 40):
     """The boundary between a stable value ``good`` and an unstable ``bad`` of a scalar
     perturbation, to within ``tol``: (last stable, first unstable). ``is_stable(v) -> bool``."""
@@ -495,7 +464,8 @@ def main(argv=None) -> int:
                     help="law parameter override (table units), repeatable (e.g. CO_FAC_EQ=19)")
     ap.add_argument("--point", default=None, metavar="MACH,H_KM",
                     help="fly the paper's case at this flight condition (default: the paper's)")
-    w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep)")
+    w = sub.add_parser("wire", help="time-delay margin over the wire (two processes, lockstep "
+                                    "frames, or wall-clock ms in real time)")
     w.add_argument("--frames", default="0,5,10,15,20,25",
                    help="extra delays to fly, frames (1 ms each)")
     w.add_argument("--out", type=Path, default=Path("runs/margins_wire"),
@@ -507,12 +477,18 @@ def main(argv=None) -> int:
     w.add_argument("--disturbance", action="store_true",
                    help="keep the scenario's disturbance on (default off, as in process)")
     w.add_argument("--noise", action="store_true", help="keep the sensors' noise on")
+    w.add_argument("--realtime-ms", default=None, metavar="MS,MS,...",
+                   help="fly in real time instead, the relay holding each servo datagram "
+                        "this many wall-clock ms (one flight per value; --frames ignored)")
     a = ap.parse_args(argv)
     ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":
         sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
         from tools.margins_wire import wire_delay_runs
+        if a.realtime_ms is not None:
+            return wire_delay_runs(sc, [float(x) for x in a.realtime_ms.split(",")], a.out,
+                                   a.variant, ov, realtime=True)
         return wire_delay_runs(sc, [int(x) for x in a.frames.split(",")], a.out, a.variant, ov)
     point = None
     if a.point:

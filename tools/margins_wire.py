@@ -1,11 +1,17 @@
 """tools/margins_wire.py - the time-delay margin over the wire (tools.margins ``wire``).
 
-The two processes fly in lockstep (tools.hil.runner.run_variant, the main job's machinery)
-with tools.linkimpair's frame delay between them: the plant applies at frame k the fc's answer
-to frame k - N. The relay runs inside the plant's process: the runner starts the plant as
-``python -m tools.margins_wire --delay-frames N -- <plant arguments>``, which starts the relay
-toward the fc's port (the plant's ``--fc``), points the plant at the relay, and runs the plant's
-own main (lockstep: the relay thread costs speed, never results).
+Lockstep (default): the two processes fly in lockstep (tools.hil.runner.run_variant, the main
+job's machinery) with tools.linkimpair's frame delay between them: the plant applies at frame
+k the fc's answer to frame k - N. Real time (``realtime=True``): the two processes fly in real
+time and the relay holds each fc -> plant datagram (SERVO_OUTPUT_RAW) N wall-clock ms
+(``Impairment(delay_s=...)``); the plant applies the newest answer at its next frame boundary,
+so the loop sees N ms plus up to one frame plus the link's latency, and the load of the machine
+matters (each row records the load average).
+
+The relay runs inside the plant's process: the runner starts the plant as
+``python -m tools.margins_wire --delay-frames N -- <plant arguments>`` (or ``--delay-ms X``),
+which starts the relay toward the fc's port (the plant's ``--fc``), points the plant at the
+relay, and runs the plant's own main (lockstep: the relay thread costs speed, never results).
 """
 from __future__ import annotations
 
@@ -27,8 +33,11 @@ def plant_with_relay(argv=None) -> int:
         usage="python -m tools.margins_wire --delay-frames N -- <plant_sim arguments>",
         description="The plant with a lockstep frame-delay relay toward its --fc "
                     "(tools.margins wire starts it).")
-    ap.add_argument("--delay-frames", type=int, required=True,
-                    help="the plant applies at frame k the fc's answer to frame k - N")
+    g = ap.add_mutually_exclusive_group(required=True)
+    g.add_argument("--delay-frames", type=int,
+                   help="lockstep: the plant applies at frame k the fc's answer to frame k - N")
+    g.add_argument("--delay-ms", type=float,
+                   help="real time: each fc -> plant datagram is held this many ms")
     a = ap.parse_args(argv[:cut])
     plant_argv = argv[cut + 1:]
     if "--fc" not in plant_argv:
@@ -36,7 +45,9 @@ def plant_with_relay(argv=None) -> int:
     from tools.linkimpair import Impairment, LinkImpair, parse_hostport
     i = plant_argv.index("--fc")
     target = parse_hostport(plant_argv[i + 1])
-    relay = LinkImpair(target, down=Impairment(delay_frames=a.delay_frames)).start()
+    down = (Impairment(delay_frames=a.delay_frames) if a.delay_frames is not None
+            else Impairment(delay_s=a.delay_ms * 1e-3))
+    relay = LinkImpair(target, down=down).start()
     host, port = relay.listen_address
     plant_argv[i + 1] = f"{host}:{port}"
     from plant_sim.__main__ import main as plant_main
@@ -48,13 +59,16 @@ def plant_with_relay(argv=None) -> int:
     return rc
 
 
-def wire_delay_runs(scenario, frames: list[int], out: Path, variant: str = "coordinated",
-                    overrides: dict | None = None, duration_s: float = 20.0) -> int:
-    """Fly ``scenario`` over the wire with each extra delay in ``frames``; print and write
-    ``out/wire.md`` / ``wire.json`` with the stability verdict of each (tools.margins.stable)."""
+def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinated",
+                    overrides: dict | None = None, duration_s: float = 20.0,
+                    realtime: bool = False) -> int:
+    """Fly ``scenario`` over the wire with each extra delay in ``frames`` (lockstep frames, or
+    with ``realtime`` wall-clock ms); print and write ``out/wire.md`` / ``wire.json`` with the
+    stability verdict of each (tools.margins_flight.stable)."""
+    import os
     from tools.hil import rundata
     from tools.hil.runner import RunConfig, run_variant
-    from tools.margins import Flight, stable
+    from tools.margins_flight import stable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scen_path = out / "scenario.toml"
@@ -68,39 +82,63 @@ def wire_delay_runs(scenario, frames: list[int], out: Path, variant: str = "coor
     cmd = np.radians(np.array(scenario.commands[0][1:4], float))
     rows = []
     for n in frames:
-        vdir = out / f"delay_{n:04d}"
-        cfg = RunConfig(scenario=str(scen_path), mode="lockstep", variants=(variant,),
-                        out_dir=out, duration_s=duration_s, seed=int(scenario.seed), quiet=True,
-                        params_file=params,
-                        plant_cmd=(sys.executable, "-m", "tools.margins_wire",
-                                   "--delay-frames", str(int(n)), "--"))
+        if realtime:
+            vdir = out / f"delay_{float(n):07.2f}ms"
+            relay = ("--delay-ms", repr(float(n)))
+        else:
+            vdir = out / f"delay_{n:04d}"
+            relay = ("--delay-frames", str(int(n)))
+        cfg = RunConfig(scenario=str(scen_path), mode="realtime" if realtime else "lockstep",
+                        variants=(variant,), out_dir=out, duration_s=duration_s,
+                        seed=int(scenario.seed), quiet=True, params_file=params,
+                        plant_cmd=(sys.executable, "-m", "tools.margins_wire", *relay, "--"))
+        load0 = os.getloadavg()[0]
         res = run_variant(cfg, variant, vdir, commands, str(scen_path), threading.Event())
-        row = {"delay_frames": int(n), "delay_ms": n * fdt * 1e3, "ok": res.ok,
-               "error": res.error, "wall_s": res.wall_time_total_s}
+        if realtime:
+            row = {"mode": "realtime", "delay_ms": float(n), "ok": res.ok, "error": res.error,
+                   "wall_s": res.wall_time_total_s,
+                   "load_avg_1min": [round(load0, 2), round(os.getloadavg()[0], 2)]}
+        else:
+            row = {"delay_frames": int(n), "delay_ms": n * fdt * 1e3, "ok": res.ok,
+                   "error": res.error, "wall_s": res.wall_time_total_s}
         if res.ok:
             fl = truth_flight(vdir, cmd, fdt)
             row["stable"] = stable(fl)
             row["diverged"] = fl.diverged
             tail = int(round(4.0 / fdt))
             row["tail_att_err_deg"] = np.degrees(np.abs(fl.att_rad[-tail:] - cmd)).max(0).tolist()
+            row["tail_rate_rms_deg_s"] = np.degrees(np.std(fl.rate_rad_s[-tail:], axis=0)).tolist()
+            if realtime:
+                from tools.hil.rundata import late_ticks_from_log
+                row["late_ticks"] = late_ticks_from_log(vdir / "fc.log")
         rows.append(row)
         print(json.dumps(row), flush=True)
     (out / "wire.json").write_text(json.dumps(rows, indent=1))
-    lines = ["| extra delay frames | ms | stable | tail attitude error a/b/m deg | wall s |",
-             "|---|---|---|---|---|"]
+    if realtime:
+        lines = ["| extra delay ms (real time) | stable | tail attitude error a/b/m deg | "
+                 "late ticks | load average (1 min) before / after | wall s |",
+                 "|---|---|---|---|---|---|"]
+    else:
+        lines = ["| extra delay frames | ms | stable | tail attitude error a/b/m deg | wall s |",
+                 "|---|---|---|---|---|"]
     for r in rows:
         err = "/".join(f"{v:.3f}" for v in r.get("tail_att_err_deg", [])) or r.get("error") or "-"
-        lines.append(f"| {r['delay_frames']} | {r['delay_ms']:.0f} | {r.get('stable', '-')} | "
-                     f"{err} | {r['wall_s']:.1f} |")
+        if realtime:
+            lines.append(f"| {r['delay_ms']:g} | {r.get('stable', '-')} | {err} | "
+                         f"{r.get('late_ticks', '-')} | "
+                         f"{' / '.join(str(x) for x in r['load_avg_1min'])} | {r['wall_s']:.1f} |")
+        else:
+            lines.append(f"| {r['delay_frames']} | {r['delay_ms']:.0f} | {r.get('stable', '-')} | "
+                         f"{err} | {r['wall_s']:.1f} |")
     (out / "wire.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0 if all(r["ok"] for r in rows) else 1
 
 
 def truth_flight(vdir: Path, cmd_rad: np.ndarray, frame_dt_s: float):
-    """A tools.margins.Flight from a run directory's plant truth log."""
+    """A tools.margins_flight.Flight from a run directory's plant truth log."""
     from plant_sim.truthlog import load
-    from tools.margins import Flight
+    from tools.margins_flight import Flight
     tr = load(str(Path(vdir) / "truth.npz"))
     att = np.column_stack([tr["alpha_rad"], tr["beta_rad"], tr["mu_rad"]])
     rate = np.column_stack([tr["p_rad_s"], tr["q_rad_s"], tr["r_rad_s"]])

@@ -7,7 +7,7 @@ the MAVLink spec, PX4, MAVSDK and QGroundControl expect (docs/fc.md section 7). 
 module gives MAVProxy both:
 
 - the mode names: the prompt and "Mode ..." announcements show the hyfc names (MANUAL,
-  COORDINATED, UNCOORDINATED, FAILSAFE, CRUISE, GUIDED, MISSION); ``mode`` lists them and
+  COORDINATED, UNCOORDINATED, FAILSAFE, CRUISE, GUIDED, MISSION, RTL); ``mode`` lists them and
   ``mode COORDINATED`` (or just ``COORDINATED``) sets one, sending MAV_CMD_DO_SET_MODE with the
   hyfc mode number (so MISSION, whose custom_mode is above 2^24, travels exactly as 6);
 - the parameter encoding: MAVProxy's param module decodes and sends INT32 parameters bytewise

@@ -1,8 +1,9 @@
 """Mutation testing of the control law: does a wrong law fail the law's tests?
 
     python -m tools.mutate                       # the law's modules, fast unit tests, report
+    python -m tools.mutate --quick               # 10 mutants, ~12 s of CPU (run by the tests)
     python -m tools.mutate --list                # the mutants only, no test run
-    python -m tools.mutate --jit-tests tests/test_closed_loop.py::test_coordination_pins
+    python -m tools.mutate --jit-tests "test_closed_loop.py::test_documented_figures[paper-co-steps-truth]"
 
 Each mutant is ONE change to the source of a law module (default: every module of
 ``TARGETS``, fc/control/slow_loop.py, fast_loop.py, factors.py, ...), inside the functions
@@ -12,6 +13,7 @@ that carry the paper's equations (``TARGETS[module]``):
     drop      one term of a sum or difference removed (a + b -> a, a + b -> b, a - b -> -b)
     muldiv    * becomes / and vice versa
     const     a float constant c becomes 2 c (0.0 becomes 1.0)
+    named     the hand-made wrong laws of ``NAMED`` (a gain halved, an adaptation's sign)
 
 Index arithmetic (inside ``x[...]``) is left alone: it is layout, not an equation. The
 mutant is written into a temporary copy of the project (never in place); the chosen tests
@@ -24,7 +26,11 @@ compile of the mutant.
 
 The report (``--report``, default docs/mutation_report.md) lists every mutant with
 file:line, the function, the equation named by the nearest ``Eq.`` comment above it, the
-change and the verdict. This is a tool, not a CI test (docs/control_law.md section 12).
+change and the verdict. Test files are named by file name and found under tests/
+(``find_tests``), so a moved test file is still run and a missing one is an error. The full
+set is a tool run on demand; ``--quick`` (the named mutants and one sign flip per main
+kernel) runs in the test suite (tests/unit/tools/test_mutate_tool.py) and exits 1 if any
+mutant survives (docs/control_law.md section 12).
 """
 from __future__ import annotations
 
@@ -58,19 +64,73 @@ TARGETS = {
 }
 #: every function of TARGETS (the default of find_mutants)
 FUNCTIONS = tuple(f for fns in TARGETS.values() for f in fns)
-KINDS = ("sign", "drop", "muldiv", "const")
+KINDS = ("sign", "drop", "muldiv", "const", "named")
 
-#: Stage 1: unit tests of each equation, fast without JIT.
-DEFAULT_TESTS = ("tests/test_law_equations.py", "tests/test_law_units.py::test_gs_inverse_and_determinant",
-                 "tests/test_law_units.py::test_solve3_matches_numpy",
-                 "tests/test_law_units.py::test_factors_hand_computed",
-                 "tests/test_law_units.py::test_allocator_exact_when_unsaturated",
-                 "tests/test_law_units.py::test_allocator_reports_shortfall_and_keeps_direction",
-                 "tests/test_law_units.py::test_surface_coordination_eq47",
-                 "tests/test_law_units.py::test_coordinated_matrix_guard_rejects_sign_flip",
-                 "tests/test_law_units.py::test_observer_converges_to_constant_disturbance",
-                 "tests/test_law_units.py::test_projection_identity_inside_and_bounded_outside",
-                 "tests/test_law_units.py::test_factors_zero_when_uncoordinated_and_clamped")
+#: Stage 1: unit tests of each equation, fast without JIT, and the behavioural tests of the
+#: adaptation; file names (and node ids inside them), found under tests/ by ``find_tests``
+#: wherever the file lives, so a test file that moves does not silently drop out.
+DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_and_determinant",
+                 "test_law_units.py::test_solve3_matches_numpy",
+                 "test_law_units.py::test_factors_hand_computed",
+                 "test_law_units.py::test_allocator_exact_when_unsaturated",
+                 "test_law_units.py::test_allocator_reports_shortfall_and_keeps_direction",
+                 "test_law_units.py::test_surface_coordination_eq47",
+                 "test_law_units.py::test_coordinated_matrix_guard_rejects_sign_flip",
+                 "test_law_units.py::test_observer_converges_to_constant_disturbance",
+                 "test_law_units.py::test_projection_identity_inside_and_bounded_outside",
+                 "test_law_units.py::test_factors_zero_when_uncoordinated_and_clamped",
+                 "test_adaptation.py")
+
+
+@dataclass(frozen=True)
+class Named:
+    """A hand-made mutant: ``old`` (which must occur exactly once in ``file``) becomes ``new``.
+    For wrong laws the operator kinds cannot write (a gain halved, a regressor's sign)."""
+    file: str
+    function: str
+    old: str
+    new: str
+    what: str
+
+
+#: Hand-made mutants, in the full set and in --quick (docs/control_law.md section 12).
+NAMED = (
+    Named("fc/control/fast_loop.py", "fast_kernel", "(nm[NM_XI + i] * e2 - leak",
+          "(-nm[NM_XI + i] * e2 - leak", "Eq. 36: sign of the adaptation flipped"),
+    Named("fc/control/fast_loop.py", "fast_kernel", "gamma2 = par[P_FST_GAMMA]",
+          "gamma2 = 0.5 * par[P_FST_GAMMA]", "Eq. 36: Gamma2 halved"),
+    Named("fc/control/slow_loop.py", "slow_kernel", "gamma1 = par[P_SLW_GAMMA]",
+          "gamma1 = 0.5 * par[P_SLW_GAMMA]", "Eq. 30: Gamma1 halved"),
+    Named("fc/control/slow_loop.py", "slow_kernel", "(nm[NM_PSI + i] * sigma_row",
+          "(-nm[NM_PSI + i] * sigma_row", "Eq. 30: sign of the adaptation flipped"),
+)
+
+#: --quick: the named mutants plus the first sign flip of each of these functions: a few
+#: mutants that run in the test suite (tests/unit/tools/test_mutate_tool.py).
+QUICK_SIGN_FUNCTIONS = ("slow_kernel", "fast_kernel", "coordinated_factors", "allocate",
+                        "dob_update", "gs_inv")
+
+
+def find_tests(names=DEFAULT_TESTS, root: Path | None = None) -> list[str]:
+    """Pytest node ids for ``names`` (``file.py`` or ``file.py::test``): each file is looked up
+    under ``root``/tests wherever it lives. FileNotFoundError if a file is missing or found
+    twice (a moved or duplicated test file must not silently drop out of the run)."""
+    root = ROOT if root is None else Path(root)
+    out = []
+    for name in names:
+        fname, sep, rest = name.partition("::")
+        if "/" in fname:                        # an explicit path: taken as given
+            if not (root / fname).is_file():
+                raise FileNotFoundError(f"test file {fname} not found under {root}")
+            out.append(name)
+            continue
+        hits = sorted(p for p in (root / "tests").rglob(fname) if p.is_file())
+        if len(hits) != 1:
+            raise FileNotFoundError(f"test file {fname}: {len(hits)} matches under "
+                                    f"{root / 'tests'} (need exactly one)")
+        out.append(hits[0].relative_to(root).as_posix() + sep + rest)
+    return out
+
 
 COPY_DIRS = ("fc", "plant_sim", "tools", "tests")
 
@@ -222,6 +282,35 @@ def find_mutants(path: Path, functions=FUNCTIONS, kinds=KINDS):
     return out
 
 
+def named_mutants(named=NAMED, root: Path | None = None):
+    """[(Mutant, mutated source)] for the hand-made mutants ``named`` (kind "named"; index
+    -1, -2, ... so their keys never collide with the operator mutants'). ValueError if a
+    mutant's ``old`` text is not found exactly once: the law changed under it, and the
+    mutant must be rewritten, not dropped."""
+    root = ROOT if root is None else Path(root)
+    out = []
+    for k, nm in enumerate(named):
+        text = (root / nm.file).read_text()
+        if text.count(nm.old) != 1:
+            raise ValueError(f"named mutant {nm.what!r}: {nm.old!r} occurs "
+                             f"{text.count(nm.old)} times in {nm.file} (need exactly one)")
+        pos = text.index(nm.old)
+        line = text.count("\n", 0, pos) + 1
+        out.append((Mutant(-1 - k, line, nm.function, nm.what, "named",
+                           f"{nm.old!r} -> {nm.new!r}", text.splitlines()[line - 1].strip(),
+                           file=nm.file), text.replace(nm.old, nm.new)))
+    return out
+
+
+def quick_mutants(targets=TARGETS, functions=QUICK_SIGN_FUNCTIONS, named=NAMED):
+    """The --quick set: the named mutants and the first sign flip of each of ``functions``."""
+    found = []
+    for fn in functions:
+        rel = next(r for r, fns in targets.items() if fn in fns)
+        found += find_mutants(ROOT / rel, (fn,), ("sign",))[:1]
+    return named_mutants(named) + found
+
+
 # -------------------------------------------------------------------------------------------
 # Running the tests against one mutant
 # -------------------------------------------------------------------------------------------
@@ -370,13 +459,23 @@ def _run_worker(work: Path, tests, items, timeout_s: float, on_result):
             on_result(m, "worker died")
 
 
-def run(targets: dict, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs: int,
-        only=None, progress=True, kinds=KINDS):
-    """Mutate each module of ``targets`` {rel path: functions} and run the tests; returns the
-    list of Mutants with verdicts (``only``: the source lines to keep, in any module)."""
-    found = [f for rel, fns in targets.items() for f in find_mutants(ROOT / rel, fns, kinds)]
+def select(targets: dict, kinds=KINDS, only=None, named=NAMED):
+    """[(Mutant, source)]: the named mutants whose file is in ``targets`` (when "named" is in
+    ``kinds``), then every operator mutant of ``targets`` {rel path: functions} of ``kinds``
+    (``only``: the source lines to keep, in any module)."""
+    found = []
+    if "named" in kinds:
+        found += named_mutants([n for n in named if n.file in targets])
+    found += [f for rel, fns in targets.items() for f in find_mutants(ROOT / rel, fns, kinds)]
     if only:
         found = [(m, s) for m, s in found if m.line in only]
+    return found
+
+
+def run(found, tests, jit_tests, timeout_s: float, jit_timeout_s: float, jobs: int,
+        progress=True):
+    """Run the tests against each of ``found`` [(Mutant, source)]; returns the list of
+    Mutants with verdicts."""
     with tempfile.TemporaryDirectory(prefix="hyfc-mutate-") as tmp:
         works = []
         for j in range(max(1, jobs)):
@@ -416,8 +515,20 @@ def run(targets: dict, tests, jit_tests, timeout_s: float, jit_timeout_s: float,
 # -------------------------------------------------------------------------------------------
 # Report
 # -------------------------------------------------------------------------------------------
+def _commit() -> str:
+    """The project's HEAD commit (short), with ``+dirty`` if the law's sources differ from it."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
+                              capture_output=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", *TARGETS], cwd=ROOT,
+                               text=True, capture_output=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head or "unknown") + ("+dirty" if dirty else "")
+
+
 def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
-           kinds=KINDS) -> str:
+           kinds=KINDS, command: str = "python -m tools.mutate") -> str:
     n = len(mutants)
     killed = [m for m in mutants if m.verdict == "killed"]
     surv = [m for m in mutants if m.verdict == "survived"]
@@ -429,10 +540,10 @@ def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: f
     mutated = "; ".join(f"`{rel}`: " + ", ".join(f"`{f}`" for f in fns)
                         for rel, fns in targets.items())
     out = ["# Mutation report: the control law's kernels", "",
-           f"Generated by `python -m tools.mutate` on "
+           f"Generated by `{command}` at commit {_commit()} on "
            f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')} "
-           f"({wall_s / 60:.1f} min). Functions mutated: {mutated}; "
-           f"kinds: {', '.join(kinds)}.",
+           f"({wall_s / 60:.1f} min wall, load average {os.getloadavg()[0]:.1f} at the end). "
+           f"Functions mutated: {mutated}; kinds: {', '.join(kinds)}.",
            "", "Stage 1 tests (NUMBA_DISABLE_JIT=1): " + ", ".join(f"`{t}`" for t in tests) + ".",
            "", ("Stage 2 tests (compiled, survivors of stage 1 only): "
                 + ", ".join(f"`{t}`" for t in jit_tests) + ".") if jit_tests else
@@ -443,6 +554,12 @@ def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: f
            "| kind | mutants | killed |", "|---|---|---|"]
     for k, (a, b) in sorted(by_kind.items()):
         out.append(f"| {k} | {a} | {b} |")
+    named = [m for m in mutants if m.kind == "named"]
+    if named:
+        out += ["", "## Hand-made mutants (`tools.mutate.NAMED`)", "",
+                "| line | wrong law | change | verdict |", "|---|---|---|---|"]
+        for m in named:
+            out.append(f"| {m.file}:{m.line} | {m.equation} | `{m.change}` | {m.verdict} |")
     out += ["", "## Survivors", ""]
     if not surv:
         out.append("None.")
@@ -462,13 +579,17 @@ def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: f
 
 
 def main(argv=None) -> int:
+    """Exit status 0 when every mutant is killed or judged equivalent, 1 otherwise."""
     ap = argparse.ArgumentParser(prog="python -m tools.mutate", description=__doc__.split("\n")[0])
     ap.add_argument("--files", nargs="+", default=list(TARGETS),
                     help="modules to mutate, relative to the project root (default: TARGETS)")
     ap.add_argument("--tests", nargs="+", default=list(DEFAULT_TESTS),
-                    help="stage 1 pytest node ids (run with NUMBA_DISABLE_JIT=1)")
+                    help="stage 1 tests, run with NUMBA_DISABLE_JIT=1: pytest node ids, or a "
+                         "file name (with ::test) looked up under tests/ (default: "
+                         "DEFAULT_TESTS)")
     ap.add_argument("--jit-tests", nargs="*", default=[],
-                    help="stage 2 pytest node ids (compiled), run on stage-1 survivors only")
+                    help="stage 2 tests (compiled), run on stage-1 survivors only (node ids "
+                         "or file names, as --tests)")
     ap.add_argument("--timeout", type=float, default=120.0, help="per mutant, stage 1, s")
     ap.add_argument("--jit-timeout", type=float, default=600.0, help="per mutant, stage 2, s")
     ap.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (stage 1)")
@@ -478,9 +599,13 @@ def main(argv=None) -> int:
                     help="functions to mutate in each of --files (default: TARGETS[file])")
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS,
                     help="mutation kinds")
+    ap.add_argument("--quick", action="store_true",
+                    help="a few mutants only (NAMED and the first sign flip of each of "
+                         "QUICK_SIGN_FUNCTIONS), one worker; no report unless --report")
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
-    ap.add_argument("--report", type=Path, default=ROOT / "docs" / "mutation_report.md",
-                    help="where the Markdown report goes (default docs/mutation_report.md)")
+    ap.add_argument("--report", type=Path, default=None,
+                    help="where the Markdown report goes (default docs/mutation_report.md; "
+                         "none with --quick)")
     ap.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.worker:
@@ -491,22 +616,35 @@ def main(argv=None) -> int:
         if not fns:
             ap.error(f"{rel} is not in TARGETS: name its functions with --functions")
         targets[rel] = tuple(fns)
+    found = quick_mutants() if a.quick else select(targets, a.kinds, a.lines)
     if a.list:
-        for rel, fns in targets.items():
-            for m, _ in find_mutants(ROOT / rel, fns, a.kinds):
-                print(f"{rel}:{m.line} {m.function} [{m.equation}] {m.kind}: {m.change}")
+        for m, _ in found:
+            print(f"{m.file}:{m.line} {m.function} [{m.equation}] {m.kind}: {m.change}")
         return 0
+    try:
+        tests = find_tests(a.tests)
+        jit_tests = find_tests(a.jit_tests)
+    except FileNotFoundError as exc:
+        ap.error(str(exc))
     t0 = time.perf_counter()
-    mutants = run(targets, a.tests, a.jit_tests, a.timeout, a.jit_timeout, a.jobs, a.lines,
-                  kinds=a.kinds)
-    text = report(targets, mutants, a.tests, a.jit_tests, EQUIVALENT, time.perf_counter() - t0,
-                  a.kinds)
-    a.report.parent.mkdir(parents=True, exist_ok=True)
-    a.report.write_text(text)
-    n_s = sum(m.verdict == "survived" for m in mutants)
-    print(f"{len(mutants)} mutants, {len(mutants) - n_s} killed, {n_s} survived; "
-          f"report {a.report}")
-    return 0
+    mutants = run(found, tests, jit_tests, a.timeout, a.jit_timeout, 1 if a.quick else a.jobs)
+    n_s = sum(m.verdict == "survived" and (m.source, m.change) not in EQUIVALENT
+              for m in mutants)
+    report_path = a.report or (None if a.quick else ROOT / "docs" / "mutation_report.md")
+    if report_path is not None:
+        command = "python -m tools.mutate" + "".join(
+            f" {x}" if x.startswith("-") or " " not in x else f' "{x}"'
+            for x in (sys.argv[1:] if argv is None else argv))
+        text = report(targets if not a.quick else {m.file: () for m in mutants}, mutants,
+                      tests, jit_tests, EQUIVALENT, time.perf_counter() - t0,
+                      ("quick",) if a.quick else a.kinds, command)
+        report_path.parent.mkdir(parents=True, exist_ok=True)
+        report_path.write_text(text)
+    killed = sum(m.verdict == "killed" for m in mutants)
+    print(f"{len(mutants)} mutants, {killed} killed, {len(mutants) - killed} survived "
+          f"({n_s} not judged equivalent) in {time.perf_counter() - t0:.1f} s"
+          + (f"; report {report_path}" if report_path else ""))
+    return 1 if n_s else 0
 
 
 #: Survivors read and judged equivalent, keyed (source line, change), with the reason

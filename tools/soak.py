@@ -11,6 +11,12 @@ late ticks per 1000, rejected input counters, relay counters, failsafe entries, 
 codes. The rig it stands on is ``tools.sitl.rig``.
 
     python -m tools.soak --duration 60 --flood-rate 2000 --seed 1 [--out DIR]
+                         [--stall-max 1.0 --stall-every 60]
+
+With ``--stall-max S`` the plant process is stopped at random (seeded) for 0.1..S s about every
+``--stall-every`` s (plant freezes, tools.sitl.rig.PlantStaller). The figures include the
+fc's and the plant's RSS and open file descriptors (sampled with each progress line), the
+60 s windows that left the steady bounds, the FAILSAFE, recovery and stall texts.
 """
 from __future__ import annotations
 
@@ -25,7 +31,8 @@ import time
 from pathlib import Path
 
 from tools.linkimpair import Impairment
-from tools.sitl.rig import Flood, Rig, RigConfig, late_ticks, tracking_error_deg
+from tools.sitl.rig import (Flood, PlantStaller, Rig, RigConfig, late_ticks, proc_usage,
+                            steady_figures, steady_violations, tracking_error_deg)
 
 
 def flood_main(target: tuple[str, int], rate_hz: float, duration_s: float, seed: int,
@@ -99,14 +106,33 @@ def progress_line(rig: Rig, duration_s: float) -> str:
             f"{nv.get('REJ_PLANT', 0):.0f}   failsafes {failsafes}   relay dropped {dropped}")
 
 
-def watch_progress(rig: Rig, duration_s: float, say) -> None:
-    """Until the plant has finished (bounded): a progress line every ``say.every_s`` s."""
+def watch_progress(rig: Rig, duration_s: float, say, usage: dict | None = None) -> None:
+    """Until the plant has finished (bounded): a progress line every ``say.every_s`` s; each
+    time, when ``usage`` is given, the fc's and the plant's RSS (kB) and open descriptors
+    sampled into it (``usage[name]``: list of (wall s, rss kB, fds))."""
     deadline = time.monotonic() + duration_s * 3 + 60
     every = say.every_s if say.every_s > 0 else 1.0
+    t0 = time.monotonic()
     while time.monotonic() < deadline:
         if rig.plant.wait_exit(min(every, max(0.0, deadline - time.monotonic()))) is not None:
             return
+        if usage is not None:
+            for name, p in (("fc", rig.fc), ("plant", rig.plant)):
+                u = proc_usage(p.pid)
+                if u is not None:
+                    usage.setdefault(name, []).append((time.monotonic() - t0, *u))
         say(progress_line(rig, duration_s))
+
+
+def usage_summary(samples: list) -> dict:
+    """RSS (kB) and descriptors: first sample after 30 s (start-up done), last, max."""
+    late = [s for s in samples if s[0] >= 30.0] or samples
+    if not late:
+        return {}
+    return {"rss_kb_first": late[0][1], "rss_kb_last": late[-1][1],
+            "rss_kb_max": max(s[1] for s in late), "fds_first": late[0][2],
+            "fds_last": late[-1][2], "fds_max": max(s[2] for s in late),
+            "samples": len(late)}
 
 
 def soak(args) -> int:
@@ -131,8 +157,24 @@ def soak(args) -> int:
             flood = Flood(("127.0.0.1", rig.gcs_bind_port), args.flood_rate,
                           max(0.0, args.duration - 2.0), seed=args.seed).start()
             say(f"soak: ground-station flood started ({args.flood_rate:g} datagrams/s)")
-        watch_progress(rig, args.duration, say)
+        staller = None
+        if args.stall_max > 0:
+            staller = PlantStaller(rig.plant.pid, args.stall_max, args.stall_every,
+                                   seed=args.seed).start()
+            say(f"soak: plant stalls up to {args.stall_max:g} s about every "
+                f"{args.stall_every:g} s")
+        usage: dict = {}
+        try:
+            watch_progress(rig, args.duration, say, usage)
+        finally:
+            if staller is not None:
+                staller.stop()
         rcs = rig.finish()
+        fig["usage"] = {k: usage_summary(v) for k, v in usage.items()}
+        if staller is not None:
+            fig["plant_stalls"] = {"count": len(staller.stalls),
+                                   "max_s": max((d for _, d in staller.stalls), default=0.0),
+                                   "total_s": sum(d for _, d in staller.stalls)}
         say(f"soak: done (exit codes plant {rcs['plant']}, fc {rcs['fc']}); figures follow")
         if flood is not None:
             fig["flood_sent"] = flood.wait(30)
@@ -157,6 +199,20 @@ def soak(args) -> int:
                                   if k in ("REJ_PLANT", "REJ_GCS", "REJ_SIGN", "LATE_CNT",
                                            "DUP_FRAMES", "FS_CAUSE", "SKIPPED", "OVERRUN")}
         fig["failsafe_texts"] = [t for _, _, t in rig.gcs.texts if "FAILSAFE" in t]
+        fig["recovery_texts"] = [t for _, _, t in rig.gcs.texts if "data back" in t]
+        fig["stall_texts"] = [t for _, _, t in rig.gcs.texts if "stalled" in t]
+        if guided:
+            # the steady bounds over the whole flight after the engagement, in 60 s windows
+            t_end = float(truth["t_s"][-1])
+            bad = []
+            t = min(10.0, 0.5 * args.duration)
+            while t < t_end - 1.0:
+                w = steady_figures(truth, internals, t, min(t + 60.0, t_end + 1.0))
+                v = steady_violations(w)
+                if v:
+                    bad.append({"from_s": t, "violations": v})
+                t += 60.0
+            fig["steady_windows_violated"] = bad
     print(json.dumps(fig, indent=2))
     ok = rcs["plant"] == 0 and rcs["fc"] == 0
     return 0 if ok else 1
@@ -195,6 +251,10 @@ def main(argv: list[str] | None = None) -> int:
                        help="plant link: fraction of datagrams reordered (0.01)")
         p.add_argument("--flood-rate", type=float, default=2000.0,
                        help="ground-station datagrams per second, 0 = no flood (2000)")
+        p.add_argument("--stall-max", type=float, default=0.0, metavar="S",
+                       help="random plant stalls (SIGSTOP) of 0.1..S s, 0 = none (0)")
+        p.add_argument("--stall-every", type=float, default=60.0, metavar="S",
+                       help="mean wall seconds between plant stalls (60)")
         p.add_argument("--out", help="run directory (default: a new temp directory)")
         p.add_argument("--progress-every", type=float, default=5.0, metavar="S",
                        help="a progress line on stderr every S wall seconds, 0 = none (5)")

@@ -62,7 +62,8 @@ def checked_value(prm: Param, value: float) -> float:
     lo = min(prm.min, float(np.float32(prm.min)))
     hi = max(prm.max, float(np.float32(prm.max)))
     if v < lo or v > hi:
-        raise ValueError(f"{prm.name}={v:g} outside [{prm.min:g}, {prm.max:g}] {prm.unit}")
+        unit = "" if prm.unit in ("-", "1", "") else f" {prm.unit}"   # "-": no unit to name
+        raise ValueError(f"{prm.name}={v:g} outside [{prm.min:g}, {prm.max:g}]{unit}")
     if prm.integer and v != round(v):
         raise ValueError(f"{prm.name}={v:g} must be a whole number")
     return min(max(v, prm.min), prm.max)
@@ -268,7 +269,7 @@ def check_value(name: str, value: float) -> float:
         raise KeyError(f"unknown control-law parameter {name!r}")
     v = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value)
     if name == "CO_FAC_EQ" and v not in (14.0, 19.0):
-        raise ValueError(f"{name}: must be 14 or 19, got {v}")
+        raise ValueError(f"{name}={v:g} refused: must be 14 or 19")
     return v
 
 

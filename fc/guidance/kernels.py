@@ -29,7 +29,9 @@ atmosphere of fc.control.nominal):
 - speed -> throttle: a_c = V_ref_dot + K_V e_V + clip(K_VI int e_V, +-VI_MAX),
   T_req = D_nom + m g sin(gamma) + m a_c, throttle = T_req / (cos(alpha) cos(beta) C_T,max qbar S)
   within [0, min(1, T_max / (C_T,max qbar S))], rate-limited (GE_THR_RATE).
-The three integrals freeze while a limit blocks their loop in the error's direction (anti-windup).
+The three integrals freeze while a limit blocks their loop in the error's direction (anti-windup)
+or the error is outside their zone, except that an integral opposing its error always unwinds
+toward zero (never past it): a value taken up in a transient cannot latch a loop at its limit.
 The limit in force is a bitfield (layout LIM_*) in the status record.
 The envelope limits (GE_NZ_*, GE_MU_MAX, GE_ALPHA_*) bound the achieved values: the commands
 stay a margin (GE_*_MARGIN) inside them, room for the inner loop's tracking error, so the
@@ -159,6 +161,21 @@ def _inside(lo, hi, margin):
 
 
 @njit(cache=True, inline="always")
+def _integrate(acc, err, dt_s, free):
+    """An integral's next value: ``acc + err dt`` when ``free`` (inside its zone, no limit
+    blocking), else only if that moves it toward zero, stopping at zero (unwinding is never
+    blocked)."""
+    nxt = acc + err * dt_s
+    if free:
+        return nxt
+    if acc > 0.0 and err < 0.0:
+        return max(nxt, 0.0)
+    if acc < 0.0 and err > 0.0:
+        return min(nxt, 0.0)
+    return acc
+
+
+@njit(cache=True, inline="always")
 def _wrap_pi(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -202,17 +219,26 @@ def _flight_condition(est, gw, atm, grid):
 def guidance_reset(est, gp, mass_kg, xcg_m, gx, thr_now, gw, tab, atm, grid):
     """Engage at the current state without a bump.
 
-    Commands start at the present alpha, mu and gamma; the speed reference at V. The
+    Commands start at the present alpha, mu and gamma (clipped to the envelope's command
+    limits: an engagement in an upset is not held in it); the speed reference at V. The
     flight-path integral starts where the lift demand (with gamma_dot = 0) equals the nominal
     trimmed lift at the present alpha, and the speed integral (if ``thr_now`` >= 0, the
     throttle in use, 0..1) where the throttle demand equals ``thr_now``: the integrators take
     up the nominal model's error at once (both within their clamps). ``thr_now`` < 0: the
     speed integral starts at 0 and the first step's throttle is taken without rate limit.
     """
-    gx[GX_GAM_C] = est[E_GAMMA]
-    gx[GX_ALPHA_C] = est[E_ALPHA]
-    gx[GX_ALPHA_FF] = est[E_ALPHA]
-    gx[GX_MU_C] = est[E_MU]
+    # the commands start at the present state, within the envelope's command limits: engaged
+    # in an upset (a recovery after the fc lost its data, issue 22: mu 175 deg) they would
+    # otherwise hold the upset and leave it only at the rate limits, tens of seconds
+    a_lo, a_hi = _inside(gp[P_GE_ALPHA_MIN], gp[P_GE_ALPHA_MAX], gp[P_GE_ALPHA_MARGIN])
+    _nz_lo, nz_hi = _inside(gp[P_GE_NZ_MIN], gp[P_GE_NZ_MAX], gp[P_GE_NZ_MARGIN])
+    mu_max = max(gp[P_GE_MU_MAX] - gp[P_GE_MU_MARGIN], 0.0)
+    mu_max = min(mu_max, math.acos(1.0 / nz_hi)) if nz_hi > 1.0 else 0.0
+    gmax = gp[P_GE_GAM_MAX]
+    gx[GX_GAM_C] = min(max(est[E_GAMMA], -gmax), gmax)
+    gx[GX_ALPHA_C] = min(max(est[E_ALPHA], a_lo), a_hi)
+    gx[GX_ALPHA_FF] = gx[GX_ALPHA_C]
+    gx[GX_MU_C] = min(max(est[E_MU], -mu_max), mu_max)
     gx[GX_THR_C] = thr_now if thr_now >= 0.0 else math.nan
     gx[GX_H_INT] = 0.0
     gx[GX_V_INT] = 0.0
@@ -397,18 +423,23 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gx[GX_THR_C] = thr_c
 
     # --- integrators with anti-windup (conditional integration) ---------------------------
+    # an integral grows only inside its zone and while no limit blocks its loop in the
+    # error's direction; one that opposes the error always unwinds toward zero (never past
+    # it), so a value taken up in a transient (an engagement during an upset) cannot latch the
+    # loop at a limit (issue 22: the flight-path integral held at -GA_GI_MAX with the
+    # load-factor demand at its bound, the vehicle sinking, for ever)
     up_blocked = (lim & (LIM_HDOT | LIM_GAM_MAX | LIM_NZ_MAX | LIM_ALPHA_MAX)) != 0
     down_blocked = (lim & (LIM_HDOT | LIM_GAM_MIN | LIM_NZ_MIN | LIM_ALPHA_MIN)) != 0
-    if (abs(e_h) < gp[P_GA_HI_ZONE]
-            and not ((e_h > 0.0 and up_blocked) or (e_h < 0.0 and down_blocked))):
-        gx[GX_H_INT] += e_h * dt_s
+    gx[GX_H_INT] = _integrate(gx[GX_H_INT], e_h, dt_s, abs(e_h) < gp[P_GA_HI_ZONE]
+                              and not ((e_h > 0.0 and up_blocked)
+                                       or (e_h < 0.0 and down_blocked)))
     lift_up = (lim & (LIM_NZ_MAX | LIM_ALPHA_MAX)) != 0
     lift_down = (lim & (LIM_NZ_MIN | LIM_ALPHA_MIN)) != 0
-    if (abs(e_g) < gp[P_GA_GI_ZONE]
-            and not ((e_g > 0.0 and lift_up) or (e_g < 0.0 and lift_down))):
-        gx[GX_G_INT] += e_g * dt_s
-    if not ((e_v > 0.0 and (lim & LIM_THR_MAX) != 0) or (e_v < 0.0 and (lim & LIM_THR_MIN) != 0)):
-        gx[GX_V_INT] += e_v * dt_s
+    gx[GX_G_INT] = _integrate(gx[GX_G_INT], e_g, dt_s, abs(e_g) < gp[P_GA_GI_ZONE]
+                              and not ((e_g > 0.0 and lift_up) or (e_g < 0.0 and lift_down)))
+    gx[GX_V_INT] = _integrate(gx[GX_V_INT], e_v, dt_s,
+                              not ((e_v > 0.0 and (lim & LIM_THR_MAX) != 0)
+                                   or (e_v < 0.0 and (lim & LIM_THR_MIN) != 0)))
 
     out[GO_ALPHA] = alpha_c
     out[GO_BETA] = 0.0

@@ -48,8 +48,9 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["local_ne", "leg_geometry", "turn_radius_m", "switch_distance_m", "course_target",
-           "NavParams", "WaypointNavigator", "G0_M_S2", "EARTH_RADIUS_M", "unit_vector",
-           "gc_distance_m", "gc_azimuth_rad", "gc_leg", "gc_pole", "gc_course_rad"]
+           "orbit_radius_m", "orbit_course", "NavParams", "WaypointNavigator", "PointNavigator",
+           "G0_M_S2", "ORBIT_TAN_FRACTION", "EARTH_RADIUS_M", "unit_vector", "gc_distance_m",
+           "gc_azimuth_rad", "gc_leg", "gc_pole", "gc_course_rad"]
 
 G0_M_S2 = 9.80665
 #: The sphere's radius (m): hyfc_wire.earth.EARTH_RADIUS_M (this package imports nothing of
@@ -58,6 +59,9 @@ G0_M_S2 = 9.80665
 EARTH_RADIUS_M = 6371008.7714
 WGS84_A_M = 6378137.0
 WGS84_E2 = 6.69437999014e-3
+#: An orbit is flown at tan(mu) = ORBIT_TAN_FRACTION tan(mu_max): a quarter of the bank's
+#: tangent is left to the course loop's corrections (docs/guidance.md, "Return and reposition")
+ORBIT_TAN_FRACTION = 0.75
 CMD_WAYPOINT = 16
 CMD_CHANGE_SPEED = 178
 FRAMES_REL = (3, 6)          # GLOBAL_RELATIVE_ALT(_INT): altitude above home
@@ -304,3 +308,85 @@ class WaypointNavigator:
                 continue
             break
         return self.h_t, self.chi_t, self.v_t, out
+
+
+def orbit_radius_m(v_m_s: float, mu_max_rad: float) -> float:
+    """Least orbit radius (m) flown at speed ``v_m_s`` with the bank limit ``mu_max_rad``: the
+    level-turn radius at tan(mu) = ORBIT_TAN_FRACTION tan(mu_max) (Mach 7.5, 29.8 deg: 1200 km)."""
+    return v_m_s * v_m_s / (G0_M_S2 * ORBIT_TAN_FRACTION * math.tan(mu_max_rad))
+
+
+def orbit_course(x_ne: tuple, c_ne: tuple, radius_m: float, clockwise: bool, xt_len_m: float,
+                 chi_int_rad: float) -> float:
+    """Course target (rad, [0, 2pi)) onto and around the circle of ``radius_m`` about ``c_ne``
+    (north, east m) from the position ``x_ne``.
+
+    With b the bearing to the centre and r the distance to it (s = +1 clockwise, -1 not):
+    outside the circle, the tangent to it, chi = b - s asin(R / r) (straight at the centre from
+    afar, along the circle at r = R); inside, along the circle turned outward by the
+    cross-track law, chi = b - s (pi/2 + chi_int (2/pi) atan((R - r) / L_xt)). Continuous at
+    r = R.
+    """
+    dn, de = c_ne[0] - x_ne[0], c_ne[1] - x_ne[1]
+    r = math.hypot(dn, de)
+    b = math.atan2(de, dn)
+    s = 1.0 if clockwise else -1.0
+    if r > radius_m:
+        chi = b - s * math.asin(radius_m / r)
+    else:
+        chi = b - s * (0.5 * math.pi
+                       + chi_int_rad * (2.0 / math.pi) * math.atan((radius_m - r) / xt_len_m))
+    return chi % (2.0 * math.pi)
+
+
+class PointNavigator:
+    """Fly to a point and circle over it (RTL, DO_REPOSITION), or circle a centre (DO_ORBIT).
+
+    All positions are (north, east) m on the flat map about ``ref`` (lat, lon deg), as
+    :func:`local_ne`. ``goto``: the circle of ``radius_m`` is placed through the point, tangent
+    there to the straight line from the start to the point (``clockwise``: its centre to the
+    right of that line), and flown with :func:`orbit_course` from the start: the tangent to
+    it from the start is that line, so the vehicle flies straight at the point, passes over it
+    and circles on, over the point once a lap. ``orbit``: circles a given centre. ``arrived``
+    turns True once the point is within the acceptance distance along the line, or passed.
+    """
+
+    def __init__(self, params: NavParams | None = None) -> None:
+        self.p = params or NavParams()
+        self.ref = (0.0, 0.0)
+        self.start_ne = (0.0, 0.0)
+        self.point_ne = (0.0, 0.0)
+        self.centre_ne = (0.0, 0.0)
+        self.radius_m = 0.0
+        self.clockwise = True
+        self.arrived = False
+        self.dist_m = 0.0            # to the point until arrived, then to the circle, m
+
+    def goto(self, ref: tuple, start_ne: tuple, point_ne: tuple, radius_m: float,
+             clockwise: bool = True) -> None:
+        self.ref = tuple(float(v) for v in ref)
+        self.start_ne, self.point_ne = start_ne, point_ne
+        self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
+        b = math.atan2(point_ne[1] - start_ne[1], point_ne[0] - start_ne[0])
+        s = 1.0 if clockwise else -1.0
+        self.centre_ne = (point_ne[0] - s * self.radius_m * math.sin(b),
+                          point_ne[1] + s * self.radius_m * math.cos(b))
+        self.arrived = False
+
+    def orbit(self, ref: tuple, centre_ne: tuple, radius_m: float, clockwise: bool = True) -> None:
+        self.ref = tuple(float(v) for v in ref)
+        self.point_ne = self.centre_ne = centre_ne
+        self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
+        self.arrived = True
+
+    def step(self, x_ne: tuple) -> float:
+        """Course target (rad) at the position ``x_ne``."""
+        c = self.centre_ne
+        if not self.arrived:
+            _, _, to_go, dist = leg_geometry(self.start_ne, self.point_ne, x_ne)
+            self.arrived = to_go <= self.p.accept_m
+            self.dist_m = dist
+        if self.arrived:
+            self.dist_m = abs(math.hypot(c[0] - x_ne[0], c[1] - x_ne[1]) - self.radius_m)
+        return orbit_course(x_ne, c, self.radius_m, self.clockwise, self.p.xt_len_m,
+                            self.p.chi_int_rad)

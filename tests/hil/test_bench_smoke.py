@@ -33,6 +33,7 @@ EXPECTED = (
     "startup_warm_first_servo_s",
     "fc_peak_rss_mb", "standin_peak_rss_mb", "fc_rss_growth_mb_per_min",
     "closed_loop_sim_s_per_wall_s",
+    "fc_py_allocs_per_frame", "fc_nrt_allocs_per_frame",
 )
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import time
 
 import numpy as np
@@ -194,3 +195,26 @@ def test_plant_reset_restarts_loops_and_timeline(tmp_path):
     assert np.allclose(cmd[20:], math.radians(1.0))    # the timeline started over
     with open(os.path.join(out, "fc.log")) as f:
         assert "plant time went backwards" in f.read()
+
+
+def test_sigterm_keeps_the_decimated_internals_log(tmp_path):
+    # GIVEN an fc logging at full rate for 0.1 s of sensor time, then one row per slow tick
+    with FcProcess(str(tmp_path), "--arm", "--flight-mode", "COORDINATED",
+                   "--internals-full-s", "0.1") as fc:
+        plant = ScriptedPlant(fc.plant_port)
+        try:
+            for k in range(200):                       # 0.4 s of 500 Hz frames
+                plant.exchange(level_meas(0.002 * k))
+        finally:
+            plant.close()
+        # WHEN it is stopped by SIGTERM (not the harness's SIGINT)
+        rc = fc.child.stop(first_signal=signal.SIGTERM, int_wait_s=20.0, term_wait_s=None)
+        fc.returncode = rc
+    assert rc == 0
+    # THEN the npz holds the first 0.1 s at 500 Hz and then 100 Hz: 50 + 30 rows
+    assert sorted(os.listdir(tmp_path)).count("fc_internals.npz") == 1
+    t = load(str(tmp_path))["t_s"]
+    assert np.allclose(t[:50], 0.002 * np.arange(50))
+    assert np.allclose(t[50:], 0.1 + 0.01 * np.arange(30))
+    with open(tmp_path / "fc.log") as f:
+        assert "80 rows, 0 dropped, 120 decimated" in f.read()

@@ -185,9 +185,10 @@ def test_qgroundcontrol_connect_sequence_completes(vehicle):
     gcs.mav.param_request_list_send(1, 0)         # to component 0 (all), as QGC does
     first = gcs.wait("PARAM_VALUE", 5, cond=lambda m: m.param_index == 0)
     assert first is not None
+    # COMMAND_INT goes through the command handler (a reposition without a GNSS fix: DENIED)
     gcs.mav.command_int_send(1, 1, 0, ML.MAV_CMD_DO_REPOSITION, 0, 0, 0, 0, 0, 0, 0, 0, 0)
     ack = gcs.wait("COMMAND_ACK", 5, cond=lambda m: m.command == ML.MAV_CMD_DO_REPOSITION)
-    assert ack.result == ML.MAV_RESULT_UNSUPPORTED
+    assert ack.result == ML.MAV_RESULT_DENIED
     # a request addressed to another vehicle is not ours to answer
     gcs.mav.command_long_send(7, 1, ML.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
     assert gcs.wait("COMMAND_ACK", 1.0,

@@ -26,9 +26,9 @@ pytestmark = pytest.mark.hil
 # the wire contract (docs/fc.md sections 5 and 7), literal on purpose
 MODES = {"MANUAL": 0x00010000, "COORDINATED": 0x00070001, "UNCOORDINATED": 0x00070002,
          "FAILSAFE": 0x00010003, "CRUISE": 0x00030004, "GUIDED": 0x00060005,
-         "MISSION": 0x04040006}
+         "MISSION": 0x04040006, "RTL": 0x05040007}
 #: MAV_STANDARD_MODE advertised per mode (0: none)
-STANDARD = {"CRUISE": 3, "MISSION": 6}
+STANDARD = {"CRUISE": 3, "MISSION": 6, "RTL": 5}
 
 
 def station(fc: FcProcess, bind_port: int | None = None, sysid: int = 255) -> ScriptedGcs:
@@ -98,9 +98,12 @@ def test_modes_are_named_by_available_modes_and_current_mode(fc):
         assert gcs.command(MD.MAV_CMD_DO_SET_MODE, 1, MODES["FAILSAFE"]).result == \
             MD.MAV_RESULT_ACCEPTED
         assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode == MODES["FAILSAFE"])
-        # neither a number nor a wire value: refused; no standard modes yet
+        # neither a number nor a wire value: refused; a standard mode we advertise is set, one
+        # we do not (ORBIT) refused
         assert gcs.command(MD.MAV_CMD_DO_SET_MODE, 1, 0x00070009).result == MD.MAV_RESULT_DENIED
-        assert gcs.command(MD.MAV_CMD_DO_SET_STANDARD_MODE, 3).result == MD.MAV_RESULT_FAILED
+        assert gcs.command(MD.MAV_CMD_DO_SET_STANDARD_MODE, 3).result == MD.MAV_RESULT_ACCEPTED
+        assert gcs.wait("HEARTBEAT", 3, cond=lambda m: m.custom_mode == MODES["CRUISE"])
+        assert gcs.command(MD.MAV_CMD_DO_SET_STANDARD_MODE, 2).result == MD.MAV_RESULT_DENIED
     finally:
         gcs.close()
 

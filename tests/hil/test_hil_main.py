@@ -41,7 +41,7 @@ FINAL_ERROR_MAX_DEG = 0.5
 RUN_TIMEOUT_S = 240.0
 METRIC_KEYS = {"overshoot_pct", "settling_time_s", "rise_time_s", "final_error_deg",
                "rms_error_deg"}
-RUN_KEYS = {"alpha", "beta", "mu", "max_surface_deg", "saturated_s", "sim_time_s",
+RUN_KEYS = {"alpha", "beta", "mu", "max_surface_deg", "saturated_s", "surfaces", "sim_time_s",
             "wall_time_s", "real_time_factor", "late_ticks", "diverged"}
 
 
@@ -93,6 +93,12 @@ def test_lockstep_paper_both_variants_complete_with_summary_shape(lockstep_run):
                 assert run[ch][k] is None or isinstance(run[ch][k], float)
         assert set(run["max_surface_deg"]) == {"left_elevon", "right_elevon", "rudder"}
         assert all(isinstance(v, float) for v in run["max_surface_deg"].values())
+        # docs/metrics.md "Surfaces": every figure, the rate-command limit read from the fc's
+        # internals log (the paper's steps hold it for the whole transient)
+        from tools.sitl.metrics import SURFACE_FIGURE_KEYS
+        assert tuple(run["surfaces"]) == SURFACE_FIGURE_KEYS
+        assert all(isinstance(v, float) for v in run["surfaces"].values())
+        assert run["surfaces"]["rate_cmd_limited_s"] > 0.5
         assert isinstance(run["late_ticks"], int)
         assert isinstance(run["diverged"], bool)
         for k in ("saturated_s", "sim_time_s", "wall_time_s", "real_time_factor"):

@@ -116,7 +116,7 @@ def test_mavproxy_shows_and_sets_every_mode_by_name_with_the_hyfc_module(tmp_pat
     out = "\n".join(con.out)
     print(out)
     assert ("Available modes:  MANUAL, COORDINATED, UNCOORDINATED, FAILSAFE, CRUISE, GUIDED, "
-            "MISSION") in out
+            "MISSION, RTL") in out
     assert "Unknown mode" not in out and "CIRCLE" not in out and "STABILIZE" not in out
     assert "FS_RECOVER       1" in out
     with open(os.path.join(fc.out, "fc.log")) as f:

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from plant_sim import truthlog
@@ -157,3 +158,45 @@ def test_gc_off_schedule_freezes_and_restores_the_collector():
         assert not gc.isenabled()
         assert gc.get_freeze_count() > 0
     assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_realtime_silent_fc_hold_is_the_commands_mean_not_the_last_transient(tmp_path):
+    """``servo.no_command = "hold"`` (the cruise scenario): a silent fc's surfaces are held at
+    the recent mean of its commands (the trim it flew), not at its last command, which may be a
+    transient (issue 22: a late-frame kick of -16 deg held through a 1 s blackout departed)."""
+    resp = ServoResponder()
+    out = tmp_path / "hold"
+    silent_after_s = 0.8
+    deg = math.pi / 180.0
+    sent = []
+
+    def answer(stamp_us, _m):
+        k = len(sent)
+        d = 15.0 * deg if stamp_us >= (silent_after_s - 0.01) * 1e6 else (2.0 if k % 2 else -2.0) * deg
+        sent.append(d)
+        return d, d, 0.0
+
+    proc = _plant(["run", "--scenario", "cruise", "--mode", "realtime", "--fc",
+                   f"127.0.0.1:{resp.addr[1]}", "--bind", "127.0.0.1:0", "--out", str(out),
+                   "--duration", "1.6", "--progress-every", "0"])
+    try:
+        deadline = time.monotonic() + 60
+        while proc.poll() is None and time.monotonic() < deadline:
+            if sent and sent[-1] > 10.0 * deg:
+                break                                   # the transient went: silence from now
+            resp.serve_one(answer, timeout_s=0.2)
+        _, stderr = _finish(proc, timeout=60)
+    finally:
+        resp.sock.close()
+    assert proc.returncode == 0, stderr
+    assert sent and sent[-1] == 15.0 * deg
+    t = truthlog.load(out)
+    last = float(t["t_s"][np.flatnonzero(np.abs(t["delta_cmd_left_rad"] - 15.0 * deg) < 1e-3)[-1]])
+    # the last command is kept for no_command_s (0.5 s), then the hold
+    held = t["delta_cmd_left_rad"][t["t_s"] > last + 0.01]
+    print(f"\nlast 15 deg command until t={last:.3f} s; run to {t['t_s'][-1]:.3f} s; "
+          f"held {np.degrees(held[:3])} deg")
+    assert held.size > 50
+    # the mean of +-2 deg (and one 15 deg frame; under load not every answer is applied): near
+    # 0, nowhere near the last 15 deg
+    assert np.all(np.abs(held) < 1.0 * deg), np.degrees(held[:5])

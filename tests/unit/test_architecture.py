@@ -2,7 +2,9 @@
 
 GIVEN every ``.py`` file of our packages (parsed with ``ast``, nothing is imported)
 WHEN its ``import`` / ``from ... import`` statements are resolved to our modules
-THEN no edge breaks a rule of ``ALLOWED`` and the module-level imports form no cycle.
+THEN no edge breaks a rule of ``ALLOWED``, the module-level imports form no cycle, and the
+imports of ``NO_CYCLES``' packages form none either when deferred imports (inside functions)
+count too.
 
 The rules are data: ``ALLOWED`` maps a package to the packages of ours it may import (the
 longest matching prefix wins); ``SHARED`` lists packages every one of ours may import and that
@@ -23,6 +25,11 @@ SHARED: tuple[str, ...] = ("hyfc_wire",)
 
 #: packages that may not import even the SHARED ones (the law stays pure)
 PURE: tuple[str, ...] = ("fc.control",)
+
+#: packages whose modules may not import each other in a circle even through deferred imports
+#: (a cycle hidden in a function body is still two modules that need each other: the shared
+#: piece goes into a third module both import, e.g. fc/mission_params.py, tools/margins_flight.py)
+NO_CYCLES: tuple[str, ...] = ("fc", "plant_sim", "hyfc_wire", "tools")
 
 #: package -> packages of ours it may import (itself always; SHARED always)
 ALLOWED: dict[str, tuple[str, ...]] = {
@@ -128,9 +135,11 @@ def violations(modules: dict[str, Path]) -> list[str]:
     return bad
 
 
-def cycles(modules: dict[str, Path]) -> list[list[str]]:
-    """Strongly connected components (size > 1, or a self-import) of the module-level graph."""
-    graph = {n: sorted({t for t, _, top in imports_of(n, p, modules) if top and t != n})
+def cycles(modules: dict[str, Path], deferred: bool = False) -> list[list[str]]:
+    """Strongly connected components (size > 1) of the import graph: module-level imports
+    only, or (``deferred``) every import, also those inside functions and classes."""
+    graph = {n: sorted({t for t, _, top in imports_of(n, p, modules)
+                        if (top or deferred) and t != n and t in modules})
              for n, p in modules.items()}
     index: dict[str, int] = {}
     low: dict[str, int] = {}
@@ -188,6 +197,28 @@ def test_import_direction(modules):
 def test_no_import_cycles(modules):
     found = cycles(modules)
     assert not found, "module-level import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_no_import_cycles_deferred_imports_included(modules):
+    """No cycle in fc/, plant_sim/, hyfc_wire/ or tools/ even counting the imports inside
+    functions (issue 23: fc.params -> fc.mission_mode -> fc.params through MISSION_PARAMS,
+    tools.margins <-> tools.margins_wire)."""
+    ours = {n: p for n, p in modules.items() if n.split(".")[0] in NO_CYCLES}
+    found = cycles(ours, deferred=True)
+    assert not found, "import cycles (deferred imports included):\n" + "\n".join(
+        " <-> ".join(c) for c in found)
+
+
+def test_cycle_walk_sees_a_deferred_cycle(modules, tmp_path):
+    """The walk finds a cycle that only a deferred import closes (and the module-level walk,
+    by design, does not)."""
+    a = tmp_path / "cyc_a.py"
+    b = tmp_path / "cyc_b.py"
+    a.write_text("from tools.cyc_b import g\n\n\ndef f():\n    return g()\n")
+    b.write_text("def g():\n    from tools.cyc_a import f\n    return f\n")
+    both = {**modules, "tools.cyc_a": a, "tools.cyc_b": b}
+    assert ["tools.cyc_a", "tools.cyc_b"] in cycles(both, deferred=True)
+    assert ["tools.cyc_a", "tools.cyc_b"] not in cycles(both)
 
 
 def test_tools_never_import_tests(modules, tmp_path):

@@ -24,7 +24,8 @@ import platform
 import sys
 import time
 
-PARTS = ("law", "plant", "pingpong", "fcpath", "lockstep", "realtime", "startup", "inproc")
+PARTS = ("law", "plant", "pingpong", "fcpath", "allocs", "lockstep", "realtime", "startup",
+         "inproc")
 
 # Targets (issue 7) and the reference figures taken on this machine before the code existed
 # (../shared/docs/perf_anchors.md): printed next to the measurement, never used to compute it.
@@ -220,6 +221,23 @@ def part_fcpath(rep: Report, quick: bool) -> None:
             f"median {_f(tot, '.1f')} us = {_f(rd, '.1f')} + {_f(fr, '.1f')} + "
             f"{_f(hk, '.1f')} us", "", f"law cycle {_f(law)} us" if law else "",
             f"law = {law / tot * 100:.0f} % of the fc's frame" if law else "", "fcpath")
+
+
+def part_allocs(rep: Report, quick: bool) -> None:
+    """Allocations per plant frame in the fc's steady state (tools/bench/allocs.py): a count,
+    valid under load. The headline figures are the worse of COORDINATED and CRUISE."""
+    from tools.bench.allocs import fc_allocations
+    r = fc_allocations(quick)
+    rep.details["fc_allocations"] = r
+    for mode, m in r.items():
+        py = rep.fig(f"fc_py_allocs_per_frame_{mode.lower()}", m["py_allocs_per_frame"])
+        nrt = rep.fig(f"fc_nrt_allocs_per_frame_{mode.lower()}", m["nrt_allocs_per_frame"])
+        rep.row(f"3 fc allocations per plant frame, {mode} (Python object-allocator blocks / "
+                f"numba NRT records; {m['frames']} frames in process)",
+                f"{_f(py, '.1f')} / {_f(nrt, '.1f')}", "0 / 0: " + _ok(py <= 0 and nrt <= 0),
+                "", "", "allocs")
+    rep.fig("fc_py_allocs_per_frame", max(m["py_allocs_per_frame"] for m in r.values()))
+    rep.fig("fc_nrt_allocs_per_frame", max(m["nrt_allocs_per_frame"] for m in r.values()))
 
 
 def part_lockstep(rep: Report, quick: bool, keep) -> None:
@@ -560,6 +578,7 @@ def main(argv=None) -> int:
                "plant": lambda: part_plant(rep, args.quick),
                "pingpong": lambda: part_pingpong(rep, args.quick, qos_fd is not None),
                "fcpath": lambda: part_fcpath(rep, args.quick),
+               "allocs": lambda: part_allocs(rep, args.quick),
                "lockstep": lambda: (part_lockstep(rep, args.quick, args.keep),
                                     part_lockstep_pinned(rep, args.quick, args.keep)),
                "realtime": lambda: part_realtime(rep, args.quick, args.keep),

@@ -194,7 +194,7 @@ def _fc_argv(out: Path, mode: str, fast_hz: float, plant_port: int, gcs_port: in
     return [PY, "-m", "fc", "--mode", mode, "--fast-hz", f"{fast_hz:g}", "--slow-hz", "100",
             "--plant-bind", f"127.0.0.1:{plant_port}", "--gcs", f"127.0.0.1:{gcs_port}",
             "--gcs-bind", f"127.0.0.1:{free_udp_port()}", "--arm", "--flight-mode", "COORDINATED",
-            "--out", str(out)]
+            "--internals-full-rate", "--out", str(out)]
 
 
 def _scenario_file(d: Path, frame_hz: float) -> Path:

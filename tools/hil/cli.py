@@ -206,6 +206,11 @@ def format_table(summary: dict) -> str:
     for s in ("left_elevon", "right_elevon", "rudder"):
         rows.append((f"peak {s} deg", [f(runs[n]["max_surface_deg"][s], "{:.1f}") for n in names]))
     rows.append(("saturated s", [f(runs[n]["saturated_s"]) for n in names]))
+    for key, label in (("travel_total_deg", "surface travel deg"),
+                       ("chatter_right_elevon_deg", "chatter r. elevon deg"),
+                       ("cmd_at_limit_s", "command at limit s"),
+                       ("rate_cmd_limited_s", "rate cmd limited s")):
+        rows.append((label, [f(runs[n].get("surfaces", {}).get(key)) for n in names]))
     rows.append(("sim time s", [f(runs[n]["sim_time_s"]) for n in names]))
     rows.append(("real-time factor", [f(runs[n]["real_time_factor"], "{:.1f}") for n in names]))
     rows.append(("late ticks", [str(runs[n]["late_ticks"]) for n in names]))

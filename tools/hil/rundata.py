@@ -100,6 +100,44 @@ def load_internals(vdir: Path) -> dict | None:
     return load(str(path))
 
 
+def load_internals_cached(vdir: Path) -> dict | None:
+    """load_internals, read once per variant directory and file version (variant_summary
+    reads it twice)."""
+    path = Path(vdir) / "fc_internals.npz"
+    try:
+        key = (str(path.resolve()), path.stat().st_mtime_ns)
+    except OSError:
+        return None
+    if _internals_cache[0] != key:
+        _internals_cache[:] = [key, load_internals(vdir)]
+    return _internals_cache[1]
+
+
+_internals_cache: list = [None, None]
+
+#: fc/modes.py FlightMode values in which the attitude law flies (COORDINATED, UNCOORDINATED,
+#: CRUISE, GUIDED, MISSION); MANUAL and FAILSAFE hold its status
+LAW_MODES = (1.0, 2.0, 4.0, 5.0, 6.0)
+
+
+def surface_entry(truth: dict, internals: dict | None, limit_rad: float) -> dict:
+    """summary.json's ``surfaces`` (tools.sitl.metrics.surface_figures, docs/metrics.md): from
+    the truth log, and the rate-command limit's flag from the fc's internals log
+    (``law_omega_c_limited``) while the law was active (None without that column)."""
+    cmd = truth.get("delta_cmd_rad")
+    if cmd is None:
+        cmd = truth["delta_rad"]
+    flag, flag_t = None, None
+    if internals and "law_omega_c_limited" in internals and "t_s" in internals:
+        flag_t = np.asarray(internals["t_s"], float)
+        flag = np.asarray(internals["law_omega_c_limited"], float)
+        if "armed" in internals and "mode" in internals:      # the law flies (fc/modes.py):
+            active = (internals["armed"] > 0.5) & np.isin(internals["mode"], LAW_MODES)
+            flag = np.where(active, flag, 0.0)
+    return metrics.surface_figures(truth["t_s"], truth["delta_rad"], cmd, limit_rad,
+                                   flag, flag_t)
+
+
 def truth_series(truth: dict) -> dict:
     """Normalised SI arrays from the truth log (column names: plant_sim.sim.TRUTH_NAMES)."""
     out = {"t_s": _first(truth, "t_s")}
@@ -113,6 +151,8 @@ def truth_series(truth: dict) -> dict:
         raise RunDataError(f"truth log lacks columns {missing or 'delta_*_rad'}; "
                            f"has {sorted(truth)}")
     out["delta_rad"] = np.column_stack(cols)
+    cmd = [_first(truth, f"delta_cmd_{s}_rad") for s in ("left", "right", "rudder")]
+    out["delta_cmd_rad"] = np.column_stack(cmd) if all(c is not None for c in cmd) else None
     # the true disturbance, as the angular acceleration it causes (rad/s^2)
     dist = [_first(truth, f"dist_{ax}_rad_s2") for ax in ("p", "q", "r")]
     out["dtrue"] = np.column_stack(dist) if all(d is not None for d in dist) else None
@@ -214,7 +254,7 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     t = truth["t_s"]
     entry: dict = {}
     plot = dict(truth)
-    plot.update(internals_series(load_internals(vdir)))
+    plot.update(internals_series(load_internals_cached(vdir)))
     for ch in CHANNELS:
         ct, cv = channel_timeline(commands, ch)
         m = metrics.channel_metrics(t, truth[f"{ch}_rad"], ct, cv, wrap=(ch == "mu"))
@@ -224,6 +264,7 @@ def variant_summary(vdir: Path, requested_duration_s: float | None = None,
     peak, sat_s = metrics.surface_metrics(t, truth["delta_rad"], surface_limit_rad_)
     entry["max_surface_deg"] = peak
     entry["saturated_s"] = sat_s
+    entry["surfaces"] = surface_entry(truth, load_internals_cached(vdir), surface_limit_rad_)
     sim_time = float(t[-1])
     entry["sim_time_s"] = sim_time
     entry["wall_time_s"] = float(plant.get("wall_time_s", math.nan))

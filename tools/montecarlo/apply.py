@@ -128,7 +128,7 @@ def flight_from_result(res, full: bool = False):
     from tools.montecarlo.flight import Flight
     fl = Flight(t_s=res.t_s, alpha_rad=res.alpha_rad, beta_rad=res.beta_rad, mu_rad=res.mu_rad,
                 cmd_t_s=np.asarray(res.cmd_t_s, float), cmd_rad=np.asarray(res.cmd_rad, float),
-                diverged=bool(res.diverged))
+                diverged=bool(res.diverged), surfaces=res.surface_figures())
     if full:
         from tools.sitl import metrics as mt
         peak, sat_s = mt.surface_metrics(res.t_s, res.delta_rad, res.surface_limit_rad)

@@ -281,6 +281,8 @@ def run_case(cfg: CampaignConfig, index: int) -> list[dict]:
                 tr = resample(fl.t_s, getattr(fl, f"{ch}_rad"), cfg.trace_dt_s, t_end)
                 row[f"trace.{ch}_deg"] = np.degrees(tr).astype(np.float32)
             row["sim_time_s"] = float(fl.t_s[-1])
+            for key in mt.SURFACE_FIGURE_KEYS:      # docs/metrics.md "Surfaces"; NaN: unknown
+                row[f"surf.{key}"] = _nan_if_none((fl.surfaces or {}).get(key))
         except Exception as exc:  # a case that cannot be flown is a (failed) result
             row["diverged"] = True
             tb = traceback.extract_tb(exc.__traceback__)

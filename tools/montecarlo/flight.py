@@ -17,6 +17,7 @@ class Flight:
     t_s : (n,) times; alpha_rad, beta_rad, mu_rad : (n,) true aerodynamic angles;
     cmd_t_s : (k,) command timeline times; cmd_rad : (k, 3) alpha, beta, mu commands;
     diverged : the backend's own verdict (the metrics' is OR-ed in);
+    surfaces : tools.sitl.metrics.surface_figures of the flight (None: not available);
     full : anything else the backend produced (for ``rerun``), not stored in rows.
     """
 
@@ -27,4 +28,5 @@ class Flight:
     cmd_t_s: np.ndarray
     cmd_rad: np.ndarray
     diverged: bool = False
+    surfaces: dict | None = None
     full: object = None

@@ -46,7 +46,7 @@ def fly(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
                       beta_rad=np.asarray(plot["beta_rad"], float),
                       mu_rad=np.asarray(plot["mu_rad"], float),
                       cmd_t_s=np.asarray(cmd_t, float), cmd_rad=cmd,
-                      diverged=bool(entry["diverged"]),
+                      diverged=bool(entry["diverged"]), surfaces=entry.get("surfaces"),
                       full=plot if full else None)
     finally:
         if keep_dir is None:

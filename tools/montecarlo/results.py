@@ -14,7 +14,9 @@ tolerates the same (case, variant) in two parts (keeps the last written).
 
 Columns: ``case, variant, campaign_seed, sim_seed, backend, worker, error, diverged,
 wall_time_s, cpu_time_s, sim_time_s``, one float column per dispersion variable (``aero.CL``, ...), one
-per channel metric (``alpha.overshoot_pct``, ... NaN where undefined), and the decimated
+per channel metric (``alpha.overshoot_pct``, ... NaN where undefined), one per surface figure
+(``surf.peak_rudder_deg``, ``surf.travel_total_deg``, ``surf.rate_cmd_limited_s``, ...:
+tools.sitl.metrics.SURFACE_FIGURE_KEYS, docs/metrics.md; NaN where unknown), and the decimated
 traces ``trace.alpha_deg`` etc. (list<float32>, one sample per ``trace_dt_s``).
 """
 from __future__ import annotations
@@ -35,6 +37,7 @@ from tools.montecarlo.case import CHANNELS
 ROWS_DIR = "rows"
 TRACE_COLUMNS = tuple(f"trace.{ch}_deg" for ch in CHANNELS)
 METRIC_COLUMNS = tuple(f"{ch}.{k}" for ch in CHANNELS for k in mt.METRIC_KEYS)
+SURFACE_COLUMNS = tuple(f"surf.{k}" for k in mt.SURFACE_FIGURE_KEYS)
 
 
 def schema(dispersion_keys: list[str]) -> pa.Schema:
@@ -49,6 +52,7 @@ def schema(dispersion_keys: list[str]) -> pa.Schema:
     ]
     fields += [pa.field(k, pa.float64()) for k in dispersion_keys]
     fields += [pa.field(c, pa.float64()) for c in METRIC_COLUMNS]
+    fields += [pa.field(c, pa.float64()) for c in SURFACE_COLUMNS]
     fields += [pa.field(c, pa.list_(pa.float32())) for c in TRACE_COLUMNS]
     return pa.schema(fields)
 

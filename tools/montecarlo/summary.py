@@ -26,6 +26,10 @@ _SPEC_OF = {"overshoot_pct": "overshoot_max_pct", "settling_time_s": "settling_m
             "final_error_deg": "final_error_max_deg"}
 #: rows listed per worst-case table
 N_WORST = 5
+#: surface figures summarised and compared case by case (columns "surf.<key>", docs/metrics.md)
+SURFACE_SUMMARY = ("peak_left_elevon_deg", "peak_right_elevon_deg", "peak_rudder_deg",
+                   "travel_total_deg", "chatter_left_elevon_deg", "chatter_right_elevon_deg",
+                   "chatter_rudder_deg", "at_limit_s", "cmd_at_limit_s", "rate_cmd_limited_s")
 
 
 def _clean(x):
@@ -130,6 +134,8 @@ def summarise(out_dir, spec: dict, dispersion_keys: list[str], variants: tuple[s
                 vs["worst"].setdefault(ch, {})[m] = [
                     {"case": int(cols["case"][sel][k]), "sim_seed": int(cols["sim_seed"][sel][k]),
                      "value": _clean(float(x[k]))} for k in idx]
+        vs["surfaces"] = {k: _stats(cols[f"surf.{k}"][sel].astype(float))
+                          for k in SURFACE_SUMMARY if f"surf.{k}" in cols}
         out["variants"][v] = vs
         sens = {}
         for ch in CHANNELS:
@@ -173,6 +179,18 @@ def _paired(cols: dict) -> dict:
                 "coordinated_smaller_share": _clean(float(np.mean(a[both] < b[both]))
                                                     if both.any() else math.nan),
                 "n": int(both.sum())}
+    for k in SURFACE_SUMMARY:
+        col = f"surf.{k}"
+        if col not in cols:
+            continue
+        a = cols[col][ic].astype(float)
+        b = cols[col][iu].astype(float)
+        both = np.isfinite(a) & np.isfinite(b)
+        n = int(both.sum())
+        share = (lambda m: _clean(float(np.mean(m[both]))) if n else None)
+        out[col] = {"coordinated_smaller_share": share(a < b),
+                    "equal_share": share(a == b),
+                    "coordinated_larger_share": share(a > b), "n": n}
     return out
 
 
@@ -229,6 +247,23 @@ def table(summary: dict) -> str:
             lines.append(f"  {ch:8s} " + "  ".join(
                 f"{m} {_f(p[f'{ch}.{m}']['coordinated_smaller_share'], '{:.2f}')}"
                 for m in SUMMARY_METRICS))
+    for v, vs in summary["variants"].items():
+        if not vs.get("surfaces"):
+            continue
+        lines.append("")
+        lines.append(f"{v}: surfaces (docs/metrics.md)   p50 / p95 / max")
+        for k, st in vs["surfaces"].items():
+            lines.append(f"  {k:26s} {_f(st['p50'])} / {_f(st['p95'])} / {_f(st['max'])}")
+    if "paired" in summary and any(k.startswith("surf.") for k in summary["paired"]):
+        p = summary["paired"]
+        lines.append("")
+        lines.append("paired surfaces: share of cases where coordinated is smaller / equal / "
+                     "larger")
+        for k, e in p.items():
+            if k.startswith("surf."):
+                lines.append(f"  {k[5:]:26s} {_f(e['coordinated_smaller_share'])} / "
+                             f"{_f(e['equal_share'])} / {_f(e['coordinated_larger_share'])}"
+                             f"  (n {e['n']})")
     fails = summary["failures"]
     lines.append("")
     lines.append(f"failures (diverged or error): {len(fails)}")

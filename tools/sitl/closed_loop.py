@@ -220,6 +220,13 @@ class ClosedLoopResult:
         out["surfaces"] = {"peak_deg": peak, "saturated_s": sat_s}
         return out
 
+    def surface_figures(self) -> dict:
+        """tools.sitl.metrics.surface_figures of this flight (docs/metrics.md): achieved and
+        commanded deflections, and the law's own rate-command-limit flag."""
+        from tools.sitl.metrics import surface_figures
+        return surface_figures(self.t_s, self.delta_rad, self.delta_cmd_rad,
+                               self.surface_limit_rad, self.omega_c_limited)
+
 
 def simulate(scenario: str | Scenario, *, coordinated: bool = True,
              duration_s: float | None = None, seed: int | None = None,

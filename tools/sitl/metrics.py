@@ -230,6 +230,89 @@ def surface_metrics(t_s, delta_rad, limit_rad: float | np.ndarray,
     return peak, saturated_s
 
 
+#: cutoff of the first-order high-pass whose output's RMS is a surface command's chatter, Hz:
+#: well above the attitude loops' bandwidth (about 1 Hz), so what passes is the command's
+#: jitter (sensor noise through the law, limit cycles), not the manoeuvre
+CHATTER_HZ = 5.0
+
+#: the keys of ``surface_figures`` (docs/metrics.md), in order
+SURFACE_FIGURE_KEYS = tuple(
+    [f"peak_{s}_deg" for s in SURFACE_NAMES] + [f"travel_{s}_deg" for s in SURFACE_NAMES]
+    + ["travel_total_deg"] + [f"chatter_{s}_deg" for s in SURFACE_NAMES]
+    + ["at_limit_s", "cmd_at_limit_s", "rate_cmd_limited_s"])
+
+
+def _interval_time(t_s: np.ndarray, flag: np.ndarray) -> float:
+    """Sum of the sample intervals [t_k, t_k+1) whose starting sample is flagged, s."""
+    if len(t_s) < 2:
+        return 0.0
+    return float(np.sum(np.diff(t_s)[np.asarray(flag, bool)[:-1]]))
+
+
+def highpass_rms(t_s: np.ndarray, x: np.ndarray, cutoff_hz: float = CHATTER_HZ) -> float:
+    """RMS of ``x`` through a first-order high-pass (bilinear, at the median sample interval;
+    the filter starts at rest on x[0], so a constant reads 0)."""
+    from scipy.signal import lfilter
+    x = np.asarray(x, dtype=float)
+    if len(x) < 2:
+        return 0.0
+    dt = float(np.median(np.diff(t_s)))
+    k = math.tan(math.pi * cutoff_hz * dt)       # bilinear: y = a (y1 + x - x1)
+    a = (1.0 - k) / (1.0 + k)
+    g = 1.0 / (1.0 + k)
+    y = lfilter([g, -g], [1.0, -a], x - x[0])
+    return float(np.sqrt(np.mean(np.square(y))))
+
+
+def surface_figures(t_s, delta_rad, delta_cmd_rad, limit_rad, rate_limited=None,
+                    rate_t_s=None, tol_deg: float = SATURATION_TOL_DEG) -> dict:
+    """What the surfaces did over a run (docs/metrics.md, "Surfaces"), flat keys
+    ``SURFACE_FIGURE_KEYS``.
+
+    Parameters
+    ----------
+    t_s : (n,) sample times, s.
+    delta_rad : (n, 3) achieved deflections (the plant's, after the actuators), rad.
+    delta_cmd_rad : (n, 3) the controller's deflection commands, rad.
+    limit_rad : deflection limit, rad (scalar or (3,)).
+    rate_limited : (m,) the law's flag "omega_c limited" (1/0), or None if unknown.
+    rate_t_s : (m,) its sample times, s (default ``t_s``).
+
+    Returns
+    -------
+    dict: ``peak_<surface>_deg`` max |achieved|; ``travel_<surface>_deg`` sum of |changes| of
+    the achieved deflection and ``travel_total_deg`` their sum; ``chatter_<surface>_deg`` the
+    RMS of the command through a CHATTER_HZ high-pass; ``at_limit_s`` time with an achieved
+    deflection within ``tol_deg`` of the limit; ``cmd_at_limit_s`` time with a command within
+    ``tol_deg`` of it; ``rate_cmd_limited_s`` time with the law's rate-command limit active
+    (None when ``rate_limited`` is None).
+    """
+    t = np.asarray(t_s, dtype=float)
+    d = np.asarray(delta_rad, dtype=float)
+    c = np.asarray(delta_cmd_rad, dtype=float)
+    for name, a in (("delta_rad", d), ("delta_cmd_rad", c)):
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.shape[0]:
+            raise ValueError(f"{name} must be (n, 3) matching t_s, got {a.shape}")
+    lim = np.broadcast_to(np.asarray(limit_rad, dtype=float), (3,)) - math.radians(tol_deg)
+    out = {}
+    for i, s in enumerate(SURFACE_NAMES):
+        out[f"peak_{s}_deg"] = math.degrees(float(np.max(np.abs(d[:, i]))))
+    travel = np.degrees(np.sum(np.abs(np.diff(d, axis=0)), axis=0)) if len(t) > 1 else np.zeros(3)
+    for i, s in enumerate(SURFACE_NAMES):
+        out[f"travel_{s}_deg"] = float(travel[i])
+    out["travel_total_deg"] = float(travel.sum())
+    for i, s in enumerate(SURFACE_NAMES):
+        out[f"chatter_{s}_deg"] = math.degrees(highpass_rms(t, c[:, i]))
+    out["at_limit_s"] = _interval_time(t, np.any(np.abs(d) >= lim, axis=1))
+    out["cmd_at_limit_s"] = _interval_time(t, np.any(np.abs(c) >= lim, axis=1))
+    if rate_limited is None:
+        out["rate_cmd_limited_s"] = None
+    else:
+        rt = t if rate_t_s is None else np.asarray(rate_t_s, dtype=float)
+        out["rate_cmd_limited_s"] = _interval_time(rt, np.asarray(rate_limited) > 0.5)
+    return out
+
+
 def is_diverged(*angles_rad: np.ndarray, limit_deg: float = DIVERGED_ANGLE_DEG) -> bool:
     """True if any sample of any angle is non-finite or beyond ``limit_deg`` in magnitude."""
     lim = math.radians(limit_deg)

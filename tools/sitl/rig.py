@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import random
 import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -85,6 +88,8 @@ class RigConfig:
                         # "start": --arm on the command line; "no": stays disarmed
     gcs_sysid: int = 250
     flight_mode: str = "CRUISE"   # the mode it is armed in (CRUISE: the guidance holds the state)
+    mode: str = "realtime"        # both processes' --mode: realtime | lockstep (the plant waits
+                                  # for each answer: a cut link freezes sim time)
 
     def fc_params(self) -> dict:
         """``params`` with, when armed in a guidance mode, the reference prefilter on
@@ -128,7 +133,7 @@ class Rig:
 
     def fc_argv(self) -> list[str]:
         c = self.cfg
-        argv = [sys.executable, "-m", "fc", "--mode", "realtime",
+        argv = [sys.executable, "-m", "fc", "--mode", c.mode,
                 "--plant-bind", f"127.0.0.1:{self.plant_port}",
                 "--gcs-bind", f"127.0.0.1:{self.gcs_bind_port}",
                 "--gcs", f"127.0.0.1:{self.gcs_port}",
@@ -187,7 +192,7 @@ class Rig:
     def start_plant(self) -> Proc:
         c = self.cfg
         argv = [sys.executable, "-m", "plant_sim", "run", "--scenario", c.scenario,
-                "--mode", "realtime", "--fc", f"{self.plant_target[0]}:{self.plant_target[1]}",
+                "--mode", c.mode, "--fc", f"{self.plant_target[0]}:{self.plant_target[1]}",
                 "--bind", f"127.0.0.1:{self.plant_bind_port}", "--out", str(self.out / "plant"),
                 "--duration", repr(float(c.duration_s)), "--seed", str(c.seed),
                 "--progress-every", "0.25", *c.plant_extra]
@@ -360,3 +365,61 @@ class Flood:
     def stop(self) -> None:
         if self.child is not None and self.child.poll() is None:
             self.child.stop(int_wait_s=0.0, term_wait_s=None, first_signal=signal.SIGKILL)
+
+
+# ---------------------------------------------------------------------- plant stalls
+class PlantStaller:
+    """Random plant stalls (the soak's ``--stall-max``): the plant process is stopped (SIGSTOP)
+    for a uniform 0.1..``max_s`` s at intervals uniform in 0.5..1.5 ``every_s``, seeded, then
+    continued (SIGCONT, also on ``stop``). In real time a stopped plant does not advance its sim
+    time (it re-bases its schedule on waking, plant_sim/process.py): a plant freeze, as a host
+    that does not schedule it. ``stalls`` lists (wall time from start, seconds)."""
+
+    def __init__(self, pid: int, max_s: float, every_s: float, seed: int = 0) -> None:
+        self.pid = pid
+        self.max_s = max_s
+        self.every_s = every_s
+        self.rng = random.Random(seed)
+        self.stalls: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="plant-staller", daemon=True)
+        self._t0 = time.monotonic()
+
+    def start(self) -> "PlantStaller":
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.rng.uniform(0.5, 1.5) * self.every_s):
+            d = self.rng.uniform(0.1, self.max_s)
+            try:
+                os.kill(self.pid, signal.SIGSTOP)
+            except ProcessLookupError:
+                return
+            try:
+                self.stalls.append((time.monotonic() - self._t0, d))
+                self._stop.wait(d)
+            finally:
+                try:
+                    os.kill(self.pid, signal.SIGCONT)
+                except ProcessLookupError:
+                    return
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(self.max_s + 5.0)
+        try:
+            os.kill(self.pid, signal.SIGCONT)
+        except ProcessLookupError:
+            pass
+
+
+def proc_usage(pid: int) -> tuple[int, int] | None:
+    """(resident set size kB, open file descriptors) of a live process, from /proc; None if
+    it is gone or /proc is not there."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            rss = next(int(ln.split()[1]) for ln in f if ln.startswith("VmRSS:"))
+        return rss, len(os.listdir(f"/proc/{pid}/fd"))
+    except (OSError, StopIteration, ValueError):
+        return None

@@ -260,6 +260,74 @@ def test_altitude_integral_frozen_at_a_limit_and_outside_its_zone():
     assert g.gx[G.GX_H_INT] == 0.0
 
 
+def _point_mass_climb(g, est, seconds):
+    """Fly ``g`` over a point mass in the vertical plane (wings level, speed held) whose lift
+    is the nominal model's trimmed lift at the guidance's alpha command (a perfect inner loop,
+    no model error). Returns the altitude error (target - h, m) and climb rate (m/s) at the end."""
+    from fc.guidance.kernels import _flight_condition, trimmed_coefficients
+    for _ in range(int(round(seconds / DT))):
+        g.step(est, 0.0, DT)
+        est[E_ALPHA] = g.out[G.GO_ALPHA]
+        _q, qS, mach, grav, _a = _flight_condition(est, g.work, g.atm, g.grid)
+        cl, _cd = trimmed_coefficients(mach, est[E_ALPHA], g.xcg_m, g.tab, g.grid, g.work)
+        est[E_GAMMA] += (cl * qS / g.mass_kg - grav * math.cos(est[E_GAMMA])) / est[E_V] * DT
+        est[E_H] += est[E_V] * math.sin(est[E_GAMMA]) * DT
+    return g.tgt[G.TG_H] - est[E_H], est[E_V] * math.sin(est[E_GAMMA])
+
+
+def test_engaged_in_an_upset_the_flight_path_integral_unwinds_and_the_altitude_comes_back():
+    """Issue 22's dive: engaged (recovery after a FAILSAFE) while the vehicle was in an upset,
+    alpha 0.4 deg and sinking at 63 m/s, the engagement takes the low lift for a model error and
+    starts the flight-path integral at -GA_GI_MAX. With the load-factor demand at GE_NZ_MAX the
+    anti-windup froze it there, the lift stayed 40 % short and the vehicle sank for ever (13 km
+    low after 110 s, limits nz_max, gamma_max, qbar_high, hdot: the issue's sequence).
+    The integral must unwind and the altitude come back."""
+    # GIVEN the guidance engaged in the upset, holding the altitude of the engagement
+    est = _est(alpha=0.4 * DEG, gamma=-1.6 * DEG)
+    g = Guidance()
+    g.set_targets(h_m=H0, chi_rad=0.0, V_m_s=V0)
+    g.reset(est, 0.44)
+    assert g.gx[G.GX_G_INT] < 0.0               # the engagement's (wrong) model error
+    # WHEN it flies 30 s, THEN the integral has unwound (it opposed the climb the loop asks)
+    _point_mass_climb(g, est, 30.0)
+    assert g.gx[G.GX_G_INT] >= -1e-9
+    # AND after 120 s the vehicle is back near its altitude, no longer sinking
+    h_err, hdot = _point_mass_climb(g, est, 90.0)
+    assert abs(h_err) < 50.0 and abs(hdot) < 5.0, (h_err, hdot, g.limits_in_force())
+
+
+def test_engaged_in_an_upset_the_commands_start_inside_the_envelope():
+    """Issue 22: resumed after a data loss with the vehicle rolled over (mu 168 deg, alpha
+    15 deg), the commands started at the upset and left it at GE_MU_RATE: the law was told to
+    hold the upset for many seconds. They start inside the envelope's command limits."""
+    g = Guidance()
+    est = _est(alpha=15.0 * DEG, mu=168.0 * DEG, gamma=-5.0 * DEG)
+    g.set_targets(h_m=H0, chi_rad=0.0, V_m_s=V0)
+    g.reset(est, 0.44)
+    p = g.params()
+    assert abs(g.gx[G.GX_MU_C]) <= (p["GE_MU_MAX"] - p["GE_MU_MARGIN"]) * DEG + 1e-12
+    assert g.gx[G.GX_ALPHA_C] <= (p["GE_ALPHA_MAX"] - p["GE_ALPHA_MARGIN"]) * DEG + 1e-12
+    assert abs(g.gx[G.GX_GAM_C]) <= p["GE_GAM_MAX"] * DEG + 1e-12
+    g.step(est, 0.0, DT)
+    assert abs(g.out[G.GO_MU]) <= p["GE_MU_MAX"] * DEG
+    assert g.out[G.GO_ALPHA] <= p["GE_ALPHA_MAX"] * DEG
+    # and inside the envelope the engagement is still bumpless
+    g2, est2 = _engaged(_est(mu=10.0 * DEG, gamma=1.0 * DEG))
+    assert g2.gx[G.GX_MU_C] == 10.0 * DEG and g2.gx[G.GX_GAM_C] == 1.0 * DEG
+
+
+def test_an_integral_opposing_its_error_unwinds_outside_its_zone_but_not_past_zero():
+    # GIVEN an altitude integral wound up (climb) and a target far below (outside the zone)
+    g, est = _engaged(GA_HI_ZONE=150.0)
+    g.gx[G.GX_H_INT] = 100.0
+    g.set_targets(h_m=H0 - 1000.0)
+    # WHEN it steps, THEN the integral falls toward zero and stops there
+    g.step(est, 0.0, DT)
+    assert g.gx[G.GX_H_INT] == pytest.approx(100.0 - 1000.0 * DT)
+    _run(g, est, 50)
+    assert g.gx[G.GX_H_INT] == 0.0
+
+
 def test_qbar_protection_turns_the_flight_path_limits():
     # below the floor: the upper flight-path limit is negative, a climb target is refused
     g, est = _engaged(GE_QBAR_MIN=70000.0, GE_QBAR_BAND=10000.0)    # qbar here is 63.5 kPa

@@ -106,3 +106,77 @@ def test_a_chunk_goes_to_the_writer_only_after_its_last_row_is_filled(tmp_path):
                                                   [9.0, 10.0]]
     log.close()
     assert load(str(tmp_path))["a"].tolist() == [float(i + 1) for i in range(10)]
+
+
+def _fill_every_tick(log: InternalsLog, n: int, dt_us: int = 2000) -> np.ndarray:
+    """Offer the row of every 500 Hz tick (stamps 0, 2 ms, ...); returns the stamps offered."""
+    stamps = np.arange(n) * dt_us
+    for s in stamps.tolist():
+        r = log.row(s)
+        if r is not None:
+            r[:] = (s * 1e-6, s * 3.0)
+    return stamps
+
+
+def test_a_long_run_keeps_full_rate_first_then_one_row_per_slow_tick(tmp_path):
+    # GIVEN a log kept at full rate for 1 s, then at 100 Hz, offered 3 s of 500 Hz ticks
+    log = InternalsLog(str(tmp_path), ["t_s", "x"], chunk_rows=64, n_chunks=64,
+                       full_rate_s=1.0, tail_hz=100.0)
+    stamps = _fill_every_tick(log, 1500)
+    data = load(log.close())
+    # THEN every tick of the first second, then every 5th (the rows themselves unchanged)
+    want = stamps[(stamps < 1_000_000) | (stamps % 10_000 == 0)]
+    assert np.array_equal(data["t_s"], want * 1e-6)
+    assert np.array_equal(data["x"], want * 3.0)
+    assert len(want) == 500 + 200 and log.decimated == 1500 - 700 and log.dropped == 0
+
+
+def test_full_rate_keeps_every_row_however_long(tmp_path):
+    log = InternalsLog(str(tmp_path), ["t_s", "x"], chunk_rows=64, n_chunks=64,
+                       full_rate_s=None)
+    stamps = _fill_every_tick(log, 1500)
+    assert np.array_equal(load(log.close())["x"], stamps * 3.0) and log.decimated == 0
+
+
+def test_tail_rows_follow_the_sensor_time_not_the_row_count(tmp_path):
+    # GIVEN irregular stamps past the full-rate span (realtime: repeated, skipped frames)
+    log = InternalsLog(str(tmp_path), ["t_s", "x"], full_rate_s=0.0, tail_hz=100.0)
+    kept = [s for s in (0, 0, 4000, 10_000, 10_000, 12_000, 31_000, 39_000, 40_000)
+            if log.row(s) is not None]
+    # THEN the first row at or after each 10 ms mark, each once
+    assert kept == [0, 10_000, 31_000, 40_000]
+    log.close()
+
+
+def test_streamed_conversion_equals_numpy_savez_in_bounded_memory(tmp_path):
+    import tracemalloc
+
+    from fc.internals_log import write_npz_from_raw
+    # GIVEN a raw file of 40,000 rows x 12 columns (3.8 MB)
+    cols = [f"c{i}" for i in range(12)]
+    table = np.random.default_rng(3).standard_normal((40_000, 12))
+    raw = tmp_path / "fc_internals.raw"
+    table.tofile(raw)
+    with open(raw, "ab") as f:
+        f.write(b"\x01" * 20)                      # a torn last row (a kill mid-write): left out
+    # WHEN it is converted 1000 rows at a time
+    tracemalloc.start()
+    with open(tmp_path / "out.npz", "wb") as f:
+        write_npz_from_raw(str(raw), cols, f, block_rows=1000)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    # THEN np.load reads each column as written, and memory stayed near two blocks (~0.2 MB)
+    with np.load(tmp_path / "out.npz") as z:
+        assert z.files == cols
+        for i, c in enumerate(cols):
+            assert np.array_equal(z[c], table[:, i])
+    assert peak < 1_500_000, peak
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fc_internals.raw", "out.npz"]
+
+
+def test_a_decimation_that_means_nothing_is_refused(tmp_path):
+    import pytest
+    for full_s, hz in ((60.0, 0.0), (60.0, -5.0), (-1.0, 100.0), (float("nan"), 100.0),
+                       (60.0, float("inf"))):
+        with pytest.raises(ValueError):
+            InternalsLog(str(tmp_path), ["t_s"], full_rate_s=full_s, tail_hz=hz)

@@ -44,13 +44,22 @@ class _Vehicle:
     def request_mode(self, mode):
         return self.modes.request_mode(mode)
 
-    def arm(self, armed):
+    def arm(self, armed, forced=False):
         return self.modes.set_armed(armed, data_ok=True)
 
     def set_attitude_command(self, alpha_deg, beta_deg, mu_deg):
         return "no attitude commands at rest"
 
     def set_guidance_targets(self, h_m=None, chi_rad=None, V_m_s=None):
+        return "no guidance at rest"
+
+    def change_speed(self, v_m_s):
+        return "no guidance at rest"
+
+    def go_to(self, lat_deg, lon_deg, h_m, v_m_s):
+        return "no guidance at rest"
+
+    def orbit(self, lat_deg, lon_deg, radius_m, h_m):
         return "no guidance at rest"
 
     def debug_vectors(self):

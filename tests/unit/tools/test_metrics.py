@@ -156,6 +156,40 @@ def test_surface_metrics_peaks_and_saturated_time():
     assert sat_s == pytest.approx(0.5 + 0.5 - DT_S, abs=1.5e-3)
 
 
+def test_surface_figures_closed_form():
+    """GIVEN a ramp-and-hold on the left elevon, a 40 Hz command jitter on the rudder, a
+    command at the limit for 0.3 s and the rate-command flag for 0.7 s; THEN travel, chatter
+    and the times are the closed-form values."""
+    t = _t(2.0)
+    lim = math.radians(20.0)
+    d = np.zeros((len(t), 3))
+    d[:, 0] = np.radians(np.clip(10.0 * t, 0.0, 5.0))          # 0 -> 5 deg, then held
+    d[:, 1] = np.radians(-3.0)
+    c = d.copy()
+    amp = math.radians(0.5)
+    c[:, 2] = amp * np.sin(2 * math.pi * 40.0 * t)                # jitter, well above 5 Hz
+    c[:, 1] = np.where((t >= 1.0) & (t < 1.3), -lim, c[:, 1])     # a command at its limit
+    flag = ((t >= 0.2) & (t < 0.9)).astype(float)
+    f = M.surface_figures(t, d, c, lim, flag)
+    assert tuple(f) == M.SURFACE_FIGURE_KEYS
+    assert f["peak_left_elevon_deg"] == pytest.approx(5.0)
+    assert f["peak_right_elevon_deg"] == pytest.approx(3.0)
+    assert f["travel_left_elevon_deg"] == pytest.approx(5.0)
+    assert f["travel_right_elevon_deg"] == 0.0 and f["travel_rudder_deg"] == 0.0
+    assert f["travel_total_deg"] == pytest.approx(5.0)
+    # a 40 Hz sine passes a first-order 5 Hz high-pass with gain 40/sqrt(40^2 + 5^2)
+    gain = 40.0 / math.hypot(40.0, 5.0)
+    assert f["chatter_rudder_deg"] == pytest.approx(0.5 / math.sqrt(2) * gain, rel=0.03)
+    assert f["chatter_right_elevon_deg"] > 1.0                    # the 17 deg jump and back
+    # a ramp of 10 deg/s reads slope x tau = 0.32 deg while it lasts (0.5 of the 2 s): small
+    tau_s = 1.0 / (2 * math.pi * 5.0)
+    assert f["chatter_left_elevon_deg"] == pytest.approx(10.0 * tau_s * math.sqrt(0.25), rel=0.05)
+    assert f["at_limit_s"] == 0.0
+    assert f["cmd_at_limit_s"] == pytest.approx(0.3, abs=1.5e-3)
+    assert f["rate_cmd_limited_s"] == pytest.approx(0.7, abs=1.5e-3)
+    assert M.surface_figures(t, d, c, lim)["rate_cmd_limited_s"] is None
+
+
 def test_is_diverged():
     ok = np.radians(np.linspace(0.0, 10.0, 50))
     assert not M.is_diverged(ok, -ok)

@@ -80,6 +80,11 @@ def test_results_complete(campaign):
     assert sorted(keys) == sorted((i, v) for i in range(RUNS) for v in cfg.variants)
     t = results.read_rows(out, traces=True)
     assert set(results.METRIC_COLUMNS) <= set(t.column_names)
+    # the surface figures (docs/metrics.md "Surfaces") of every row, from the closed loop
+    assert set(results.SURFACE_COLUMNS) <= set(t.column_names)
+    for c in results.SURFACE_COLUMNS:
+        assert np.all(np.isfinite(np.asarray(t.column(c).to_pylist(), float))), c
+    assert min(t.column("surf.rate_cmd_limited_s").to_pylist()) > 0.0
     assert set(dsp.load("paper").dists) <= set(t.column_names)
     errors = [e for e in t.column("error").to_pylist() if e]
     assert errors == []
@@ -125,6 +130,19 @@ def test_summary_consistent_with_rows(campaign):
                     assert st["max"] == pytest.approx(x.max())
     fails = {(f["case"], f["variant"]) for f in s["failures"]}
     assert fails == {(r["case"], r["variant"]) for r in rows if r["diverged"] or r["error"]}
+    # surfaces: per-variant stats and the case-by-case shares, recomputed from the rows
+    co = {r["case"]: r for r in rows if r["variant"] == "coordinated"}
+    un = {r["case"]: r for r in rows if r["variant"] == "uncoordinated"}
+    for k in summary.SURFACE_SUMMARY:
+        col = f"surf.{k}"
+        x = np.array([r[col] for r in co.values()], float)
+        assert s["variants"]["coordinated"]["surfaces"][k]["max"] == pytest.approx(x.max())
+        a = np.array([co[c][col] for c in sorted(co)])
+        b = np.array([un[c][col] for c in sorted(co)])
+        e = s["paired"][col]
+        assert e["coordinated_smaller_share"] == pytest.approx(np.mean(a < b))
+        assert e["equal_share"] + e["coordinated_smaller_share"] + \
+            e["coordinated_larger_share"] == pytest.approx(1.0)
 
 
 def test_rerun_of_one_case_gives_identical_metrics(campaign, tmp_path):

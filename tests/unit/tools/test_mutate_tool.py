@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import ast
 
+import pytest
+
 from tools.mutate import find_mutants
 
 SOURCE = '''\
@@ -72,3 +74,55 @@ def test_exec_into_rebinds_names_imported_elsewhere(tmp_path, monkeypatch):
     finally:
         sys.modules.pop("test_mut_a", None)
         sys.modules.pop("test_mut_b", None)
+
+
+def test_default_tests_are_found_in_the_tree(tmp_path):
+    """tools.mutate looks its test files up under tests/ (a moved file is still found; a
+    missing or duplicated one is an error, not a silently shorter run)."""
+    from tools.mutate import DEFAULT_TESTS, ROOT, find_tests
+
+    found = find_tests(DEFAULT_TESTS)
+    assert len(found) == len(DEFAULT_TESTS)
+    for node in found:
+        assert (ROOT / node.split("::")[0]).is_file(), node
+    # GIVEN a tree where the file moved one folder down: it is found there
+    (tmp_path / "tests" / "unit" / "deep").mkdir(parents=True)
+    (tmp_path / "tests" / "unit" / "deep" / "test_x.py").write_text("")
+    assert find_tests(["test_x.py::test_a"], tmp_path) == ["tests/unit/deep/test_x.py::test_a"]
+    # a file that is nowhere, or in two places, or an explicit path that does not exist
+    (tmp_path / "tests" / "test_x.py").write_text("")
+    for bad in (["test_missing.py"], ["test_x.py"], ["tests/test_law_equations.py"]):
+        with pytest.raises(FileNotFoundError):
+            find_tests(bad, tmp_path)
+
+
+def test_named_mutants_apply_exactly_once():
+    """Each hand-made mutant's text is in its file exactly once, and changes only that."""
+    from tools.mutate import NAMED, ROOT, named_mutants
+
+    found = named_mutants()
+    assert [m.equation for m, _ in found] == [n.what for n in NAMED]
+    for (m, src), n in zip(found, NAMED):
+        original = (ROOT / n.file).read_text()
+        assert src != original and src.replace(n.new, n.old, 1) == original
+        assert n.old.strip("(") in m.source and m.kind == "named"
+    with pytest.raises(ValueError):
+        named_mutants([NAMED[0].__class__(NAMED[0].file, "f", "no such text", "x", "w")])
+
+
+@pytest.mark.slow
+def test_quick_mutation_run_kills_every_mutant():
+    """`python -m tools.mutate --quick`: the hand-made mutants (Eqs. 30 and 36 signs and gains)
+    and a sign flip per main kernel, against the law's unit tests found in the tree: every one
+    is killed (a moved test file, a weakened test or a surviving sign flip fails here).
+    About 12 s of CPU."""
+    import subprocess
+    import sys
+
+    from tools.mutate import NAMED, QUICK_SIGN_FUNCTIONS, ROOT
+
+    r = subprocess.run([sys.executable, "-m", "tools.mutate", "--quick"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=280)
+    n = len(NAMED) + len(QUICK_SIGN_FUNCTIONS)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert f"{n} mutants, {n} killed, 0 survived" in r.stdout, r.stdout[-2000:]

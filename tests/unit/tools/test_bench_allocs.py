@@ -1,0 +1,71 @@
+"""tools/bench/allocs.py (issue 24): the fc keeps nothing per frame; the allocation counters count.
+
+In process, on 127.0.0.1: the sensor datagrams of a short closed-loop flight are replayed
+into a fresh controller (``tools.bench.profile``'s rig). Counts, never times.
+"""
+from __future__ import annotations
+
+import pytest
+
+from tools.bench import allocs
+from tools.bench.profile import record
+
+#: frames between the two checkpoints of the growth test
+SPAN_FRAMES = 1500
+#: blocks the controller may keep over those frames, whatever their number (a stream's
+#: counter crossing into a new int, a dict resized once): a leak of one block per 15 frames
+#: exceeds it
+ALLOWANCE_BLOCKS = 100
+
+
+@pytest.fixture(scope="module")
+def flights():
+    """Recorded datagrams per flight mode (warm-up + 500 + SPAN_FRAMES frames)."""
+    n = allocs.WARM_FRAMES + 500 + SPAN_FRAMES
+    return {mode: record(n, mode) for mode in ("COORDINATED", "CRUISE")}
+
+
+@pytest.mark.parametrize("mode", ["COORDINATED", "CRUISE"])
+def test_allocated_blocks_do_not_grow_with_the_frames(flights, mode):
+    # GIVEN a controller replaying a flight, its heap measured after 500 frames (buffers that
+    # grow once have grown, the 1 Hz chores have run) and SPAN_FRAMES frames later
+    before, after = allocs.block_growth(flights[mode], mode, [500, 500 + SPAN_FRAMES])
+    # THEN it kept no more than the fixed allowance, not a block per frame
+    assert after - before <= ALLOWANCE_BLOCKS, (mode, after - before)
+
+
+def test_a_per_frame_leak_is_seen(flights, monkeypatch):
+    # GIVEN a controller whose frame keeps one small object per frame (an injected leak)
+    from fc.loops import RunLoops
+    kept = []
+    real = RunLoops.lockstep_frame
+
+    def leaking(self, stamp, now_s):
+        kept.append([stamp])
+        return real(self, stamp, now_s)
+
+    monkeypatch.setattr(RunLoops, "lockstep_frame", leaking)
+    before, after = allocs.block_growth(flights["COORDINATED"], "COORDINATED",
+                                        [500, 500 + SPAN_FRAMES])
+    # THEN the growth test's measure exceeds its allowance (so that test can fail)
+    assert after - before > ALLOWANCE_BLOCKS
+
+
+def test_allocation_counters_count_what_the_frame_allocates(flights, monkeypatch):
+    # GIVEN the counted replay, once as is and once with 10 objects allocated per frame
+    n = allocs.WARM_FRAMES + 300
+    base = allocs.count_allocations(flights["COORDINATED"][:n], "COORDINATED")
+    from fc.loops import RunLoops
+    real = RunLoops.lockstep_frame
+
+    def allocating(self, stamp, now_s):
+        _ = [object() for _ in range(10)]
+        return real(self, stamp, now_s)
+
+    monkeypatch.setattr(RunLoops, "lockstep_frame", allocating)
+    more = allocs.count_allocations(flights["COORDINATED"][:n], "COORDINATED")
+    # THEN both counts are finite, and the extra objects show in the Python count only
+    assert base["frames"] == more["frames"] == 300
+    assert base["py_allocs_per_frame"] >= 0.0 and base["nrt_allocs_per_frame"] >= 0.0
+    assert more["py_allocs_per_frame"] - base["py_allocs_per_frame"] >= 10.0
+    assert more["nrt_allocs_per_frame"] == base["nrt_allocs_per_frame"]

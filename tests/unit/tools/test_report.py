@@ -1,0 +1,48 @@
+"""tools.report: the README's and the docs' generated tables agree with their committed data."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from tools import report
+
+
+def test_committed_tables_match_their_data():
+    """Every ``<!-- report:NAME -->`` block of the documents is what its docs/data/*.json
+    renders today (run ``python -m tools.report write`` after importing a new run)."""
+    blocks = []
+    for doc in report.DOCUMENTS:
+        path = report.ROOT / doc
+        if path.exists():
+            blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
+    assert {"hil_steps", "mc_paper", "mc_surfaces", "beta0_dip"} <= set(blocks), blocks
+    assert report.check() == []
+
+
+def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
+    """GIVEN a copy of the documents and data; WHEN one source figure changes (or a table is
+    edited by hand); THEN check names that table, and write repairs it."""
+    for doc in report.DOCUMENTS:
+        src = report.ROOT / doc
+        if src.exists():
+            (tmp_path / doc).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, tmp_path / doc)
+    shutil.copytree(report.ROOT / report.DATA_DIR, tmp_path / report.DATA_DIR)
+    assert report.check(tmp_path) == []
+    data = tmp_path / report.DATA_DIR / "hil_paper.json"
+    d = json.loads(data.read_text())
+    d["summary"]["runs"]["coordinated"]["alpha"]["overshoot_pct"] += 1.0
+    data.write_text(json.dumps(d))
+    assert report.check(tmp_path) == ["README.md: hil_steps"]
+    report.write(tmp_path)
+    assert report.check(tmp_path) == []
+    readme = tmp_path / "README.md"
+    readme.write_text(readme.read_text().replace("| diverged | 0 |", "| diverged | 1 |", 1))
+    assert report.check(tmp_path) == ["README.md: mc_paper"]
+
+
+def test_unknown_block_is_an_error():
+    with pytest.raises(KeyError):
+        report.render("<!-- report:nope -->\nx\n<!-- /report:nope -->\n")
