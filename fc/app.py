@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fc.cruise_track import CruiseTrack
 from fc.estimator import E_N, Estimator
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
@@ -40,6 +41,7 @@ from fc.signing import FILE_NAME as SIGNING_FILE
 from fc.storage import DiskHealth
 from fc.telemetry import FcCounters, Telemetry, TickOutput
 from fc.timeline import Timeline, load_timeline
+from hyfc_wire.earth import EARTH_RADIUS_M
 
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
@@ -131,6 +133,7 @@ class FlightController:
         # the stored mission (fc/mission.py, its protocol in fc/gcs.py) and MISSION mode
         self.mission = Mission()
         self.mission_flight = MissionFlight(self.mission)
+        self.cruise_track = CruiseTrack(EARTH_RADIUS_M)
         # RTL, DO_REPOSITION and DO_ORBIT: a point flown by the guidance (fc/point_mode.py)
         self.point_flight = PointFlight()
 
@@ -377,7 +380,7 @@ class FlightController:
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
-        the targets. Ground-station state enters the guidance here only, and never as an
+        the targets; in CRUISE the course follows the great circle flown at entry. Ground-station state enters the guidance here only, and never as an
         exception (the navigators answer ``("hold", why)`` instead, fc/mission_mode.py)."""
         mode = self.modes.mode
         if mode == FlightMode.MISSION:
@@ -392,6 +395,8 @@ class FlightController:
             self._nav_out(pf.tick(self))
         elif mode == FlightMode.GUIDED and self.point_flight.active:
             self._nav_out(self.point_flight.tick(self))
+        elif mode == FlightMode.CRUISE:
+            self.cruise_track.tick(self)      # the great circle flown at entry (fc/cruise_track.py)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
@@ -449,13 +454,13 @@ class FlightController:
             "exit: frames %d, outputs %d, duplicates %d, relocks %d, rejected plant %d "
             "(sysid %d, addr %d, bad %d, incomplete %d), gcs bad %d, gcs unsigned %d, "
             "late ticks %d/%d, overruns %d, skipped %d, law errors %d, reordered frames %d, "
-            "fc stalls %d (longest %.2f s)",
+            "fc stalls %d (longest %.2f s), gnss samples %d, gnss dropped %d",
             c.frames, c.outputs, self.counters.duplicate_frames, c.relocks, c.rejected,
             c.rejected_sysid, c.rejected_addr, c.rejected_bad, c.rejected_incomplete, self.gcs.rejected_bad,
             self.gcs.rejected_signing, self.stats.late, self.stats.ticks, self.stats.overruns,
             self.telemetry.skipped_ticks(), self.counters.law_errors,
             self.counters.reordered_frames, self.counters.fc_stalls,
-            self.counters.fc_stall_max_s)
+            self.counters.fc_stall_max_s, c.gnss, c.gnss_rejected)
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

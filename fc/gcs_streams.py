@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 
 from fc.link import mavlink as ML
+# the sphere both processes agree on (m): LOCAL_POSITION_NED's x/y about home (``local_ned``)
+from hyfc_wire.earth import EARTH_RADIUS_M
 
 __all__ = ["IN_AIR_SPEED_M_S", "EARTH_RADIUS_M", "landed_state", "cm_s_i16", "cm_s_u16",
            "local_ned"]
@@ -26,8 +28,6 @@ __all__ = ["IN_AIR_SPEED_M_S", "EARTH_RADIUS_M", "landed_state", "cm_s_i16", "cm
 #: plant has no ground model: below it (or without data) the state is UNDEFINED, never a
 #: guess of ON_GROUND. The winged cone's slowest trimmed point is Mach ~5 (1500 m/s).
 IN_AIR_SPEED_M_S = 50.0
-#: Mean Earth radius (IUGG, m): LOCAL_POSITION_NED's x/y about home (``local_ned``).
-EARTH_RADIUS_M = 6_371_008.8
 INT16_UNKNOWN = 32767
 UINT16_UNKNOWN = 65535
 

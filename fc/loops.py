@@ -73,6 +73,7 @@ class Housekeeping:
     savers: tuple = ()
     goodbyes_seen: int = 0
     relocks_seen: int = 0
+    gnss_dropped_seen: int = 0      # plant.counters.gnss_rejected already reported
     chore: int = 0                  # which of the 1 Hz chores the next call does
     next_1hz: float = 0.0           # wall clock of the next round of 1 Hz chores
     next_gcs_poll: float = 0.0      # wall clock of the next GCS read when readiness is unknown
@@ -123,6 +124,7 @@ class Housekeeping:
                 self.counters.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
             elif stage == 2:
                 self.telemetry.refresh()
+                self._report_gnss_drops()
             else:
                 self.gcs.flush()
                 values = self.param_svc.snapshot()
@@ -141,6 +143,17 @@ class Housekeeping:
             else:
                 self.chore = stage + 1
         self.gcs.service(now_s)
+
+    def _report_gnss_drops(self) -> None:
+        """GNSS samples the plant link dropped since the last report (non-finite or out of
+        range, fc/link.py ``_store_gps``): one WARNING STATUSTEXT (mirrored to fc.log, and
+        rate-limited there) per 1 Hz round that saw any; the total is telemetry's GNSS_DROP."""
+        n = self.plant.counters.gnss_rejected
+        if n != self.gnss_dropped_seen:
+            new = n - self.gnss_dropped_seen
+            self.gnss_dropped_seen = n
+            self.event(f"GNSS: {new} samples dropped (out of range or not finite), {n} in all",
+                       ML.MAV_SEVERITY_WARNING)
 
     def _plant_said_goodbye(self) -> None:
         """The plant ended its run on purpose (docs/wire.md section 5): the silence that

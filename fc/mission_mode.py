@@ -34,12 +34,14 @@ from typing import Protocol
 import numpy as np
 
 from fc.control.layout import E_H, E_V
-from fc.guidance.waypoints import NavParams, WaypointNavigator, leg_geometry, local_ne
+from fc.guidance.waypoints import (NavParams, WaypointNavigator, gc_azimuth_rad, gc_distance_m,
+                                   unit_vector)
 from fc.link import G_FIX, G_LAT_DEG, G_LON_DEG, G_T_S
 from fc.link import mavlink as ML
 from fc.mission_params import MISSION_PARAMS
 from fc.params import ParamTable
 from fc.vehicle_view import PlantView
+from hyfc_wire.earth import EARTH_RADIUS_M
 
 __all__ = ["MissionFlight", "MissionVehicle", "MISSION_PARAMS", "NAV_DIV", "GNSS_MAX_AGE_S",
            "nav_params"]
@@ -100,7 +102,7 @@ class MissionFlight:
 
     def __init__(self, mission, params: NavParams | None = None) -> None:
         self.mission = mission
-        self.nav = WaypointNavigator(params)
+        self.nav = WaypointNavigator(params or NavParams(earth_radius_m=EARTH_RADIUS_M))
         self._changes_seen = -1
         self._generation = -1                  # the mission's items flown since entry
         self._count = 0
@@ -181,9 +183,8 @@ class MissionFlight:
             fc.guid.nav_wp = None
         else:
             it = self.mission.item(self.mission.current)
-            home = self.nav.home
-            w = local_ne(it["x"] * 1e-7, it["y"] * 1e-7, home[0], home[1])
-            x = local_ne(lat, lon, home[0], home[1])
-            _, _, _, dist = leg_geometry(x, w, x)
-            fc.guid.nav_wp = (math.atan2(w[1] - x[1], w[0] - x[0]), dist, self.nav.xt_m)
+            w = unit_vector(it["x"] * 1e-7, it["y"] * 1e-7)
+            x = unit_vector(lat, lon)
+            fc.guid.nav_wp = (gc_azimuth_rad(x, w), gc_distance_m(x, w, self.nav.p.earth_radius_m),
+                              self.nav.xt_m)
         return out

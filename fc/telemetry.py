@@ -180,6 +180,7 @@ class Telemetry:
             (b"TICK_FALLB", float(self.gate.fallback_ticks)),
             (b"GC_US", self.counters.gc_us),
             (b"REJ_PLANT", float(c.rejected)),
+            (b"GNSS_DROP", float(c.gnss_rejected)),
             (b"REJ_GCS", float(self.gcs.rejected_bad)),
             (b"REJ_SIGN", float(self.gcs.rejected_signing)),
             (b"EST_INVAL", float(self.est.invalid_frames)),

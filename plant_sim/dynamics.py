@@ -1,8 +1,9 @@
 """Rigid-body 6-DOF dynamics of the winged cone, actuators and the fixed-step RK4 integrator.
 
-Flat, non-rotating earth (NED), gravity with altitude (US76 inverse square), body axes FRD,
-attitude as a unit quaternion (scalar first, body -> NED), all in SI. See docs/plant.md for
-every modelling choice and its source.
+Flat, non-rotating earth (NED; the paper's case), or a non-rotating spherical Earth
+(scenario ``[earth] model = "sphere"``: ``deriv_sphere``, ``sphere_view``); gravity with
+altitude (US76 inverse square), body axes FRD, attitude as a unit quaternion (scalar first,
+body -> NED), all in SI. See docs/plant.md for every modelling choice and its source.
 
 Equations (per physics step dt, RK4 on the 13 rigid-body states, surfaces held over the step):
     p_dot_NED = C_nb v_b
@@ -60,7 +61,13 @@ X_THRUST = 20     # thrust at the last derivative evaluation (N)
 X_CLIP = 21       # OR of aero clip flags since the last frame began
 X_CMD_THR = 22    # latched throttle command (0..1; engine speed model only)
 X_THR = 23        # engine throttle position (0..1) after its lag and rate limit
-X_N = 24
+# Round Earth (P_EARTH = EARTH_SPHERE): the 13 rigid-body states integrated in the Earth-centred
+# frame E (non-rotating sphere), same order as x[0:13]: position r_E (m, E axes), body velocity
+# (m/s), quaternion body -> E (scalar first), body rates. x[0:13] is then the local-NED view of
+# this block (refreshed after every physics step by ``sphere_view``): north/east on the
+# azimuthal-equidistant map about the origin, down = -h, the quaternion body -> local NED.
+X_S = 24
+X_N = X_S + X_RB_N
 
 # ---- parameter vector p (float64[P_N]) ----
 P_MASS = 0
@@ -92,7 +99,13 @@ P_ENG_CT = 79      # engine: thrust coefficient at full throttle, T = thr C_T qb
 P_ENG_TAU = 80     # engine: first-order lag of the throttle position (s), 0 = none
 P_ENG_RATE = 81    # engine: throttle rate limit (1/s), 0 = none
 P_DIST_QREF = 82   # Pa; > 0: d(t) scaled by qbar / P_DIST_QREF (a moment coefficient), 0 = as given
-P_N = 83
+P_EARTH = 83       # EARTH_FLAT (the paper's flat NED earth) or EARTH_SPHERE
+P_EARTH_R = 84     # sphere radius (m)
+P_ORIGIN = 85      # 85..93: origin (start) on the sphere, E axes: unit up, north, east vectors
+P_N = 94
+
+EARTH_FLAT = 0
+EARTH_SPHERE = 1
 
 SPEED_NONE = 0
 SPEED_HOLD = 1
@@ -174,12 +187,19 @@ def disturbance_components(t_s, p, qbar_pa):
 
 @njit(cache=True)
 def aero_eval(x, dl, dr, du, p, w):
-    """Air data, aerodynamic forces (body) and moments about the c.g. at state ``x``.
+    """Air data, aerodynamic forces (body) and moments about the c.g. at state ``x`` (the
+    flat-earth layout or the local-NED view: h = -x[X_PD]).
 
     Writes w[W_AUX + AX_*] and returns the aero clip flags. ``dl, dr, du`` are the surface
     positions (rad).
     """
-    h = -x[X_PD]
+    return aero_eval_h(x, -x[X_PD], dl, dr, du, p, w)
+
+
+@njit(cache=True)
+def aero_eval_h(x, h, dl, dr, du, p, w):
+    """:func:`aero_eval` at altitude ``h`` (m): reads only the body velocity and rates of
+    ``x`` (so it serves both the flat state and the round-Earth block)."""
     us76(h, w[W_ATM:W_ATM + A_N])
     rho = w[W_ATM + A_RHO_KG_M3]
     a_snd = w[W_ATM + A_SOUND_M_S]
@@ -255,9 +275,7 @@ def thrust_n(x, p, w):
         return t if t < p[P_TMAX] else p[P_TMAX]
     if mode != SPEED_HOLD:
         return 0.0
-    o = W_AUX
-    V = w[o + AX_V]
-    m = p[P_MASS]
+    V = w[W_AUX + AX_V]
     # sin(gamma) = -v_D / V; v_D from the quaternion: third row of C_nb times v_b
     q0 = x[X_Q0]
     q1 = x[X_Q1]
@@ -265,7 +283,15 @@ def thrust_n(x, p, w):
     q3 = x[X_Q3]
     vd = (2.0 * (q1 * q3 - q0 * q2) * x[X_U] + 2.0 * (q2 * q3 + q0 * q1) * x[X_V]
           + (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) * x[X_W])
-    sgam = -vd / V
+    return hold_thrust(-vd / V, p, w)
+
+
+@njit(cache=True)
+def hold_thrust(sgam, p, w):
+    """SPEED_HOLD's thrust (N) at sin(gamma) = ``sgam``, from the last aero_eval in ``w``."""
+    o = W_AUX
+    V = w[o + AX_V]
+    m = p[P_MASS]
     need = w[o + AX_DRAG] + m * w[o + AX_GRAV] * sgam + m * p[P_KV] * (p[P_VREF] - V)
     cc = math.cos(w[o + AX_ALPHA]) * math.cos(w[o + AX_BETA])
     t = need / cc if cc > 0.05 else 0.0
@@ -304,6 +330,22 @@ def deriv(x, t_s, dl, dr, du, p, w, xdot):
     xdot[X_U] = (w[o + AX_FX] + thrust) / m + g * c31 - (qq * ww - rr * v)
     xdot[X_V] = w[o + AX_FY] / m + g * c32 - (rr * u - pp * ww)
     xdot[X_W] = w[o + AX_FZ] / m + g * c33 - (pp * v - qq * u)
+    _attitude_deriv(x, t_s, p, w, xdot)
+    return flags
+
+
+@njit(cache=True, inline="always")
+def _attitude_deriv(x, t_s, p, w, xdot):
+    """xdot[X_Q0..X_R]: q' = 0.5 q (x) (0, omega) and omega' = I^-1 (M_cg - omega x I omega)
+    + d(t), from the moments of the last aero_eval in ``w`` (the same on both earths)."""
+    o = W_AUX
+    pp = x[X_P]
+    qq = x[X_Q]
+    rr = x[X_R]
+    q0 = x[X_Q0]
+    q1 = x[X_Q1]
+    q2 = x[X_Q2]
+    q3 = x[X_Q3]
     xdot[X_Q0] = 0.5 * (-q1 * pp - q2 * qq - q3 * rr)
     xdot[X_Q1] = 0.5 * (q0 * pp + q2 * rr - q3 * qq)
     xdot[X_Q2] = 0.5 * (q0 * qq + q3 * pp - q1 * rr)
@@ -328,7 +370,151 @@ def deriv(x, t_s, dl, dr, du, p, w, xdot):
         xdot[X_P] += d0
         xdot[X_Q] += d1
         xdot[X_R] += d2
+
+
+@njit(cache=True)
+def deriv_sphere(xs, t_s, dl, dr, du, p, w, xdot):
+    """Time derivative of the round-Earth block ``xs`` (float64[13]: r_E, v_b, q_eb, omega;
+    layout of x[0:13]) on a non-rotating sphere of radius R = p[P_EARTH_R]; returns the aero
+    clip flags.
+
+        r_E'   = C_eb v_b
+        v_b'   = (F_aero_b + T x_b) / m - g(h) C_be r_E / |r_E| - omega x v_b,  h = |r_E| - R
+        q_eb'  = 0.5 q_eb (x) [0, omega]
+        omega' = as the flat earth (the attitude dynamics do not see the Earth)
+
+    The frame E is inertial, so these are the flat equations with gravity along the local
+    vertical -r_E/|r_E| instead of a fixed axis: the curvature terms of the flight-path
+    equations (V cos(gamma) / r in gamma' and in the course) come out of the turning vertical,
+    with no singular term anywhere, the poles included.
+    """
+    rx = xs[X_PN]
+    ry = xs[X_PE]
+    rz = xs[X_PD]
+    r = math.sqrt(rx * rx + ry * ry + rz * rz)
+    flags = aero_eval_h(xs, r - p[P_EARTH_R], dl, dr, du, p, w)
+    o = W_AUX
+    m = p[P_MASS]
+    g = w[o + AX_GRAV]
+    u = xs[X_U]
+    v = xs[X_V]
+    ww = xs[X_W]
+    pp = xs[X_P]
+    qq = xs[X_Q]
+    rr = xs[X_R]
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = quat_to_dcm_nb(xs[X_Q0], xs[X_Q1], xs[X_Q2],
+                                                                  xs[X_Q3])   # here C_eb
+    ve0 = c11 * u + c12 * v + c13 * ww
+    ve1 = c21 * u + c22 * v + c23 * ww
+    ve2 = c31 * u + c32 * v + c33 * ww
+    if p[P_SPEED_MODE] == SPEED_HOLD:
+        thrust = hold_thrust((rx * ve0 + ry * ve1 + rz * ve2) / (r * w[o + AX_V]), p, w)
+    else:
+        thrust = thrust_n(xs, p, w)      # engine or none: no use of the attitude
+    w[o + AX_THRUST] = thrust
+    xdot[X_PN] = ve0
+    xdot[X_PE] = ve1
+    xdot[X_PD] = ve2
+    # gravity in body axes: -g C_be r_hat, C_be = C_eb^T
+    gr = -g / r
+    xdot[X_U] = (w[o + AX_FX] + thrust) / m + gr * (c11 * rx + c21 * ry + c31 * rz) - (qq * ww - rr * v)
+    xdot[X_V] = w[o + AX_FY] / m + gr * (c12 * rx + c22 * ry + c32 * rz) - (rr * u - pp * ww)
+    xdot[X_W] = w[o + AX_FZ] / m + gr * (c13 * rx + c23 * ry + c33 * rz) - (pp * v - qq * u)
+    _attitude_deriv(xs, t_s, p, w, xdot)
     return flags
+
+
+@njit(cache=True)
+def ned_axes(rx, ry, rz):
+    """Local north, east, down unit vectors (E axes) at the point r_E (m) of the sphere, as
+    nine numbers (n, e, d). At a pole (no east), east is taken as E's y axis (longitude 0)."""
+    r = math.sqrt(rx * rx + ry * ry + rz * rz)
+    dx = -rx / r
+    dy = -ry / r
+    dz = -rz / r
+    rho = math.sqrt(rx * rx + ry * ry)
+    if rho > 1e-9 * r:
+        ex = -ry / rho
+        ey = rx / rho
+    else:
+        ex = 0.0
+        ey = 1.0
+    # north = east x down
+    nx = ey * dz
+    ny = -ex * dz
+    nz = ex * dy - ey * dx
+    return nx, ny, nz, ex, ey, 0.0, dx, dy, dz
+
+
+@njit(cache=True)
+def sphere_view(x, p):
+    """Write the local-NED view x[0:13] of the round-Earth block x[X_S:X_S+13]: the
+    quaternion body -> local NED (C_nb = C_ne C_eb), down = -(|r_E| - R), north/east on the
+    azimuthal-equidistant map about the origin (great-circle distance from the origin along
+    its initial azimuth, at radius R), body velocity and rates copied."""
+    b = X_S
+    rx = x[b + X_PN]
+    ry = x[b + X_PE]
+    rz = x[b + X_PD]
+    r = math.sqrt(rx * rx + ry * ry + rz * rz)
+    nx, ny, nz, ex, ey, ez, dx, dy, dz = ned_axes(rx, ry, rz)
+    e11, e12, e13, e21, e22, e23, e31, e32, e33 = quat_to_dcm_nb(x[b + X_Q0], x[b + X_Q1],
+                                                                  x[b + X_Q2], x[b + X_Q3])
+    # C_nb = C_ne C_eb, rows of C_ne = n, e, d
+    c11 = nx * e11 + ny * e21 + nz * e31
+    c12 = nx * e12 + ny * e22 + nz * e32
+    c13 = nx * e13 + ny * e23 + nz * e33
+    c21 = ex * e11 + ey * e21 + ez * e31
+    c22 = ex * e12 + ey * e22 + ez * e32
+    c23 = ex * e13 + ey * e23 + ez * e33
+    c31 = dx * e11 + dy * e21 + dz * e31
+    c32 = dx * e12 + dy * e22 + dz * e32
+    c33 = dx * e13 + dy * e23 + dz * e33
+    quat_from_dcm(c11, c12, c13, c21, c22, c23, c31, c32, c33, x)
+    # azimuthal-equidistant map about the origin (up u0, north n0, east e0 in p)
+    o = P_ORIGIN
+    ux = rx / r
+    uy = ry / r
+    uz = rz / r
+    cosc = ux * p[o] + uy * p[o + 1] + uz * p[o + 2]
+    tn = ux * p[o + 3] + uy * p[o + 4] + uz * p[o + 5]
+    te = ux * p[o + 6] + uy * p[o + 7] + uz * p[o + 8]
+    sinc = math.sqrt(tn * tn + te * te)
+    c = math.atan2(sinc, cosc)
+    scale = p[P_EARTH_R] * c / sinc if sinc > 1e-15 else p[P_EARTH_R]
+    x[X_PN] = tn * scale
+    x[X_PE] = te * scale
+    x[X_PD] = -(r - p[P_EARTH_R])
+    for i in range(X_U, X_W + 1):
+        x[i] = x[b + i]
+    for i in range(X_P, X_R + 1):
+        x[i] = x[b + i]
+
+
+@njit(cache=True)
+def quat_from_dcm(c11, c12, c13, c21, c22, c23, c31, c32, c33, x):
+    """x[X_Q0:X_Q3+1] := the unit quaternion (scalar first, >= 0) of the rotation matrix C
+    (row major; Shepperd's method)."""
+    tr = c11 + c22 + c33
+    if tr > 0.0:
+        s = math.sqrt(tr + 1.0) * 2.0
+        q0, q1, q2, q3 = 0.25 * s, (c32 - c23) / s, (c13 - c31) / s, (c21 - c12) / s
+    elif c11 > c22 and c11 > c33:
+        s = math.sqrt(1.0 + c11 - c22 - c33) * 2.0
+        q0, q1, q2, q3 = (c32 - c23) / s, 0.25 * s, (c12 + c21) / s, (c13 + c31) / s
+    elif c22 > c33:
+        s = math.sqrt(1.0 + c22 - c11 - c33) * 2.0
+        q0, q1, q2, q3 = (c13 - c31) / s, (c12 + c21) / s, 0.25 * s, (c23 + c32) / s
+    else:
+        s = math.sqrt(1.0 + c33 - c11 - c22) * 2.0
+        q0, q1, q2, q3 = (c21 - c12) / s, (c13 + c31) / s, (c23 + c32) / s, 0.25 * s
+    if q0 < 0.0:
+        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+    n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    x[X_Q0] = q0 / n
+    x[X_Q1] = q1 / n
+    x[X_Q2] = q2 / n
+    x[X_Q3] = q3 / n
 
 
 @njit(cache=True)
@@ -398,32 +584,52 @@ def rk4_step(x, p, w):
     dl = x[X_DL]
     dr = x[X_DR]
     du = x[X_DU]
+    sphere = p[P_EARTH] == EARTH_SPHERE
+    b = X_S if sphere else 0
+    flags, thrust0 = _rk4_rigid(x[b:b + X_RB_N], t, dl, dr, du, p, w, sphere)
+    if sphere:
+        sphere_view(x, p)
+    x[X_THRUST] = thrust0
+    x[X_STEP] += 1.0
+    x[X_CLIP] = float(int(x[X_CLIP]) | flags)
+    return flags
+
+
+@njit(cache=True, inline="always")
+def _deriv_any(xs, t_s, dl, dr, du, p, w, xdot, sphere):
+    if sphere:
+        return deriv_sphere(xs, t_s, dl, dr, du, p, w, xdot)
+    return deriv(xs, t_s, dl, dr, du, p, w, xdot)
+
+
+@njit(cache=True)
+def _rk4_rigid(xs, t, dl, dr, du, p, w, sphere):
+    """Classic RK4 of the 13 rigid-body states ``xs`` (x[0:13], or the round-Earth block)
+    over one physics step, surfaces held; returns (clip flags, thrust at the step's start)."""
+    dt = p[P_DT]
     n = X_RB_N
     k1 = w[W_K1:W_K1 + n]
     k2 = w[W_K2:W_K2 + n]
     k3 = w[W_K3:W_K3 + n]
     k4 = w[W_K4:W_K4 + n]
     xt = w[W_XT:W_XT + X_RB_N]         # trial state (deriv reads only 0..12)
-    flags = deriv(x, t, dl, dr, du, p, w, k1)
+    flags = _deriv_any(xs, t, dl, dr, du, p, w, k1, sphere)
     thrust0 = w[W_AUX + AX_THRUST]
     for i in range(n):
-        xt[i] = x[i] + 0.5 * dt * k1[i]
-    flags |= deriv(xt, t + 0.5 * dt, dl, dr, du, p, w, k2)
+        xt[i] = xs[i] + 0.5 * dt * k1[i]
+    flags |= _deriv_any(xt, t + 0.5 * dt, dl, dr, du, p, w, k2, sphere)
     for i in range(n):
-        xt[i] = x[i] + 0.5 * dt * k2[i]
-    flags |= deriv(xt, t + 0.5 * dt, dl, dr, du, p, w, k3)
+        xt[i] = xs[i] + 0.5 * dt * k2[i]
+    flags |= _deriv_any(xt, t + 0.5 * dt, dl, dr, du, p, w, k3, sphere)
     for i in range(n):
-        xt[i] = x[i] + dt * k3[i]
-    flags |= deriv(xt, t + dt, dl, dr, du, p, w, k4)
+        xt[i] = xs[i] + dt * k3[i]
+    flags |= _deriv_any(xt, t + dt, dl, dr, du, p, w, k4, sphere)
     for i in range(n):
-        x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    qn = math.sqrt(x[X_Q0] ** 2 + x[X_Q1] ** 2 + x[X_Q2] ** 2 + x[X_Q3] ** 2)
+        xs[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    qn = math.sqrt(xs[X_Q0] ** 2 + xs[X_Q1] ** 2 + xs[X_Q2] ** 2 + xs[X_Q3] ** 2)
     for i in range(X_Q0, X_Q3 + 1):
-        x[i] /= qn
-    x[X_THRUST] = thrust0
-    x[X_STEP] += 1.0
-    x[X_CLIP] = float(int(x[X_CLIP]) | flags)
-    return flags
+        xs[i] /= qn
+    return flags, thrust0
 
 
 @njit(cache=True)
@@ -571,3 +777,24 @@ def initial_state(V_m_s, h_m, alpha_rad, beta_rad, mu_rad, gamma_rad, chi_rad,
     x[X_P] = p_rad_s
     x[X_Q] = q_rad_s
     x[X_R] = r_rad_s
+
+
+def init_sphere(x, p):
+    """Round Earth (p[P_EARTH] = EARTH_SPHERE): build the block x[X_S:X_S+13] from the
+    flat initial state ``x`` (as ``initial_state`` fills it: attitude relative to the local
+    NED, h = -x[X_PD]) placed at the origin of p[P_ORIGIN:], then refresh the view x[0:13].
+    No-op on the flat earth. (Python; called at reset only.)"""
+    if p[P_EARTH] != EARTH_SPHERE:
+        return
+    o = P_ORIGIN
+    up, north, east = p[o:o + 3], p[o + 3:o + 6], p[o + 6:o + 9]
+    c_en = np.column_stack((north, east, -up))            # NED -> E
+    c_nb = np.array(quat_to_dcm_nb(x[X_Q0], x[X_Q1], x[X_Q2], x[X_Q3])).reshape(3, 3)
+    c_eb = c_en @ c_nb
+    b = X_S
+    x[b:b + X_RB_N] = x[0:X_RB_N]
+    x[b + X_PN:b + X_PD + 1] = (p[P_EARTH_R] - x[X_PD]) * up
+    tmp = np.zeros(X_N)
+    quat_from_dcm(*c_eb.ravel(), tmp)
+    x[b + X_Q0:b + X_Q3 + 1] = tmp[X_Q0:X_Q3 + 1]
+    sphere_view(x, p)

@@ -1,5 +1,6 @@
 """GNSS receiver model: flat-earth NED position and velocity mapped to latitude/longitude about
-the scenario origin, sampled at the receiver rate, with seeded white noise and a latency.
+the scenario origin (or, on the round Earth, the Earth-centred position converted by pymap3d,
+plant_sim/earth.py), sampled at the receiver rate, with seeded white noise and a latency.
 
 The sample layout G_* is the contract of docs/wire.md section 2 (defined once, in
 hyfc_wire.layout, for the plant and the fc). Per sample (every ``round(frame_hz / rate_hz)``
@@ -31,7 +32,8 @@ import numpy as np
 
 from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
                               G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN)  # the GNSS sample layout
-from plant_sim.dynamics import X_PD, X_PE, X_PN, X_Q0, X_Q1, X_Q2, X_Q3, X_U, X_V, X_W
+from plant_sim.dynamics import X_PD, X_PE, X_PN, X_Q0, X_Q1, X_Q2, X_Q3, X_S, X_U, X_V, X_W
+from plant_sim.earth import offset_geodetic
 
 __all__ = ["GnssSensor", "ned_to_geodetic", "geodetic_to_ned", "G_T_S", "G_LAT_DEG",
            "G_LON_DEG", "G_ALT_M", "G_VN", "G_VE", "G_VD", "G_FIX", "G_SATS", "G_HACC_M",
@@ -105,6 +107,8 @@ class GnssSensor:
         self.sigma_v_m = g["noise"]["vertical_m"] if on else 0.0
         self.sigma_vel_m_s = g["noise"]["velocity_m_s"] if on else 0.0
         self.origin = (g["origin_lat_deg"], g["origin_lon_deg"], g["origin_alt_m"])
+        #: round Earth: the position is the Earth-centred vector x[X_S:X_S+3] (docs/plant.md 5a)
+        self.sphere = scenario.data["earth"]["model"] == "sphere"
         self.sats = int(g["satellites"])
         self.out = np.zeros(G_N)
         self._pending: deque = deque()
@@ -123,17 +127,23 @@ class GnssSensor:
         if not self.enabled:
             return None
         if (k + self.delay) % self.every == 0:
-            self._pending.append((k + self.delay, x[X_PN], x[X_PE], x[X_PD]) + velocity_ned(x))
+            pos = (x[X_S + X_PN], x[X_S + X_PE], x[X_S + X_PD]) if self.sphere else \
+                (x[X_PN], x[X_PE], x[X_PD])
+            self._pending.append((k + self.delay,) + pos + velocity_ned(x))
         if not self._pending or self._pending[0][0] != k:
             return None
-        _, pn, pe, pd, vn, ve, vd = self._pending.popleft()
+        _, p0, p1, p2, vn, ve, vd = self._pending.popleft()
         n = self.rng.standard_normal(6)
-        pn += self.sigma_h_m * n[0]
-        pe += self.sigma_h_m * n[1]
-        pd += self.sigma_v_m * n[2]
         o = self.out
         o[G_T_S] = k * self.frame_dt_s
-        o[G_LAT_DEG], o[G_LON_DEG], o[G_ALT_M] = ned_to_geodetic(pn, pe, pd, *self.origin)
+        if self.sphere:          # the error along the local axes, converted by pymap3d
+            lat, lon, h = offset_geodetic((p0, p1, p2), self.sigma_h_m * n[0],
+                                          self.sigma_h_m * n[1], self.sigma_v_m * n[2])
+            o[G_LAT_DEG], o[G_LON_DEG], o[G_ALT_M] = lat, lon, self.origin[2] + h
+        else:
+            o[G_LAT_DEG], o[G_LON_DEG], o[G_ALT_M] = ned_to_geodetic(
+                p0 + self.sigma_h_m * n[0], p1 + self.sigma_h_m * n[1],
+                p2 + self.sigma_v_m * n[2], *self.origin)
         o[G_VN] = vn + self.sigma_vel_m_s * n[3]
         o[G_VE] = ve + self.sigma_vel_m_s * n[4]
         o[G_VD] = vd + self.sigma_vel_m_s * n[5]

@@ -62,6 +62,12 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
     p[dy.P_ENG_CT] = s["thrust_coef_max"]
     p[dy.P_ENG_TAU] = s["throttle_tau_s"]
     p[dy.P_ENG_RATE] = s["throttle_rate_1_s"]
+    if d["earth"]["model"] == "sphere":
+        from plant_sim.earth import EARTH_RADIUS_M, origin_vectors   # pymap3d: only here
+        p[dy.P_EARTH] = dy.EARTH_SPHERE
+        p[dy.P_EARTH_R] = EARTH_RADIUS_M
+        p[dy.P_ORIGIN:dy.P_ORIGIN + 9] = origin_vectors(d["gnss"]["origin_lat_deg"],
+                                                        d["gnss"]["origin_lon_deg"])
     a = d["actuators"]
     p[dy.P_ACT_LIMIT] = a["limit_deg"] * DEG
     p[dy.P_ACT_RATE] = a["rate_limit_deg_s"] * DEG

@@ -191,6 +191,8 @@ def _warn_clip(sim, stats, log):
 
 
 def _progress(cfg, sim, t_wall0, now):
+    """``PROGRESS t_s=... rtf=...``: sim time over the wall time since the run began at
+    ``t_wall0`` (perf_counter s; never a re-based schedule)."""
     el = now - t_wall0
     rtf = sim.t_s / el if el > 0 else 0.0
     print(f"PROGRESS t_s={sim.t_s:.3f} rtf={rtf:.1f}", flush=True)
@@ -296,7 +298,8 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     flown_s = 0.0
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
-    t0 = perf()
+    t0 = perf()                # the schedule's base: re-based by a resync
+    t_start = t0               # the run's start: the progress line's real-time factor
     next_progress = t0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
     next_gc = t0 + 1.0
     last_cmd_wall = -math.inf
@@ -377,7 +380,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
             gc.collect()
             next_gc = now + 1.0
         if now >= next_progress:
-            _progress(cfg, sim, t0, now)
+            _progress(cfg, sim, t_start, now)
             next_progress = now + cfg.progress_every_s
 
 

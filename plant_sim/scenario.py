@@ -160,6 +160,12 @@ SCHEMA: dict[str, Any] = {
             "gps": Key("float", 0.0, 0.0, 0.5, doc="groundspeed and the GNSS receiver"),
         },
     },
+    "earth": {
+        "model": Key("str", "flat", choices=("flat", "sphere"),
+                     doc="flat: the paper's flat, non-rotating NED earth; sphere: a "
+                         "non-rotating sphere of the WGS-84 mean radius, starting at the "
+                         "gnss origin (docs/plant.md section 5a)"),
+    },
     "gnss": {
         "enabled": Key("bool", True, doc="false: no GNSS sample on the wire (fc: no position)"),
         "rate_hz": Key("float", 10.0, 0.1, 100.0, doc="receiver rate (rounded to whole frames)"),

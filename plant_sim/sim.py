@@ -159,6 +159,7 @@ class PlantSim:
         dy.initial_state(ini["V_m_s"], ini["h_m"], ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG,
                          ini["mu_deg"] * DEG, ini["gamma_deg"] * DEG, ini["chi_deg"] * DEG,
                          ini["p_deg_s"] * DEG, ini["q_deg_s"] * DEG, ini["r_deg_s"] * DEG, self.x)
+        dy.init_sphere(self.x, self.p)      # round Earth: the Earth-centred block and its view
         if self.scenario.data["actuators"]["initial"] == "trim":
             if self._trim_cache is None:      # the scenario does not change: solve once
                 from plant_sim.trim import trim_at

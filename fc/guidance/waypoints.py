@@ -3,13 +3,22 @@
 Pure (no I/O, no clock): the caller passes the GNSS position and speed and gets the altitude,
 course and speed targets the guidance (fc/guidance/guidance.py) flies.
 
-Geometry: flat earth about home (lat0, lon0), WGS-84 radii of curvature at lat0, the same
-mapping as the plant's GNSS (plant_sim/gnss.py), so north/east offsets in metres:
+Geometry: great circles on the sphere the plant flies over (radius ``NavParams.earth_radius_m``,
+the WGS-84 mean radius of hyfc_wire.earth, which fc/mission_mode.py passes in), in unit
+vectors (n-vectors) of the Earth-centred frame, so no formula has a singular point: the poles
+and the antimeridian are ordinary points (issue 21). A leg P -> W is the great circle with
+pole n = P x W / |P x W| (n . X > 0: X is left of the leg). At the vehicle X:
 
-    north = (lat - lat0) R_N,   east = (lon - lon0) R_E cos(lat0)
+    cross-track  e     = -R asin(n . X)                         (m, + right of the leg)
+    to go        s     = R atan2((X' x W) . n, X' . W)          (m, along the leg; < 0 passed)
+    leg course   chi   = azimuth at X of n x X'                 (rad, the great circle's course
+                                                                  where the vehicle is)
 
-Over the 1000-3000 km of a hypersonic mission this is a map, not the Earth's surface; the
-plant uses the same map, so the vehicle and its waypoints agree.
+with X' = X - (n . X) n normalised (X's foot on the leg). ``gc_distance_m`` and
+``gc_azimuth_rad`` are the great-circle distance and initial course; the unit tests check
+them and the leg against pymap3d's geodesics on the same sphere. ``local_ne`` (the old
+flat map about home) and ``leg_geometry`` (a leg on that map) remain for tools and tests that
+plot a track on a map.
 
 Course law: the leg runs from the previous point P (the previous waypoint, or the position
 where the leg was started) to the active waypoint W; its course is chi_leg = atan2(dE, dN).
@@ -40,9 +49,14 @@ from dataclasses import dataclass
 
 __all__ = ["local_ne", "leg_geometry", "turn_radius_m", "switch_distance_m", "course_target",
            "orbit_radius_m", "orbit_course", "NavParams", "WaypointNavigator", "PointNavigator",
-           "G0_M_S2", "ORBIT_TAN_FRACTION"]
+           "G0_M_S2", "ORBIT_TAN_FRACTION", "EARTH_RADIUS_M", "unit_vector", "gc_distance_m",
+           "gc_azimuth_rad", "gc_leg", "gc_pole", "gc_course_rad"]
 
 G0_M_S2 = 9.80665
+#: The sphere's radius (m): hyfc_wire.earth.EARTH_RADIUS_M (this package imports nothing of
+#: ours but fc.control, so fc/mission_mode.py hands the contract's value to NavParams;
+#: tests/unit/control/test_waypoints_sphere.py checks that the two agree)
+EARTH_RADIUS_M = 6371008.7714
 WGS84_A_M = 6378137.0
 WGS84_E2 = 6.69437999014e-3
 #: An orbit is flown at tan(mu) = ORBIT_TAN_FRACTION tan(mu_max): a quarter of the bank's
@@ -90,6 +104,92 @@ def leg_geometry(p_ne: tuple, w_ne: tuple, x_ne: tuple) -> tuple[float, float, f
     return math.atan2(ue, un), e, to_go, dist
 
 
+def unit_vector(lat_deg: float, lon_deg: float) -> tuple[float, float, float]:
+    """The unit vector (Earth-centred axes: x through 0 N 0 E, z through the north pole) of
+    the point (lat, lon) in degrees."""
+    la, lo = math.radians(lat_deg), math.radians(lon_deg)
+    c = math.cos(la)
+    return (c * math.cos(lo), c * math.sin(lo), math.sin(la))
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a, b) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _norm(a) -> float:
+    return math.sqrt(_dot(a, a))
+
+
+def _azimuth(x, d) -> float:
+    """Azimuth (rad, clockwise from north, [0, 2 pi)) of the direction ``d`` at the point
+    ``x`` (unit vectors). At a pole north is taken along longitude 180 (east = E's y axis),
+    as the plant does (docs/plant.md 5a)."""
+    rho = math.hypot(x[0], x[1])
+    if rho > 1e-12:
+        east = (-x[1] / rho, x[0] / rho, 0.0)
+    else:
+        east = (0.0, 1.0, 0.0)
+    north = _cross(x, east)            # up x east = north
+    return math.atan2(_dot(d, east), _dot(d, north)) % (2.0 * math.pi)
+
+
+def gc_distance_m(a, b, r_m: float = EARTH_RADIUS_M) -> float:
+    """Great-circle distance (m) between unit vectors ``a`` and ``b`` on the sphere of radius
+    ``r_m`` (atan2 form: accurate at every separation, 0 and pi included)."""
+    return r_m * math.atan2(_norm(_cross(a, b)), _dot(a, b))
+
+
+def gc_azimuth_rad(a, b) -> float:
+    """Initial course (rad, [0, 2 pi)) of the great circle from ``a`` to ``b``."""
+    ab = _dot(a, b)
+    return _azimuth(a, (b[0] - ab * a[0], b[1] - ab * a[1], b[2] - ab * a[2]))
+
+
+def gc_pole(x, chi_rad: float) -> tuple[float, float, float]:
+    """Pole n of the great circle through ``x`` flown at course ``chi_rad``: n = x x d with d
+    the course's direction (n . y > 0: y is left of the track)."""
+    rho = math.hypot(x[0], x[1])
+    east = (-x[1] / rho, x[0] / rho, 0.0) if rho > 1e-12 else (0.0, 1.0, 0.0)
+    north = _cross(x, east)
+    c, s = math.cos(chi_rad), math.sin(chi_rad)
+    d = (c * north[0] + s * east[0], c * north[1] + s * east[1], c * north[2] + s * east[2])
+    return _cross(x, d)
+
+
+def gc_course_rad(n, x) -> float:
+    """Course (rad, [0, 2 pi)) at ``x`` along the great circle of pole ``n`` (or, off it, along
+    the circle parallel to it through ``x``): the azimuth of n x x."""
+    return _azimuth(x, _cross(n, x))
+
+
+def gc_leg(p, w, x, r_m: float = EARTH_RADIUS_M) -> tuple[float, float, float, float]:
+    """The great-circle leg P -> W and the vehicle X (unit vectors; module docstring).
+
+    Returns (leg course at X rad, cross-track e m (+ right of the leg), along-track distance to
+    go to W m (< 0 once passed), distance X -> W m). A leg shorter than 1 m has the course
+    X -> W.
+    """
+    dist = gc_distance_m(x, w, r_m)
+    n = _cross(p, w)
+    length = _norm(n)
+    if length * r_m < 1.0:
+        return gc_azimuth_rad(x, w), 0.0, dist, dist
+    n = (n[0] / length, n[1] / length, n[2] / length)
+    nx = _dot(n, x)
+    foot = (x[0] - nx * n[0], x[1] - nx * n[1], x[2] - nx * n[2])
+    fl = _norm(foot)
+    if fl < 1e-15:                      # X at the leg's pole: every direction is across
+        return gc_azimuth_rad(x, w), 0.0, dist, dist
+    foot = (foot[0] / fl, foot[1] / fl, foot[2] / fl)
+    to_go = r_m * math.atan2(_dot(_cross(foot, w), n), _dot(foot, w))
+    e = -r_m * math.asin(min(1.0, max(-1.0, nx)))
+    return _azimuth(x, _cross(n, foot)), e, to_go, dist
+
+
 def turn_radius_m(v_m_s: float, mu_max_rad: float) -> float:
     """Radius (m) of a level coordinated turn at speed ``v_m_s`` and bank ``mu_max_rad``."""
     return v_m_s * v_m_s / (G0_M_S2 * math.tan(mu_max_rad))
@@ -115,6 +215,7 @@ class NavParams:
     xt_len_m: float = 50000.0           # cross-track length scale L_xt (m)
     chi_int_rad: float = math.radians(20.0)   # intercept angle far from the leg (rad)
     mu_max_rad: float = math.radians(25.0)    # bank used for turn anticipation (GE_MU_MAX)
+    earth_radius_m: float = EARTH_RADIUS_M    # the sphere's radius (hyfc_wire.earth)
 
 
 class WaypointNavigator:
@@ -133,7 +234,7 @@ class WaypointNavigator:
     def __init__(self, params: NavParams | None = None) -> None:
         self.p = params or NavParams()
         self.home = (0.0, 0.0, 0.0)
-        self.prev_ne = (0.0, 0.0)        # start of the active leg (m from home)
+        self.prev = unit_vector(0.0, 0.0)   # start of the active leg (unit vector)
         self.h_t = math.nan              # the targets (m MSL, rad, m/s; NaN: none yet)
         self.chi_t = math.nan
         self.v_t = math.nan
@@ -150,16 +251,15 @@ class WaypointNavigator:
         (m MSL), course (rad) and speed (m/s) as the initial targets; the first leg starts
         here."""
         self.home = tuple(float(v) for v in home)
-        self.prev_ne = local_ne(pos[0], pos[1], self.home[0], self.home[1])
+        self.prev = unit_vector(pos[0], pos[1])
         self.h_t, self.chi_t, self.v_t = float(h_m), float(chi_rad), float(v_m_s)
         self._version = mission.version
         self._wp_seq = -1
 
-    def _wp(self, it: dict) -> tuple[tuple[float, float], float]:
-        """(north, east m) and altitude (m MSL) of a waypoint item."""
-        ne = local_ne(it["x"] * 1e-7, it["y"] * 1e-7, self.home[0], self.home[1])
+    def _wp(self, it: dict) -> tuple[tuple[float, float, float], float]:
+        """Unit vector and altitude (m MSL) of a waypoint item."""
         alt = it["z"] + (self.home[2] if it["frame"] in FRAMES_REL else 0.0)
-        return ne, alt
+        return unit_vector(it["x"] * 1e-7, it["y"] * 1e-7), alt
 
     def _next_wp(self, mission, seq: int):
         """The first waypoint item after ``seq`` (dict) or None."""
@@ -173,10 +273,11 @@ class WaypointNavigator:
         """One navigation step at the GNSS position (deg) and speed (m/s). Returns
         (h_t m MSL, chi_t rad, v_t m/s, outputs of the mission to send)."""
         out: list = []
-        x_ne = local_ne(lat_deg, lon_deg, self.home[0], self.home[1])
+        x = unit_vector(lat_deg, lon_deg)
+        r_m = self.p.earth_radius_m
         if mission.version != self._version:          # new mission or set current: new leg
             self._version = mission.version
-            self.prev_ne = x_ne
+            self.prev = x
         for _ in range(mission.count + 1):            # DO items apply at once, in order
             if mission.finished or mission.count == 0:
                 return self.h_t, self.chi_t, self.v_t, out   # hold the last targets
@@ -187,20 +288,20 @@ class WaypointNavigator:
                     self.v_t = it["param2"]
                 out += mission.advance(seq)
                 continue
-            w_ne, alt = self._wp(it)
-            chi_leg, e, to_go, _ = leg_geometry(self.prev_ne, w_ne, x_ne)
+            w, alt = self._wp(it)
+            chi_leg, e, to_go, _ = gc_leg(self.prev, w, x, r_m)
             nxt = self._next_wp(mission, seq)
             dchi = 0.0
-            if nxt is not None:
-                n_ne, _ = self._wp(nxt)
-                dchi = math.atan2(n_ne[1] - w_ne[1], n_ne[0] - w_ne[0]) - chi_leg
+            if nxt is not None:           # the course change at W: next leg's - this leg's
+                chi_at_w, _, _, _ = gc_leg(self.prev, w, w, r_m)
+                dchi = gc_azimuth_rad(w, self._wp(nxt)[0]) - chi_at_w
             accept = it["param2"] if it["param2"] > 0.0 else self.p.accept_m
             self.switch_m = switch_distance_m(max(v_m_s, 1.0), self.p.mu_max_rad, dchi, accept)
             self.chi_leg, self.xt_m, self.to_go_m = chi_leg, e, to_go
             self.h_t = alt
             self.chi_t = course_target(chi_leg, e, self.p.xt_len_m, self.p.chi_int_rad)
             if to_go <= self.switch_m:        # within the switching distance, or passed
-                self.prev_ne = w_ne
+                self.prev = w
                 if mission.current + 1 >= mission.count:   # the last: hold the leg's course
                     self.chi_t = chi_leg % (2.0 * math.pi)
                 out += mission.advance(seq)

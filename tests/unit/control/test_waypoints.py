@@ -2,10 +2,13 @@
 
 Bearing signs in each quadrant, cross-track correction direction, turn anticipation,
 acceptance and sequencing through a mission, DO_CHANGE_SPEED, end of mission (hold).
+Positions are placed on the navigator's sphere with pymap3d's geodesics (``_latlon``).
 """
 import math
 
+import pymap3d
 import pytest
+from pymap3d import vincenty
 
 from fc.guidance.waypoints import (NavParams, WaypointNavigator, course_target, leg_geometry,
                                    local_ne, switch_distance_m, turn_radius_m)
@@ -40,15 +43,20 @@ class FakeMission:
         return [("reached", seq), ("current",)]
 
 
-def _latlon(north_m, east_m):
-    """Inverse of local_ne about HOME (small offsets; checked by the first test)."""
-    n1, _ = local_ne(HOME[0] + 1.0, HOME[1], HOME[0], HOME[1])
-    _, e1 = local_ne(HOME[0], HOME[1] + 1.0, HOME[0], HOME[1])
-    return HOME[0] + north_m / n1, HOME[1] + east_m / e1
+SPHERE = pymap3d.Ellipsoid.from_name("wgs84_mean")     # the navigator's sphere
 
 
-def _wp(north_m, east_m, alt_m, frame=0, accept_m=0.0):
-    lat, lon = _latlon(north_m, east_m)
+def _latlon(north_m, east_m, origin=HOME):
+    """The point ``hypot(north, east)`` from ``origin`` along the great circle of azimuth
+    atan2(east, north) (pymap3d's direct problem on the sphere): a straight line north is a
+    meridian."""
+    lat, lon = vincenty.vreckon(origin[0], origin[1], math.hypot(north_m, east_m),
+                                math.degrees(math.atan2(east_m, north_m)), SPHERE)
+    return float(lat), float(lon)
+
+
+def _wp(north_m, east_m, alt_m, frame=0, accept_m=0.0, origin=HOME):
+    lat, lon = _latlon(north_m, east_m, origin)
     return {"command": CMD_WAYPOINT, "frame": frame, "x": int(round(lat * 1e7)),
             "y": int(round(lon * 1e7)), "z": alt_m, "param1": 0.0, "param2": accept_m,
             "param3": 0.0, "param4": 0.0, "autocontinue": 1}
@@ -60,7 +68,9 @@ def _speed(v):
 
 
 def test_local_ne_round_trip_and_scale():
-    lat, lon = _latlon(100e3, -50e3)
+    n1, _ = local_ne(HOME[0] + 1.0, HOME[1], HOME[0], HOME[1])
+    _, e1 = local_ne(HOME[0], HOME[1] + 1.0, HOME[0], HOME[1])
+    lat, lon = HOME[0] + 100e3 / n1, HOME[1] - 50e3 / e1
     n, e = local_ne(lat, lon, HOME[0], HOME[1])
     assert n == pytest.approx(100e3, abs=0.1) and e == pytest.approx(-50e3, abs=0.1)
     n1, _ = local_ne(HOME[0] + 1.0, HOME[1], HOME[0], HOME[1])
@@ -134,9 +144,11 @@ def test_sequencing_speed_items_and_end_of_mission():
 
 
 def test_turn_switches_at_anticipation_distance_and_passed_waypoint():
-    # GIVEN wp 0 400 km north then wp 1 turning 30 deg right
-    w1 = (400e3 + 500e3 * math.cos(math.radians(30.0)), 500e3 * math.sin(math.radians(30.0)))
-    mis = FakeMission([_wp(400e3, 0.0, 28000.0), _wp(*w1, 28000.0)])
+    # GIVEN wp 0 400 km north then wp 1 turning 30 deg right (the great circle's course at
+    # wp 0 changes from 0 to 30 deg)
+    w1 = (500e3 * math.cos(math.radians(30.0)), 500e3 * math.sin(math.radians(30.0)))
+    mis = FakeMission([_wp(400e3, 0.0, 28000.0),
+                       _wp(*w1, 28000.0, origin=_latlon(400e3, 0.0))])
     nav = WaypointNavigator(NavParams(mu_max_rad=math.radians(25.0)))
     nav.start(mis, HOME, _latlon(0.0, 0.0), 28000.0, 0.0, 2250.0)
     d = switch_distance_m(2250.0, math.radians(25.0), math.radians(30.0), 2000.0)
@@ -163,6 +175,8 @@ def test_new_mission_version_restarts_the_leg_from_here():
     _, chi_a, _, _ = _fly(nav, mis, [(10e3, -50e3)])[0]
     mis.version += 1                                    # e.g. a set-current or re-upload
     _, chi_b, _, _ = _fly(nav, mis, [(10e3, -50e3)])[0]
-    # before: the leg from (0, -50 km); after: the leg from here, on it, bearing to the wp
-    assert chi_b == pytest.approx(math.atan2(50e3, 90e3), abs=1e-3)
+    # before: the leg from (0, -50 km); after: the leg from here, on it, the great circle's
+    # initial course to the wp (pymap3d's inverse problem on the sphere)
+    _, az_deg = vincenty.vdist(*_latlon(10e3, -50e3), *_latlon(100e3, 0.0), SPHERE)
+    assert chi_b == pytest.approx(math.radians(float(az_deg)), abs=1e-5)
     assert chi_a != pytest.approx(chi_b, abs=1e-3)

@@ -57,3 +57,27 @@ def test_real_time_reads_at_most_every_poll_interval_and_every_call_while_data_c
     hk(t0 + GCS_POLL_S + 3e-4)              # quiet again: wait the interval
     assert gcs.reads == [t0, t0 + GCS_POLL_S, t0 + GCS_POLL_S + 1e-4, t0 + GCS_POLL_S + 2e-4]
     assert gcs.services == 6
+
+
+def test_dropped_gnss_samples_are_reported_once_per_round_that_sees_new_ones():
+    # GIVEN a plant link that has dropped 3 GNSS samples, and the 1 Hz round at its telemetry
+    # chore (where the drops are checked)
+    events = []
+    plant = SimpleNamespace(counters=SimpleNamespace(goodbyes=0, relocks=0, gnss_rejected=3))
+    hk = Housekeeping(gcs=_Gcs(), plant=plant, intake=None,
+                      mode_ctl=SimpleNamespace(check_data=lambda now_s: None), stats=None,
+                      planner=None, counters=None,
+                      telemetry=SimpleNamespace(refresh=lambda: None), param_svc=None, io=None,
+                      event=lambda text, sev: events.append((text, sev)),
+                      log=logging.getLogger("test"), chore=2, next_1hz=0.0)
+    # WHEN the round runs, then again after 2 more drops, then once with none
+    hk(1.0, False)
+    plant.counters.gnss_rejected = 5
+    hk.chore, hk.next_1hz = 2, 0.0
+    hk(2.0, False)
+    hk.chore, hk.next_1hz = 2, 0.0
+    hk(3.0, False)
+    # THEN one WARNING per round with new drops, with the new count and the total
+    warn = 4   # MAV_SEVERITY_WARNING
+    assert events == [("GNSS: 3 samples dropped (out of range or not finite), 3 in all", warn),
+                      ("GNSS: 2 samples dropped (out of range or not finite), 5 in all", warn)]
