@@ -270,8 +270,17 @@ def guidance_reset(est, gp, mass_kg, xcg_m, gx, thr_now, gw, tab, atm, grid):
     gam = est[E_GAMMA]
     qbar, qS, mach, g, _a = _flight_condition(est, gw, atm, grid)
     cl, cd = trimmed_coefficients(mach, alpha, xcg_m, tab, grid, gw)
+    # the thrust in the lift: the throttle in use, or (unknown) the one the first step takes,
+    # its feed-forward with the speed integral at 0; else the step's thrust term would move
+    # alpha_c off the bumpless value at the second step (0.05 deg at the cruise point)
+    thr_lift = thr_now
+    if not thr_now >= 0.0:
+        t_full = gp[P_GM_CT_MAX] * qS
+        proj0 = max(math.cos(alpha) * math.cos(est[E_BETA]), 0.1)
+        thr_lift = min(max((cd * qS + mass_kg * g * math.sin(gam)) / (proj0 * t_full), 0.0),
+                       min(1.0, gp[P_GM_T_MAX] / t_full))
     if gp[P_GA_K_GAMI] > 0.0:
-        normal = cl * qS + _thrust_model(thr_now, qS, gp) * math.sin(alpha)
+        normal = cl * qS + _thrust_model(thr_lift, qS, gp) * math.sin(alpha)
         n0 = (_g_relieved(g, V, est[E_H]) * math.cos(gam)
               / (g * max(math.cos(est[E_MU]), _COS_MU_MIN)))
         gdot = (normal / (n0 * mass_kg * g) - 1.0) * g / V

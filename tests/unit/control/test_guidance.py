@@ -91,6 +91,18 @@ def test_feedforward_is_near_the_plants_trim_at_the_cruise_point():
     assert g.status[G.GS_NZ_C] == pytest.approx(1.0 - relief / grav, abs=2e-3)
 
 
+def test_engage_without_the_throttle_in_use_is_bumpless_too():
+    """Engaged with the throttle unknown (thr_now < 0, as the fc engages), the first step takes
+    its own throttle; the flight-path integral must count that thrust's lift at once, else
+    alpha_c leaves the engagement's alpha from the second step (0.046 deg at 3.9 deg: with the
+    frame frozen the law's surfaces ran off, issue 22's FAILSAFE test)."""
+    est = _est(alpha=3.9 * DEG)
+    g, est = _engaged(est, thr=-1.0)
+    _run(g, est, 20)
+    assert g.out[G.GO_THR] > 0.1                                   # a thrust that lifts
+    assert g.out[G.GO_ALPHA] == pytest.approx(3.9 * DEG, abs=1e-4 * DEG)
+
+
 def test_engage_is_bumpless_at_trim():
     g, est = _engaged()
     _run(g, est, 50)
