@@ -22,10 +22,11 @@ from __future__ import annotations
 import math
 
 from fc.control.layout import E_H, E_V
-from fc.guidance.waypoints import PointNavigator, local_ne, orbit_radius_m
+from fc.guidance.waypoints import NavParams, PointNavigator, orbit_radius_m, unit_vector
 from fc.link import G_LAT_DEG, G_LON_DEG
 from fc.link import mavlink as ML
 from fc.mission_mode import NAV_DIV, MissionFlight, MissionVehicle, nav_params
+from hyfc_wire.earth import EARTH_RADIUS_M
 
 __all__ = ["PointFlight"]
 
@@ -34,7 +35,7 @@ class PointFlight:
     """RTL and GUIDED's point targets over a :class:`PointNavigator` (``nav``)."""
 
     def __init__(self) -> None:
-        self.nav = PointNavigator()
+        self.nav = PointNavigator(NavParams(earth_radius_m=EARTH_RADIUS_M))
         self.active = False            # a point or an orbit is being flown
         self.what = ""                 # "home", "reposition", "orbit" (texts, NAV output)
         self._changes = -1             # the mode-change count it was started under
@@ -115,18 +116,14 @@ class PointFlight:
         if reason is None:
             reason = fc.set_guidance_targets(h_m=h_m)
         if reason is None:
-            ref = fc.gcs.home
-            self.nav.orbit((ref[0], ref[1]), local_ne(lat_deg, lon_deg, ref[0], ref[1]),
-                           abs(radius_m), radius_m > 0.0)
+            self.nav.orbit(unit_vector(lat_deg, lon_deg), abs(radius_m), radius_m > 0.0)
             self._started(fc, "orbit")
         return reason
 
     def _goto(self, fc: MissionVehicle, point: tuple[float, float], what: str) -> None:
-        ref = fc.gcs.home
         here = self._here(fc)
         v = max(float(fc.est.est[E_V]), fc.guidance_targets()[2])   # the faster: the wider
-        self.nav.goto((ref[0], ref[1]), local_ne(here[0], here[1], ref[0], ref[1]),
-                      local_ne(point[0], point[1], ref[0], ref[1]), self.least_radius_m(fc, v))
+        self.nav.goto(unit_vector(*here), unit_vector(*point), self.least_radius_m(fc, v))
         self._started(fc, what)
 
     def _started(self, fc: MissionVehicle, what: str) -> None:
@@ -154,10 +151,9 @@ class PointFlight:
         if not due or not self._fix(fc):
             return []                                  # without a fresh fix: course held
         try:
-            ref = self.nav.ref
-            here = self._here(fc)
+            x_u = unit_vector(*self._here(fc))
             was = self.nav.arrived
-            chi = self.nav.step(local_ne(here[0], here[1], ref[0], ref[1]))
+            chi = self.nav.step(x_u)
             reason = fc.set_guidance_targets(chi_rad=chi)
             if reason is None:
                 self._chi_set = fc.guidance_targets()[1]
@@ -170,7 +166,5 @@ class PointFlight:
         if self.nav.arrived and not was:
             out.append(("text", ML.MAV_SEVERITY_INFO, f"{self.what}: arrived, circling at "
                                    f"{self.nav.radius_m / 1000:.0f} km radius"))
-        wp = self.nav.centre_ne if self.nav.arrived else self.nav.point_ne
-        x = local_ne(here[0], here[1], ref[0], ref[1])
-        fc.guid.nav_wp = (math.atan2(wp[1] - x[1], wp[0] - x[0]), self.nav.dist_m, 0.0)
+        fc.guid.nav_wp = (self.nav.target_bearing(x_u), self.nav.dist_m, 0.0)
         return out

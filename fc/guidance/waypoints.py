@@ -50,7 +50,7 @@ from dataclasses import dataclass
 __all__ = ["local_ne", "leg_geometry", "turn_radius_m", "switch_distance_m", "course_target",
            "orbit_radius_m", "orbit_course", "NavParams", "WaypointNavigator", "PointNavigator",
            "G0_M_S2", "ORBIT_TAN_FRACTION", "EARTH_RADIUS_M", "unit_vector", "gc_distance_m",
-           "gc_azimuth_rad", "gc_leg", "gc_pole", "gc_course_rad"]
+           "gc_azimuth_rad", "gc_leg", "gc_pole", "gc_course_rad", "gc_destination"]
 
 G0_M_S2 = 9.80665
 #: The sphere's radius (m): hyfc_wire.earth.EARTH_RADIUS_M (this package imports nothing of
@@ -339,54 +339,91 @@ def orbit_course(x_ne: tuple, c_ne: tuple, radius_m: float, clockwise: bool, xt_
     return chi % (2.0 * math.pi)
 
 
+def gc_destination(x, chi_rad: float, dist_m: float, r_m: float = EARTH_RADIUS_M
+                   ) -> tuple[float, float, float]:
+    """The unit vector reached from ``x`` along the great circle of initial course ``chi_rad``
+    after ``dist_m`` (m) on the sphere of radius ``r_m``: cos(d) X + sin(d) D, D the course's
+    direction at X (= n x X with n = :func:`gc_pole`)."""
+    n = gc_pole(x, chi_rad)
+    d = _cross(n, x)
+    dl = _norm(d)
+    d = (d[0] / dl, d[1] / dl, d[2] / dl)
+    a = dist_m / r_m
+    c, s = math.cos(a), math.sin(a)
+    y = (c * x[0] + s * d[0], c * x[1] + s * d[1], c * x[2] + s * d[2])
+    yl = _norm(y)
+    return (y[0] / yl, y[1] / yl, y[2] / yl)
+
+
+def _polar_ne(x, c, r_m: float) -> tuple[float, float]:
+    """(north, east) m of the point ``c`` seen from ``x`` on the plane tangent at ``x``: its
+    great-circle distance along its great-circle bearing (exact in both at ``x``, where the
+    course is flown)."""
+    d = gc_distance_m(x, c, r_m)
+    b = gc_azimuth_rad(x, c)
+    return d * math.cos(b), d * math.sin(b)
+
+
 class PointNavigator:
     """Fly to a point and circle over it (RTL, DO_REPOSITION), or circle a centre (DO_ORBIT).
 
-    All positions are (north, east) m on the flat map about ``ref`` (lat, lon deg), as
-    :func:`local_ne`. ``goto``: the circle of ``radius_m`` is placed through the point, tangent
-    there to the straight line from the start to the point (``clockwise``: its centre to the
-    right of that line), and flown with :func:`orbit_course` from the start: the tangent to
-    it from the start is that line, so the vehicle flies straight at the point, passes over it
-    and circles on, over the point once a lap. ``orbit``: circles a given centre. ``arrived``
-    turns True once the point is within the acceptance distance along the line, or passed.
+    On the sphere (radius ``NavParams.earth_radius_m``), positions as unit vectors
+    (:func:`unit_vector`), so a return from the far side of the Earth or over a pole flies the
+    great circle home. ``goto``: the circle of ``radius_m`` is placed through the point,
+    tangent there to the great circle from the start to the point (``clockwise``: its centre to
+    the right of it), and flown with :func:`orbit_course` evaluated at each step on the plane
+    tangent at the vehicle (the centre at its great-circle distance and bearing): the tangent
+    to the circle from afar is the great circle at the point, so the vehicle flies straight at
+    the point, passes over it and circles on, over the point once a lap. ``orbit``: circles a
+    given centre. ``arrived`` turns True once the point is within the acceptance distance
+    along the great circle from the start, or passed.
     """
 
     def __init__(self, params: NavParams | None = None) -> None:
         self.p = params or NavParams()
-        self.ref = (0.0, 0.0)
-        self.start_ne = (0.0, 0.0)
-        self.point_ne = (0.0, 0.0)
-        self.centre_ne = (0.0, 0.0)
+        self.start_u = (1.0, 0.0, 0.0)
+        self.point_u = (1.0, 0.0, 0.0)
+        self.centre_u = (1.0, 0.0, 0.0)
         self.radius_m = 0.0
         self.clockwise = True
         self.arrived = False
         self.dist_m = 0.0            # to the point until arrived, then to the circle, m
 
-    def goto(self, ref: tuple, start_ne: tuple, point_ne: tuple, radius_m: float,
+    def goto(self, start_u: tuple, point_u: tuple, radius_m: float,
              clockwise: bool = True) -> None:
-        self.ref = tuple(float(v) for v in ref)
-        self.start_ne, self.point_ne = start_ne, point_ne
+        r_e = self.p.earth_radius_m
+        self.start_u, self.point_u = tuple(start_u), tuple(point_u)
         self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
-        b = math.atan2(point_ne[1] - start_ne[1], point_ne[0] - start_ne[0])
+        # the course of the great circle start -> point where it reaches the point
+        n = _cross(self.start_u, self.point_u)
+        if _norm(n) < 1e-12:                 # start at the point (or its antipode): due north
+            chi_at = 0.0
+        else:
+            chi_at = gc_course_rad(n, self.point_u)
         s = 1.0 if clockwise else -1.0
-        self.centre_ne = (point_ne[0] - s * self.radius_m * math.sin(b),
-                          point_ne[1] + s * self.radius_m * math.cos(b))
+        self.centre_u = gc_destination(self.point_u, chi_at + s * 0.5 * math.pi,
+                                       self.radius_m, r_e)
         self.arrived = False
 
-    def orbit(self, ref: tuple, centre_ne: tuple, radius_m: float, clockwise: bool = True) -> None:
-        self.ref = tuple(float(v) for v in ref)
-        self.point_ne = self.centre_ne = centre_ne
+    def orbit(self, centre_u: tuple, radius_m: float, clockwise: bool = True) -> None:
+        self.point_u = self.centre_u = tuple(centre_u)
         self.radius_m, self.clockwise = float(radius_m), bool(clockwise)
         self.arrived = True
 
-    def step(self, x_ne: tuple) -> float:
-        """Course target (rad) at the position ``x_ne``."""
-        c = self.centre_ne
+    def target_bearing(self, x_u: tuple) -> float:
+        """Great-circle bearing (rad) from ``x_u`` to what is flown at: the point until arrived,
+        then the circle's centre."""
+        return gc_azimuth_rad(x_u, self.centre_u if self.arrived else self.point_u)
+
+    def step(self, x_u: tuple) -> float:
+        """Course target (rad) at the position ``x_u`` (unit vector)."""
+        r_e = self.p.earth_radius_m
         if not self.arrived:
-            _, _, to_go, dist = leg_geometry(self.start_ne, self.point_ne, x_ne)
+            _, _, to_go, dist = gc_leg(self.start_u, self.point_u, x_u, r_e)
             self.arrived = to_go <= self.p.accept_m
             self.dist_m = dist
+        c_ne = _polar_ne(x_u, self.centre_u, r_e)
         if self.arrived:
-            self.dist_m = abs(math.hypot(c[0] - x_ne[0], c[1] - x_ne[1]) - self.radius_m)
-        return orbit_course(x_ne, c, self.radius_m, self.clockwise, self.p.xt_len_m,
+            self.dist_m = abs(math.hypot(c_ne[0], c_ne[1]) - self.radius_m)
+        return orbit_course((0.0, 0.0), c_ne, self.radius_m, self.clockwise, self.p.xt_len_m,
                             self.p.chi_int_rad)
