@@ -111,10 +111,11 @@ def _caption(d: dict, source: str) -> str:
             f" UTC.*")
 
 
-def table_hil_steps(root: Path = ROOT) -> str:
+def table_hil_steps(root: Path = ROOT, source: str = "hil_paper") -> str:
     """The main job's comparison (README): metrics and surfaces of both variants, with the
-    paper's own figures quoted (they are the paper's, not measured here)."""
-    d = load_data("hil_paper", root)
+    paper's own figures quoted (they are the paper's, not measured here). ``source``: the
+    default law's run (``hil_paper``) or the paper's fixed gains' (``hil_paper_gains``)."""
+    d = load_data(source, root)
     runs = d["summary"]["runs"]
     co, un = runs["coordinated"], runs["uncoordinated"]
 
@@ -152,7 +153,13 @@ def table_hil_steps(root: Path = ROOT) -> str:
     lines = [f"| `{d['command']}` | coordinated | uncoordinated | paper, coordinated | "
              "paper, uncoordinated |", "|---|---|---|---|---|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines) + "\n\n" + _caption(d, "hil_paper")
+    return "\n".join(lines) + "\n\n" + _caption(d, source)
+
+
+def table_hil_steps_paper_gains(root: Path = ROOT) -> str:
+    """The main job flown with the paper's fixed gains (``--gains paper``), for the README's
+    comparison with the paper."""
+    return table_hil_steps(root, "hil_paper_gains")
 
 
 def table_beta0(root: Path = ROOT) -> str:
@@ -258,7 +265,8 @@ def claim_mc_surfaces(root: Path = ROOT) -> str:
 
 
 #: block name -> the function that renders it
-TABLES = {"hil_steps": table_hil_steps, "beta0_dip": table_beta0, "mc_paper": table_mc,
+TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
+          "beta0_dip": table_beta0, "mc_paper": table_mc,
           "mc_surfaces": table_mc_surfaces, "mc_surfaces_claim": claim_mc_surfaces}
 
 _BLOCK = re.compile(r"(<!-- report:(?P<name>[a-z0-9_]+) -->\n)(?P<body>(?:.*?\n)??)"

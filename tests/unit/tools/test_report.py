@@ -17,7 +17,8 @@ def test_committed_tables_match_their_data():
         path = report.ROOT / doc
         if path.exists():
             blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
-    assert {"hil_steps", "mc_paper", "mc_surfaces", "beta0_dip"} <= set(blocks), blocks
+    assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_surfaces",
+            "beta0_dip"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -31,13 +32,18 @@ def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
             shutil.copy2(src, tmp_path / doc)
     shutil.copytree(report.ROOT / report.DATA_DIR, tmp_path / report.DATA_DIR)
     assert report.check(tmp_path) == []
-    data = tmp_path / report.DATA_DIR / "hil_paper.json"
-    d = json.loads(data.read_text())
-    d["summary"]["runs"]["coordinated"]["alpha"]["overshoot_pct"] += 1.0
-    data.write_text(json.dumps(d))
-    assert report.check(tmp_path) == ["README.md: hil_steps"]
-    report.write(tmp_path)
-    assert report.check(tmp_path) == []
+    # each run's data renders its own table (the paper's fixed gains' run included)
+    for name, variant, channel, metric, table in (
+            ("hil_paper", "coordinated", "alpha", "overshoot_pct", "hil_steps"),
+            ("hil_paper_gains", "uncoordinated", "mu", "settling_time_s",
+             "hil_steps_paper_gains")):
+        data = tmp_path / report.DATA_DIR / f"{name}.json"
+        d = json.loads(data.read_text())
+        d["summary"]["runs"][variant][channel][metric] += 1.0
+        data.write_text(json.dumps(d))
+        assert report.check(tmp_path) == [f"README.md: {table}"]
+        report.write(tmp_path)
+        assert report.check(tmp_path) == []
     readme = tmp_path / "README.md"
     readme.write_text(readme.read_text().replace("| diverged | 0 |", "| diverged | 1 |", 1))
     assert report.check(tmp_path) == ["README.md: mc_paper"]
