@@ -31,6 +31,7 @@ from fc.estimator import LIMITS_HI, LIMITS_LO
 from fc.guidance import layout as G
 from fc.guidance.guidance import Guidance, limit_names
 from fc.guidance.kernels import course_from_air_data, guidance_reset, guidance_step
+from hyfc_wire.earth import EARTH_RADIUS_M
 from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
 from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW
@@ -156,6 +157,7 @@ class GuidedResult:
     params: dict
     guidance_params: dict
     surface_limit_rad: float
+    sphere: bool = False              # the scenario's [earth] model is "sphere"
     truth_names: tuple = field(default=TRUTH_NAMES)
     status_names: tuple = field(default=L.STATUS_NAMES)
     gstatus_names: tuple = field(default=G.GUIDANCE_STATUS_NAMES)
@@ -174,12 +176,16 @@ class GuidedResult:
         return self.targets[np.clip(i, 0, len(self.targets_t_s) - 1)]
 
     def load_factor(self) -> np.ndarray:
-        """(n,) load factor n = (V gamma_dot + g cos gamma) / (g cos mu), from the truth
-        (g 9.7 m/s^2 at cruise altitude; gamma_dot by central differences)."""
+        """(n,) load factor n = L / (m g) = (V gamma_dot + g_r cos gamma) / (g cos mu), from
+        the truth (g 9.7 m/s^2 at cruise altitude; gamma_dot by central differences; g_r = g on
+        the flat earth, g - V^2 / (R + h) on the sphere: its centrifugal relief, 0.08 g at
+        Mach 7.5)."""
         gam = self.col("gamma_rad")
         gd = np.gradient(gam, self.t_s) if len(gam) > 2 else np.zeros_like(gam)
         g = 9.72
-        return (self.col("V_m_s") * gd + g * np.cos(gam)) / (g * np.cos(self.col("mu_rad")))
+        V = self.col("V_m_s")
+        g_r = g - V * V / (EARTH_RADIUS_M + self.col("h_m")) if self.sphere else g
+        return (V * gd + g_r * np.cos(gam)) / (g * np.cos(self.col("mu_rad")))
 
     def hold_figures(self, t_from_s: float = 0.0) -> dict:
         """Hold accuracy after ``t_from_s``: max abs errors to the targets (altitude m, course
@@ -360,7 +366,8 @@ def fly(scenario: str | Scenario, *, duration_s: float | None = None, seed: int 
         gstatus=out_gst[:n_rec], cmd=out_cmd[:n_rec], targets_t_s=tg_t, targets=tg_v,
         diverged=bool(frames < n_frames), wall_s=wall, scenario=sc.name, estimate=estimate,
         coordinated=bool(ov["CO_ENABLE"]), params=lp, guidance_params=gd.params(),
-        surface_limit_rad=float(p[dy.P_ACT_LIMIT]))
+        surface_limit_rad=float(p[dy.P_ACT_LIMIT]),
+        sphere=sc.data["earth"]["model"] == "sphere")
 
 
 def hold_then_step(h_m: float, chi_rad: float, V_m_s: float, t_step_s: float,

@@ -13,7 +13,7 @@ atmosphere of fc.control.nominal):
   the dynamic-pressure ramps), rate-limited (GE_GAM_RATE); its rate gamma_c_dot through a
   first-order low-pass (GA_GDOT_TAU) as feed-forward;
 - flight path -> lift: e_gamma = gamma_c - gamma; the load factor asked for,
-  n = (g cos gamma + V (gamma_c_dot + K_gam e_gamma)) / (g cos mu), within [GE_NZ_MIN +
+  n = ((g - V^2/(R+h)) cos gamma + V (gamma_c_dot + K_gam e_gamma)) / (g cos mu), within [GE_NZ_MIN +
   GE_NZ_MARGIN, GE_NZ_MAX - GE_NZ_MARGIN]; then the model-error correction gi = clip(K_gami int e_gamma, +-GI_MAX),
   a relative lift correction V gi / g (at 1 g, the gamma rate it is worth):
   C_L,req = (n m g (1 + V gi / g) - T_est sin(alpha)) / (qbar S) (T_est the engine
@@ -52,7 +52,8 @@ from fc.guidance.layout import (
     GO_ALPHA, GO_BETA, GO_MU, GO_THR, GS_ACC_C, GS_ALPHA_C, GS_ALPHA_FF, GS_CHI_ERR,
     GS_CHIDOT_C, GS_CL_REQ, GS_DRAG, GS_G_INT, GS_GAM_C, GS_GAMDOT_DES, GS_H_ERR, GS_H_INT, GS_HDOT_C,
     GS_LIMITS, GS_MACH, GS_MU_C, GS_NZ_C, GS_QBAR, GS_THR_C, GS_THR_FF, GS_V_ERR, GS_V_INT,
-    GS_V_REF, GX_ALPHA_C, GX_ALPHA_FF, GX_CHI_ERR_F, GX_G_INT, GX_GDOT_F, GX_GAM_C, GX_H_INT, GX_MU_C, GX_READY, GX_THR_C,
+    GS_V_REF, GX_ALPHA_C, GX_ALPHA_FF, GX_CHI_ERR_F, GX_G_INT, GX_GAM_PREV, GX_GDOT_F, GX_GAM_C,
+    GX_GI_SHORT_F, GX_H_INT, GX_MU_C, GX_READY, GX_THR_C,
     GX_V_INT, GX_V_REF, LIM_ACC, LIM_ALPHA_MAX, LIM_ALPHA_MIN, LIM_ALPHA_RATE, LIM_CHIDOT,
     LIM_GAM_MAX, LIM_GAM_MIN, LIM_GAM_RATE, LIM_HDOT, LIM_INPUT_BAD, LIM_MU_MAX, LIM_MU_RATE,
     LIM_NZ_MAX, LIM_NZ_MIN, LIM_QBAR_HIGH, LIM_QBAR_LOW, LIM_THR_MAX, LIM_THR_MIN,
@@ -66,6 +67,7 @@ from fc.guidance.params import (
     P_GS_VI_MAX, P_GE_ALPHA_MARGIN, P_GE_MU_MARGIN, P_GE_NZ_MARGIN,
 )
 from fc.control import layout as _claw, nominal as _nominal
+from hyfc_wire.earth import EARTH_RADIUS_M
 from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_layout.__file__, _params.__file__, _claw.__file__, _nominal.__file__])
@@ -80,6 +82,7 @@ ALPHA_TAB_MAX_RAD = 12.0 * math.pi / 180.0
 _DALPHA_RAD = 0.25 * math.pi / 180.0         # step of the numerical lift slope
 _DELTA_MAX_RAD = 20.0 * math.pi / 180.0      # trim deflection bound of the feed-forward
 _COS_MU_MIN = 0.5                            # 1/cos(mu) in the lift demand at most 2
+_GI_CHECK_TAU_S = 0.5                        # low-pass of the flight-path model-error check
 
 
 @njit(cache=True, error_model="numpy")
@@ -206,6 +209,13 @@ def _thrust_model(thr, qS, gp):
 
 
 @njit(cache=True, error_model="numpy")
+def _g_relieved(g, V, h):
+    """g - V^2 / (R + h) (m/s^2): the gravity a level flight path's lift carries on the round
+    Earth (the centrifugal relief, 8 % of g at Mach 7.5, 28 km)."""
+    return g - V * V / (EARTH_RADIUS_M + h)
+
+
+@njit(cache=True, error_model="numpy")
 def _flight_condition(est, gw, atm, grid):
     """(qbar Pa, qbar S N, Mach, g m/s^2, speed of sound m/s) from the nominal atmosphere."""
     interp_atmosphere(est[E_H], atm, grid, gw, GW_ATM)
@@ -244,6 +254,8 @@ def guidance_reset(est, gp, mass_kg, xcg_m, gx, thr_now, gw, tab, atm, grid):
     gx[GX_V_INT] = 0.0
     gx[GX_G_INT] = 0.0
     gx[GX_GDOT_F] = 0.0
+    gx[GX_GAM_PREV] = est[E_GAMMA]
+    gx[GX_GI_SHORT_F] = 0.0
     gx[GX_V_REF] = est[E_V]
     gx[GX_CHI_ERR_F] = math.nan       # the first step starts the filter at the error
     gx[GX_READY] = 1.0
@@ -258,9 +270,19 @@ def guidance_reset(est, gp, mass_kg, xcg_m, gx, thr_now, gw, tab, atm, grid):
     gam = est[E_GAMMA]
     qbar, qS, mach, g, _a = _flight_condition(est, gw, atm, grid)
     cl, cd = trimmed_coefficients(mach, alpha, xcg_m, tab, grid, gw)
+    # the thrust in the lift: the throttle in use, or (unknown) the one the first step takes,
+    # its feed-forward with the speed integral at 0; else the step's thrust term would move
+    # alpha_c off the bumpless value at the second step (0.05 deg at the cruise point)
+    thr_lift = thr_now
+    if not thr_now >= 0.0:
+        t_full = gp[P_GM_CT_MAX] * qS
+        proj0 = max(math.cos(alpha) * math.cos(est[E_BETA]), 0.1)
+        thr_lift = min(max((cd * qS + mass_kg * g * math.sin(gam)) / (proj0 * t_full), 0.0),
+                       min(1.0, gp[P_GM_T_MAX] / t_full))
     if gp[P_GA_K_GAMI] > 0.0:
-        normal = cl * qS + _thrust_model(thr_now, qS, gp) * math.sin(alpha)
-        n0 = math.cos(gam) / max(math.cos(est[E_MU]), _COS_MU_MIN)
+        normal = cl * qS + _thrust_model(thr_lift, qS, gp) * math.sin(alpha)
+        n0 = (_g_relieved(g, V, est[E_H]) * math.cos(gam)
+              / (g * max(math.cos(est[E_MU]), _COS_MU_MIN)))
         gdot = (normal / (n0 * mass_kg * g) - 1.0) * g / V
         lim = gp[P_GA_GI_MAX]
         gx[GX_G_INT] = min(max(gdot, -lim), lim) / gp[P_GA_K_GAMI]
@@ -358,10 +380,11 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     cmu = max(math.cos(mu), _COS_MU_MIN)
     gdot_kin = gamc_dot + gp[P_GA_K_GAM] * e_g
     nz_lo, nz_hi = _inside(gp[P_GE_NZ_MIN], gp[P_GE_NZ_MAX], gp[P_GE_NZ_MARGIN])
-    nz, b = _clip_flag((g * math.cos(gam) + V * gdot_kin) / (g * cmu), nz_lo, nz_hi,
+    g_cos = _g_relieved(g, V, h) * math.cos(gam)      # the weight less the centrifugal relief
+    nz, b = _clip_flag((g_cos + V * gdot_kin) / (g * cmu), nz_lo, nz_hi,
                        LIM_NZ_MIN, LIM_NZ_MAX)
     lim |= b
-    gdot_des = (nz * g * cmu - g * math.cos(gam)) / V + gi
+    gdot_des = (nz * g * cmu - g_cos) / V + gi
     t_est = _thrust_model(gx[GX_THR_C], qS, gp)
     cl_req = (nz * m * g * (1.0 + V * gi / g) - t_est * math.sin(alpha)) / qS
     a_ff = alpha_for_lift(cl_req, mach, gx[GX_ALPHA_FF], xcg_m, tab, grid, gw)
@@ -373,6 +396,17 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     if rl:
         lim |= LIM_ALPHA_RATE
     gx[GX_ALPHA_C] = alpha_c
+    # the model-error check: the gamma rate the corrected model predicts at the measured alpha
+    # (normal force (C_L,trim qS + T_est sin alpha) / (1 + V gi / g), the inverse of cl_req)
+    # against the measured one, low-passed; and what the correction is worth in gamma rate
+    cl_m, cd = trimmed_coefficients(mach, alpha, xcg_m, tab, grid, gw)
+    f_nom = (cl_m * qS + t_est * math.sin(alpha)) * cmu / (m * V)     # rad/s
+    corr = max(1.0 + V * gi / g, 0.1)
+    gdot_meas = (gam - gx[GX_GAM_PREV]) / dt_s
+    gx[GX_GAM_PREV] = gam
+    short = f_nom / corr - g_cos / V - gdot_meas
+    gx[GX_GI_SHORT_F] += (1.0 - math.exp(-dt_s / _GI_CHECK_TAU_S)) * (short - gx[GX_GI_SHORT_F])
+    gi_worth = f_nom / corr - f_nom
 
     # --- course -> bank (coordinated turn) ------------------------------------------------
     e_raw = _wrap_pi(tgt[TG_CHI] - chi_rad)
@@ -401,7 +435,6 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gx[GX_MU_C] = mu_c
 
     # --- speed -> throttle (feed-forward from the nominal drag) -------------------------
-    _cl, cd = trimmed_coefficients(mach, alpha, xcg_m, tab, grid, gw)
     drag = cd * qS
     e_v = v_ref - V
     vi = gp[P_GS_K_VI] * gx[GX_V_INT]
@@ -435,8 +468,14 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
                                        or (e_h < 0.0 and down_blocked)))
     lift_up = (lim & (LIM_NZ_MAX | LIM_ALPHA_MAX)) != 0
     lift_down = (lim & (LIM_NZ_MIN | LIM_ALPHA_MIN)) != 0
-    gx[GX_G_INT] = _integrate(gx[GX_G_INT], e_g, dt_s, abs(e_g) < gp[P_GA_GI_ZONE]
-                              and not ((e_g > 0.0 and lift_up) or (e_g < 0.0 and lift_down)))
+    # the flight-path integral is the model's lift error: while blocked it unwinds only if the
+    # measured gamma rate contradicts it (closer to the uncorrected model's than to the
+    # corrected one's): an engagement's wrong estimate goes, a right one held at the load-factor
+    # limit in a climb stays (unwound there, the lift went 24 % over: n 1.87 against 1.6)
+    g_free = abs(e_g) < gp[P_GA_GI_ZONE] and not ((e_g > 0.0 and lift_up)
+                                                   or (e_g < 0.0 and lift_down))
+    if g_free or gx[GX_GI_SHORT_F] * gi_worth > 0.5 * gi_worth * gi_worth:
+        gx[GX_G_INT] = _integrate(gx[GX_G_INT], e_g, dt_s, g_free)
     gx[GX_V_INT] = _integrate(gx[GX_V_INT], e_v, dt_s,
                               not ((e_v > 0.0 and (lim & LIM_THR_MAX) != 0)
                                    or (e_v < 0.0 and (lim & LIM_THR_MIN) != 0)))

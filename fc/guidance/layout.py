@@ -37,7 +37,10 @@ GX_READY = 8     # 1 after reset
 GX_G_INT = 9     # integral of the flight-path angle error (rad s)
 GX_CHI_ERR_F = 10  # low-passed course error (rad)
 GX_GDOT_F = 11   # low-passed gamma_c_dot (rad/s)
-GX_N = 12
+GX_GAM_PREV = 12  # the last step's flight-path angle (rad), for the measured gamma rate
+GX_GI_SHORT_F = 13  # low-passed shortfall of the measured gamma rate against the corrected
+                    # model's at the measured alpha (rad/s): the model-error check
+GX_N = 14
 
 # --- limit bitfield (gs[GS_LIMITS]): the envelope limit in force ------------------------------
 LIM_ALPHA_MAX = 1 << 0
