@@ -26,9 +26,10 @@ def _vehicle(tmp_path, *args):
     out = str(tmp_path)
     gcs_port = free_udp_port()
     # long data-loss timeout: the test talks to the fc between bursts of frames; the
-    # prefilter on (the guidance's default shaping); COORDINATED's command = the trim alpha
+    # prefilter on (the guidance's default shaping); COORDINATED's command = the trim alpha of
+    # the cruise scenario (its round Earth: 3.5635 deg, plant_sim/scenarios/cruise.toml)
     with open(os.path.join(out, "params.parm"), "w") as f:
-        f.write("FS_TIMEOUT_S 30\nREF_PF_EN 1\nCMD_ALPHA_DEG 3.8815\n")
+        f.write("FS_TIMEOUT_S 30\nREF_PF_EN 1\nCMD_ALPHA_DEG 3.5635\n")
     fc = FcProcess(out, "--arm", *args, gcs_ports=(gcs_port,))
     return fc, gcs_port
 
