@@ -8,6 +8,7 @@ mission at the same item (fc/mission_store.py).
 """
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sys
@@ -30,11 +31,17 @@ def _fc(out: str, plant_port: int, gcs_port: int) -> FcProcess:
                      "--flight-mode", "CRUISE", gcs_ports=(gcs_port,))
 
 
-def _wait_file(path: str, timeout_s: float) -> bool:
+def _wait_file(path: str, timeout_s: float, n_items: int) -> bool:
+    """Wait (bounded) until the mission file holds ``n_items`` items: it may first be written
+    with home alone (home is set at the first fix, before the upload)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        if os.path.exists(path):
-            return True
+        try:
+            with open(path) as f:
+                if len(json.load(f)["items"]) == n_items:
+                    return True
+        except (OSError, ValueError, KeyError):
+            pass                                  # not there yet, or being replaced
         time.sleep(0.05)
     return False
 
@@ -63,7 +70,7 @@ def test_mission_and_home_survive_an_fc_restart_in_flight(tmp_path):
             cur = gcs.wait("MISSION_CURRENT", 10.0, cond=lambda m: m.total == len(items))
             assert cur is not None
             # the mission file is written within a second of the change (fc/loops.py)
-            assert _wait_file(os.path.join(out, "mission.json"), 10.0)
+            assert _wait_file(os.path.join(out, "mission.json"), 10.0, len(items))
             pos1 = gcs.wait("GLOBAL_POSITION_INT", 5.0)
             # WHEN the fc is killed in flight and started again
             fc.child.stop(int_wait_s=5.0, term_wait_s=None, first_signal=signal.SIGKILL)
