@@ -3,7 +3,7 @@
 Everything here produces or accepts exactly what pymavlink's generated codec does (unsigned
 MAVLink 2, trailing-zero payload truncation, CRC-16/MCRF4XX over header[1:] + payload +
 CRC_EXTRA), taking the payload structs, message ids and CRC_EXTRA from the codec's own message
-classes. tests/test_wire_contract.py checks the bytes against ``msg.pack(mav)`` for every
+classes. tests/unit/wire/test_wire_contract.py checks the bytes against ``msg.pack(mav)`` for every
 message framed here; each link also checks its own path at start-up and falls back to the
 codec if they ever differ (a pymavlink upgrade).
 
