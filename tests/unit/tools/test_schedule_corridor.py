@@ -57,3 +57,17 @@ def test_the_papers_gains_fail_these_bounds_at_54_kpa():
     worst_os = max(m[n].overshoot_pct or 0.0 for n in ("alpha", "beta", "mu"))
     worst_final = max(m[n].final_error_deg for n in ("alpha", "beta", "mu"))
     assert res.diverged or worst_os > OVERSHOOT_MAX_PCT or worst_final > FINAL_ERROR_MAX_DEG
+
+
+def test_the_mach_factor_keeps_the_yaw_downward_gain_margin_at_mach_15():
+    """Issue 20 item 1: at Mach 15 / 28 km (255 kPa, the airframe directionally unstable,
+    Cn_beta -0.064) the yaw loop with its gain about trim cut to 0.5 (-6 dB; tools.margins's
+    gain_ac, the paper's case from a 2 deg initial sideslip) stays stable with the rate-command
+    limit's Mach factor, and diverges without it (SCH_OMCF_n = 1, the schedule before: the
+    rudder command runs to its limit and the sideslip grows; measured -5.1 dB there)."""
+    from tools import margins as M
+    sc = M.margin_scenario(point=(15.0, 28e3), initial_beta_deg=2.0)
+    cut = M.make_inj("gain_ac", "yaw", gain=0.5)
+    assert M.stable(M.fly(sc, cut, coordinated=False))
+    before = {f"SCH_OMCF_{i}": 1.0 for i in range(1, 7)}
+    assert not M.stable(M.fly(sc, cut, coordinated=False, law_overrides=before))
