@@ -265,7 +265,13 @@ def _schedule_params() -> tuple[Param, ...]:
     return tuple(out)
 
 
-LAW_PARAMS = LAW_PARAMS + _schedule_params()
+LAW_PARAMS = LAW_PARAMS + _schedule_params() + (
+    _p("CO_LAMR_SCL", 1, 0, 1, "-", "CO",
+       "Scale on the yaw-row factor lambda_r (Eq. 13 + lambda_r3) before its clamp; 1 = the "
+       "paper's. While CTL_SCHED 1 the schedule writes the Mach factor SCH_OMCF into it: the "
+       "rudder authority the airframe's directional instability leaves, so that the factor's "
+       "cut of the yaw loop's gain (1 / (1 + lambda_r)) shrinks with it."),
+)
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
 
@@ -327,8 +333,9 @@ P_SCH_FLTA = PARAM_INDEX["SCH_FLTA_1"]
 P_SCH_OMC = PARAM_INDEX["SCH_OMC_1"]
 P_SCH_M = PARAM_INDEX["SCH_M_1"]           # SCHED_N Mach nodes, then SCHED_N factors
 P_SCH_OMCF = PARAM_INDEX["SCH_OMCF_1"]
+P_CO_LAMR_SCL = PARAM_INDEX["CO_LAMR_SCL"]
 #: the fixed parameters the schedule replaces while it is on (restored when it goes off)
-SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3")
+SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3", "CO_LAMR_SCL")
 P_N = len(LAW_PARAMS)
 assert [PARAM_INDEX[f"CO_K{i}"] for i in range(1, 10)] == list(range(P_CO_K1, P_CO_K1 + 9))
 assert [PARAM_INDEX[f"SLW_K{i}"] for i in (1, 2, 3)] == list(range(P_SLW_K1, P_SLW_K1 + 3))

@@ -71,3 +71,23 @@ def test_the_mach_factor_keeps_the_yaw_downward_gain_margin_at_mach_15():
     assert M.stable(M.fly(sc, cut, coordinated=False))
     before = {f"SCH_OMCF_{i}": 1.0 for i in range(1, 7)}
     assert not M.stable(M.fly(sc, cut, coordinated=False, law_overrides=before))
+
+
+@pytest.mark.parametrize("point", [(15.0, 28e3), (15.0, 32e3)], ids=["M15-28km", "M15-32km"])
+def test_coordination_keeps_flying_at_mach_15(point):
+    """Issue 20 item 3: the coordinated law (Eq. 19 factors, k1..k9 = 1) flies the paper's case
+    at Mach 15 / 28 and 32 km (map b's disturbance, the law fed the truth as tools.envelope).
+    With the rate-command limit's Mach factor but the yaw-row factor lambda_r unscaled it
+    diverged at 4.0 and 4.4 s (the factor's 1 / (1 + lambda_r) cut of the yaw loop's gain,
+    lambda_r ~ 0.2 from the 5 deg sideslip, on a directionally unstable airframe with the rudder
+    on its limit); the schedule scales lambda_r by the same rudder share (CO_LAMR_SCL). The
+    bound: settled within the 0.2 deg band by 12 s (measured alpha settles in 7.3 s at 32 km,
+    after a 66 % overshoot: flown, not yet within the paper's spec there)."""
+    from tools.coordination import READINGS
+    sc = point_scenario(*point, disturbance="coefficient")
+    res = simulate(sc, coordinated=True, duration_s=12.0, law_overrides=dict(READINGS["eq19"]),
+                   command_shaping="steps", estimate="truth")
+    assert not res.diverged
+    m = res.metrics()
+    assert max(abs(m[c].final_error_deg) for c in ("alpha", "beta", "mu")) < 0.2
+    assert res.params["CO_LAMR_SCL"] == 1.0                  # the parameter keeps the paper's
