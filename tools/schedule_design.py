@@ -129,7 +129,9 @@ OMC_RANGE_DEG_S = (0.5, 10.0)
 #: The rate-command limit's Mach axis: nodes, and the sideslip the rudder must still hold with
 #: the airframe directionally unstable (the initial sideslip flown where the paper's 5 deg
 #: cannot be trimmed, docs/margins.md s. 6; at 5 deg no rudder is left at Mach >= 13.5)
-MACH_NODES = (6.0, 8.0, 10.0, 12.0, 14.0, 15.0)
+#: (the second node is where the nominal airframe turns directionally unstable,
+#: ``stability_edge_mach``: the factor is exactly 1 up to it)
+MACH_NODES_FIXED = (6.0, 10.0, 12.0, 14.0, 15.0)
 BETA_HOLD_RAD = 2.0 * DEG
 OMC_FACTOR_MIN = 0.1
 
@@ -324,6 +326,25 @@ def directional_instability(mach: float, qbar_pa: float = ANCHOR_QBAR_KPA * 1e3)
     return -n_beta * math.cos(ALPHA_TRIM_RAD), abs(nm[L.NM_GFD + 8]) / par[P_MDL_IZZ]
 
 
+def stability_edge_mach(lo: float = 6.0, hi: float = 10.0, tol: float = 1e-3) -> float:
+    """The highest Mach number (a multiple of ``tol``) below which the nominal airframe is
+    directionally stable (a_dir <= 0) between ``lo`` (stable) and ``hi`` (unstable), by
+    bisection: the factor is exactly 1 up to it."""
+    if not (directional_instability(lo)[0] <= 0.0 < directional_instability(hi)[0]):
+        raise RuntimeError("the nominal airframe does not turn directionally unstable there")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if directional_instability(mid)[0] <= 0.0 else (lo, mid)
+    edge = math.floor(lo / tol) * tol
+    assert directional_instability(edge)[0] <= 0.0
+    return edge
+
+
+def mach_nodes() -> tuple:
+    """The rate-command limit's Mach nodes: MACH_NODES_FIXED with the stability edge."""
+    return tuple(sorted((*MACH_NODES_FIXED, round(stability_edge_mach(), 6))))
+
+
 def omc_mach_factor(mach: float) -> float:
     """The rate-command limit's factor at ``mach``: the share of the rudder's authority
     (ACT_MAX of deflection) left once the airframe's directional instability is held at
@@ -445,8 +466,8 @@ def design(nodes_kpa=QBAR_NODES_KPA, verbose: bool = False) -> dict:
         if verbose:
             print(_row_text(row), flush=True)
     return {"rows": rows, "n_candidates": len(cands["kappa1"]), "n_margin_ok": int(idx_ok.size),
-            "mach_nodes": MACH_NODES,
-            "omc_mach_factor": tuple(omc_mach_factor(m) for m in MACH_NODES)}
+            "mach_nodes": (nodes := mach_nodes()),
+            "omc_mach_factor": tuple(omc_mach_factor(m) for m in nodes)}
 
 
 def table_arrays(result: dict) -> dict:
