@@ -26,7 +26,8 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
+from fc.frame_calls import ArrayAddress, address_of, surfaces_pwm_p
+from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
@@ -147,6 +148,10 @@ class FlightController:
         self.settings = self.param_svc.settings
         self.out = TickOutput(self.settings.cmd_rad)
         self.pwm_us = self.out.pwm_us           # VehicleView (the same array)
+        # the tick's output kernel's arrays by address (fc/frame_calls.py: no array record)
+        self._src_at = ArrayAddress(np.float64, 3)
+        self._delta_p = address_of(self.out.delta_rad, np.float64, 3)
+        self._pwm_p = address_of(self.out.pwm_us, np.int64, 4)
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -375,8 +380,8 @@ class FlightController:
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        surfaces_pwm(src, out.delta_rad,
-                     self.guid.throttle_pwm() if modes.guidance_active else 0, self.pwm_us)
+        surfaces_pwm_p(self._src_at.of(src), self._delta_p,
+                       self.guid.throttle_pwm() if modes.guidance_active else 0, self._pwm_p)
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
