@@ -20,7 +20,7 @@ from fc.control.carrays import ArrayAddress, address_of, f8p, i8p, u8p
 from hyfc_wire.frame_kernels import decode_sensor, servo_frame, surfaces_pwm
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
-           "f8p", "i8p", "u8p"]
+           "blend3_p", "f8p", "i8p", "u8p"]
 
 
 @njit(cache=True)
@@ -46,3 +46,14 @@ def surfaces_pwm_p(src, delta, throttle_pwm_us, pwm):
     ``delta`` and int64[4] ``pwm`` (us), all given by address."""
     surfaces_pwm(carray(f8p(src), (3,)), carray(f8p(delta), (3,)), throttle_pwm_us,
                  carray(i8p(pwm), (4,)))
+
+
+@njit(cache=True)
+def blend3_p(dst, src, k):
+    """``dst[i] += k * (src[i] - dst[i])`` for i < 3 (float64[3] both, by address): the
+    surface hold's running estimate (fc/mode_control.py ``SurfaceHold.update``), the same
+    float64 operations as the Python loop it replaces."""
+    d = carray(f8p(dst), (3,))
+    s = carray(f8p(src), (3,))
+    for i in range(3):
+        d[i] += k * (s[i] - d[i])
