@@ -53,8 +53,9 @@ except ImportError:  # the law is not there yet: same layout, section 5
 try:  # the kernels below freeze hyfc_wire's M_* and layout's E_* (and the EM_* built on them)
     import hyfc_wire.layout as _wire_layout
     from fc.control import layout as _layout
+    from fc.control import carrays as _carrays
     from hyfc_wire.numba_cache import drop_stale
-    drop_stale(__file__, [_wire_layout.__file__, _layout.__file__])
+    drop_stale(__file__, [_wire_layout.__file__, _layout.__file__, _carrays.__file__])
 except ImportError:
     pass
 

@@ -16,8 +16,18 @@ from __future__ import annotations
 
 from numba import carray, njit
 
+import fc.control.carrays as _carrays
+import hyfc_wire.codec as _codec
+import hyfc_wire.frame_kernels as _frame_kernels
+import hyfc_wire.layout as _wire_layout
+import hyfc_wire.pwm as _pwm
 from fc.control.carrays import ArrayAddress, address_of, f8p, i8p, u8p
 from hyfc_wire.frame_kernels import decode_sensor, servo_frame, surfaces_pwm
+from hyfc_wire.numba_cache import drop_stale
+
+# the entries below compile the frame kernels (and their constants) into their own cache
+drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout.__file__,
+                      _pwm.__file__, _codec.__file__])
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
            "blend3_p", "f8p", "i8p", "u8p"]

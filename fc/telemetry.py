@@ -15,6 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import carray, njit
 
+import fc.control.carrays as _carrays
+import fc.estimator as _estimator
+import fc.guidance.layout as _guid_layout
+import hyfc_wire.layout as _wire_layout
 from fc.control.carrays import ArrayAddress, address_of, f8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
@@ -24,11 +28,17 @@ from fc.internals_log import InternalsLog
 from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
 from fc.scheduler import FrameGate, LoopStats, TickPlanner
+from hyfc_wire.numba_cache import drop_stale
 
 __all__ = ["EST_COLS", "FcCounters", "TickOutput", "Telemetry"]
 
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
             "h_m", "gamma_rad")
+
+
+# fill_row(_p) freeze the estimator's EM_*, the layouts' indices and the address views
+drop_stale(__file__, [_estimator.__file__, _carrays.__file__, _wire_layout.__file__,
+                      _guid_layout.__file__])
 
 
 @njit(cache=True)

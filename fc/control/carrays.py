@@ -36,8 +36,9 @@ u8p = intrinsic(_pointer_cast(types.uint8))
 
 def address_of(arr: np.ndarray, dtype, n: int) -> int:
     """The data address of ``arr`` (int), after checking it is a C-contiguous, writable
-    ``dtype`` array of at least ``n`` elements (ValueError otherwise)."""
-    if (not isinstance(arr, np.ndarray) or arr.dtype != np.dtype(dtype) or arr.ndim != 1
+    ``dtype`` array of at least ``n`` elements (ValueError otherwise); any number of
+    dimensions (the compiled side gives the shape)."""
+    if (not isinstance(arr, np.ndarray) or arr.dtype != np.dtype(dtype)
             or not arr.flags.c_contiguous or not arr.flags.writeable or arr.size < n):
         raise ValueError(f"need a writable C-contiguous {np.dtype(dtype)}[>= {n}] array")
     return int(arr.__array_interface__["data"][0])
