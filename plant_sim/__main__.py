@@ -55,12 +55,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--truth-full-s", type=float, default=60.0, metavar="S",
                    help="truth log (truth.npz): every frame for the first S s of sim time, "
                         "then --truth-tail-hz rows per second (default %(default)g)")
-    r.add_argument("--truth-tail-hz", type=float, default=100.0, metavar="HZ",
+    r.add_argument("--truth-tail-hz", type=float, default=50.0, metavar="HZ",
                    help="truth log: rows per second of sim time after --truth-full-s "
                         "(default %(default)g)")
     r.add_argument("--truth-full-rate", action="store_true",
                    help="truth log: every frame however long the run (about 0.7 GB per hour "
-                        "at 1 kHz)")
+                        "at 500 Hz)")
     t = sub.add_parser("trim", help="report the trim deflections of a scenario",
                        description="Surface deflections that balance the moments at the "
                                    "scenario's initial state and at each commanded attitude "

@@ -65,7 +65,7 @@ class RunConfig:
     #: truth log (plant_sim/truthlog.py): every frame for this long (s of sim time), then
     #: ``truth_tail_hz`` rows per second; None: every frame however long the run
     truth_full_rate_s: float | None = 60.0
-    truth_tail_hz: float = 100.0
+    truth_tail_hz: float = 50.0
 
 
 @dataclass

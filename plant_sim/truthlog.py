@@ -1,9 +1,9 @@
 """Plant truth log: rows of PlantSim.TRUTH_NAMES, one per frame (full rate) or decimated.
 
-Sized for long runs (issue 24): a row is about 200 bytes, so every frame of an hour at 1 kHz is
-0.7 GB. With ``full_rows`` set (``python -m plant_sim run``: the first ``--truth-full-s``
+Sized for long runs (issue 24): a row is about 390 bytes, so every frame of an hour at 500 Hz
+is 0.7 GB. With ``full_rows`` set (``python -m plant_sim run``: the first ``--truth-full-s``
 seconds of frames, default 60 s) the first ``full_rows`` rows are kept, then one row in
-``every`` (``--truth-tail-hz``, default 100 Hz); ``--truth-full-rate`` keeps every row. The
+``every`` (``--truth-tail-hz``, default 50 Hz); ``--truth-full-rate`` keeps every row. The
 rows kept are the rows a full-rate log holds at the same frames, bit for bit (``t_s`` says when
 each was taken); a row the caller marks ``keep`` (the final state) is always kept.
 
