@@ -97,13 +97,19 @@ def test_atomic_write_on_a_full_disk_keeps_the_old_file_and_no_temp(tmp_path, di
     assert path.read_bytes() == b"A 1\n" and os.listdir(tmp_path) == ["params.parm"]
 
 
-def test_a_parameter_that_cannot_be_saved_is_reported_not_silently_accepted(tmp_path, disk):
-    table = build_table()
-    health = DiskHealth()
-    svc = ParamService.__new__(ParamService)      # only its save: no law, no guidance
-    svc.table, svc.path, svc.log, svc.disk, svc.dirty = (table, str(tmp_path / "p.parm"),
-                                                         logging.getLogger("test"), health,
+def _save_only_service(tmp_path) -> ParamService:
+    """A ParamService for its save only (no law, no guidance): a fresh table, the file
+    ``p.parm`` in ``tmp_path``, its own DiskHealth."""
+    svc = ParamService.__new__(ParamService)
+    svc.table, svc.path, svc.log, svc.disk, svc.dirty = (build_table(), str(tmp_path / "p.parm"),
+                                                         logging.getLogger("test"), DiskHealth(),
                                                          False)
+    return svc
+
+
+def test_a_parameter_that_cannot_be_saved_is_reported_not_silently_accepted(tmp_path, disk):
+    svc = _save_only_service(tmp_path)
+    table, health = svc.table, svc.disk
     disk.full = True
     svc.save()
     # THEN the fault is known, said, and the next change is reported as not saved
@@ -169,12 +175,8 @@ def test_the_first_param_set_on_a_full_disk_is_not_echoed_as_simply_accepted(tmp
     STATUSTEXT `NOT saved` before the PARAM_VALUE; on a good disk the PARAM_VALUE alone, after
     the file holds the value. (Before: the echo at once, the failure only in fc.log.)"""
     from fc.iothread import IoThread
-    table = build_table()
-    health = DiskHealth()
-    svc = ParamService.__new__(ParamService)      # only its save: no law, no guidance
-    svc.table, svc.path, svc.log, svc.disk, svc.dirty = (table, str(tmp_path / "p.parm"),
-                                                         logging.getLogger("test"), health,
-                                                         False)
+    svc = _save_only_service(tmp_path)
+    table, health = svc.table, svc.disk
     io = IoThread()
     v = _SavingVehicle(svc, io)
     link = GcsLink(v, ("127.0.0.1", free_udp_port()), [], disk=health)
