@@ -23,6 +23,7 @@ within 30 s.
     python -m tools.blackout --mode realtime --durations 0.5 1 2 5 10 [--out DIR] [--seed 1]
     python -m tools.blackout --fault fc-stall --durations 3      # the fc's own stall instead
     python -m tools.blackout --analyse RUN_DIR ...               # figures of finished runs
+    ... --markdown                      # also the table of docs/reliability.md (tables A, B)
 """
 from __future__ import annotations
 
@@ -186,6 +187,32 @@ def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: f
     return fig
 
 
+MODE_NAMES = {3: "FS", 4: "CRUISE", 5: "GUIDED"}
+TABLE_HEAD = ("| blackout (wall) | plant time cut, s | modes | max abs mu, deg | alpha, deg | "
+              "longest surface on limit, s | altitude from the target before the cut, max / "
+              "end, m | frames answered in FAILSAFE | back in the steady bounds after | ok |\n"
+              "|---|---|---|---|---|---|---|---|---|---|")
+
+
+def markdown_table(runs: list[dict]) -> str:
+    """The runs' figures as the table of docs/reliability.md (tables A and B), one row per
+    run (``blackout_wall_s`` from the run, or from its directory's name)."""
+    lines = [TABLE_HEAD]
+    for r in runs:
+        wall = r.get("blackout_wall_s")
+        if wall is None:
+            wall = float(Path(r["run"]).name.rsplit("-", 1)[-1].rstrip("s"))
+        modes = " ".join(MODE_NAMES.get(m, str(m)) for m in r["modes"])
+        a0, a1 = r["alpha_range_deg"]
+        alt = r["alt_from_target_before_cut_m"]
+        rec = "never" if r["recovery_s"] is None else f"{r['recovery_s']:.1f} s"
+        lines.append(f"| {wall:g} s | {r['sim_time_cut_s']:.2f} | {modes} | "
+                     f"{r['mu_abs_max_deg']:.1f} | {a0:.1f}..{a1:.1f} | "
+                     f"{r['surface_on_limit_longest_s']:.2f} | {alt['max']:.0f} / {alt['end']:.0f} | "
+                     f"{r['failsafe_frames']} | {rec} | {'yes' if r['ok'] else '**no**'} |")
+    return "\n".join(lines)
+
+
 def analyse(run_dir: Path, settle_s: float) -> dict:
     """The figures of a finished run (its directory, as ``one_run`` left it), the cut found
     from the fc's log after ``settle_s``."""
@@ -219,9 +246,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", help="run directory (default: a new temp directory)")
     ap.add_argument("--analyse", nargs="+", metavar="RUN_DIR",
                     help="no run: the figures of finished runs (their directories)")
+    ap.add_argument("--markdown", action="store_true",
+                    help="after the JSON, the runs as the table of docs/reliability.md")
     args = ap.parse_args(argv)
     if args.analyse:
-        print(json.dumps([analyse(Path(d), args.settle) for d in args.analyse], indent=2))
+        runs = [analyse(Path(d), args.settle) for d in args.analyse]
+        print(json.dumps(runs, indent=2))
+        if args.markdown:
+            print(markdown_table(runs))
         return 0
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-blackout-"))
     results = []
@@ -231,6 +263,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(fig), file=sys.stderr, flush=True)
         results.append(fig)
     print(json.dumps({"out": str(out), "runs": results}, indent=2))
+    if args.markdown:
+        print(markdown_table(results))
     return 0 if all(r["exit_codes"]["plant"] == 0 and r["exit_codes"]["fc"] == 0
                     for r in results) else 1
 
