@@ -170,9 +170,9 @@ def cut_times_from_internals(internals: dict, t_cut_hint_s: float, mode: str) ->
 
 
 def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: float,
-            seed: int, fault: str = "link") -> dict:
+            seed: int, fault: str = "link", scenario: str = "cruise") -> dict:
     sim_s = settle_s + after_s + (blackout_s if mode == "realtime" else 0.0) + 1.0
-    cfg = RigConfig(out=out, duration_s=sim_s, seed=seed, mode=mode,
+    cfg = RigConfig(out=out, duration_s=sim_s, seed=seed, mode=mode, scenario=scenario,
                     arm="start" if mode == "lockstep" else "gcs")
     with Rig(cfg) as rig:
         rig.start()
@@ -243,6 +243,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fault", choices=("link", "fc-stall"), default="link",
                     help="link: the plant link cut both ways (default); fc-stall: the fc "
                          "process stopped (SIGSTOP) for the duration")
+    ap.add_argument("--scenario", default="cruise",
+                    help="plant scenario, a name or a TOML path (cruise; e.g. a copy with the "
+                         "servo table's backup_* gains at 0: the hold without its damper)")
     ap.add_argument("--out", help="run directory (default: a new temp directory)")
     ap.add_argument("--analyse", nargs="+", metavar="RUN_DIR",
                     help="no run: the figures of finished runs (their directories)")
@@ -259,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     for d in args.durations:
         fig = one_run(out / f"{args.mode}-{args.fault}-{d:g}s", args.mode, d, args.settle,
-                      args.after, args.seed, args.fault)
+                      args.after, args.seed, args.fault, args.scenario)
         print(json.dumps(fig), file=sys.stderr, flush=True)
         results.append(fig)
     print(json.dumps({"out": str(out), "runs": results}, indent=2))
