@@ -13,9 +13,10 @@ from tools.bench.profile import record
 #: frames between the two checkpoints of the growth test
 SPAN_FRAMES = 1500
 #: blocks the controller may keep over those frames, whatever their number (a stream's
-#: counter crossing into a new int, a dict resized once; measured 23-50 in four replays of
-#: both modes, issue 24): a leak of one block per 23 frames exceeds it
-ALLOWANCE_BLOCKS = 64
+#: counter crossing into a new int, a dict resized once): a leak of one block per 15 frames
+#: exceeds it. Not tightened by issue 24: 16-51 in 12 replays of both modes alone, 72 once
+#: after other tests in the same process (a 64 allowance failed there)
+ALLOWANCE_BLOCKS = 100
 
 
 @pytest.fixture(scope="module")
