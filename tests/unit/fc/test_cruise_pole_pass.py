@@ -83,7 +83,7 @@ def _fly(tmp_path, chi0_deg: float) -> dict:
                 vh = v - np.dot(v, u) * u
                 n = np.array(fc.cruise_track.pole)
                 t = np.cross(n, u)
-                e = math.atan2(np.dot(np.cross(t, vh), u), np.dot(t, vh))
+                e = math.atan2(np.dot(np.cross(vh, t), u), np.dot(t, vh))
                 e_loop = (fc.guid.targets()[1] - fc.guid.chi_rad + math.pi) % (2 * math.pi) - math.pi
                 rec.append((EARTH_RADIUS_M * math.atan2(math.hypot(u[0], u[1]), u[2]),
                             math.degrees(e_loop), math.degrees(fc.guid.g.status[GS_MU_C]),
