@@ -40,7 +40,8 @@ def load_run(vdir: Path) -> tuple[dict, dict]:
     from fc.internals_log import load
     z = np.load(Path(vdir) / "truth.npz")
     names = ("t_s", "h_m", "V_m_s", "chi_rad", "alpha_rad", "beta_rad", "mu_rad", "gamma_rad",
-             "qbar_pa", "delta_left_rad", "delta_right_rad", "delta_rudder_rad", "thrust_N")
+             "qbar_pa", "delta_left_rad", "delta_right_rad", "delta_rudder_rad", "thrust_N",
+             "pos_n_m", "pos_e_m")
     truth = {n: z[n] for n in names}
     fc = load(str(vdir))
     return truth, fc
