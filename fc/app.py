@@ -11,6 +11,7 @@ injected: ``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAM
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import logging
 import math
@@ -136,6 +137,8 @@ class FlightController:
         self.mission = Mission()
         self.mission_flight = MissionFlight(self.mission)
         self.cruise_track = CruiseTrack(EARTH_RADIUS_M)
+        # CRUISE's course target, set before each guidance step (bound once: no allocation)
+        self._cruise_course = functools.partial(self.cruise_track.tick, self)
         # RTL, DO_REPOSITION and DO_ORBIT: a point flown by the guidance (fc/point_mode.py)
         self.point_flight = PointFlight()
 
@@ -365,7 +368,8 @@ class FlightController:
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
-                    if self.guid.tick(self.est.est, self.meas):
+                    pre = self._cruise_course if modes.mode == FlightMode.CRUISE else None
+                    if self.guid.tick(self.est.est, self.meas, pre):
                         self._navigate()
                     out.cmd_active = self.guid.cmd_rad
                 else:
@@ -396,8 +400,10 @@ class FlightController:
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
-        the targets; in CRUISE the course follows the great circle flown at entry. Ground-station state enters the guidance here only, and never as an
-        exception (the navigators answer ``("hold", why)`` instead, fc/mission_mode.py)."""
+        the targets (CRUISE's course follows the great circle flown at entry, set before each
+        step: ``_cruise_course``, fc/cruise_track.py). Ground-station state enters the guidance
+        here only, and never as an exception (the navigators answer ``("hold", why)`` instead,
+        fc/mission_mode.py)."""
         mode = self.modes.mode
         if mode == FlightMode.MISSION:
             self._nav_out(self.mission_flight.tick(self))
@@ -411,8 +417,6 @@ class FlightController:
             self._nav_out(pf.tick(self))
         elif mode == FlightMode.GUIDED and self.point_flight.active:
             self._nav_out(self.point_flight.tick(self))
-        elif mode == FlightMode.CRUISE:
-            self.cruise_track.tick(self)      # the great circle flown at entry (fc/cruise_track.py)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)
