@@ -27,7 +27,8 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
+from fc.frame_calls import ArrayAddress, address_of, surfaces_pwm_p
+from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
@@ -72,10 +73,11 @@ class FcConfig:
     spin_us: int = 0                       # busy-wait the last microseconds before a deadline
     sync: str = "frame"                    # realtime: frame (tick on the sensor frame) | clock
     law_module: str = "fc.control"
-    #: internals log: every row for this long (s of sensor time), then one per slow tick;
+    #: internals log: every row for this long (s of sensor time), then one per two slow ticks;
     #: None: every row however long the run (fc/internals_log.py)
     internals_full_rate_s: float | None = 60.0
-    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz
+    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz / 2
+    #: (50 Hz: the hour's logs within 300 MB with the plant's decimated truth, issue 24)
     internals_tail_hz: float | None = None
 
 
@@ -150,6 +152,10 @@ class FlightController:
         self.settings = self.param_svc.settings
         self.out = TickOutput(self.settings.cmd_rad)
         self.pwm_us = self.out.pwm_us           # VehicleView (the same array)
+        # the tick's output kernel's arrays by address (fc/frame_calls.py: no array record)
+        self._src_at = ArrayAddress(np.float64, 3)
+        self._delta_p = address_of(self.out.delta_rad, np.float64, 3)
+        self._pwm_p = address_of(self.out.pwm_us, np.int64, 4)
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -190,7 +196,7 @@ class FlightController:
                                    self.status_names, self.guid)
         self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk,
                                  full_rate_s=cfg.internals_full_rate_s,
-                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz)
+                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz / 2.0)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
         self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
                        (self.mission_store.snapshot, self.mission_store.save))
@@ -389,8 +395,8 @@ class FlightController:
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        surfaces_pwm(src, out.delta_rad,
-                     self.guid.throttle_pwm() if modes.guidance_active else 0, self.pwm_us)
+        surfaces_pwm_p(self._src_at.of(src), self._delta_p,
+                       self.guid.throttle_pwm() if modes.guidance_active else 0, self._pwm_p)
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets

@@ -54,6 +54,15 @@ def _parser() -> argparse.ArgumentParser:
                    help="lockstep: fail when one frame stays unanswered for S (default 120)")
     r.add_argument("--progress-every", type=float, default=1.0, metavar="S",
                    help="print 'PROGRESS t_s=.. rtf=..' every S wall seconds; 0 = never")
+    r.add_argument("--truth-full-s", type=float, default=60.0, metavar="S",
+                   help="truth log (truth.npz): every frame for the first S s of sim time, "
+                        "then --truth-tail-hz rows per second (default %(default)g)")
+    r.add_argument("--truth-tail-hz", type=float, default=50.0, metavar="HZ",
+                   help="truth log: rows per second of sim time after --truth-full-s "
+                        "(default %(default)g)")
+    r.add_argument("--truth-full-rate", action="store_true",
+                   help="truth log: every frame however long the run (about 0.7 GB per hour "
+                        "at 500 Hz)")
     t = sub.add_parser("trim", help="report the trim deflections of a scenario",
                        description="Surface deflections that balance the moments at the "
                                    "scenario's initial state and at each commanded attitude "
@@ -125,6 +134,9 @@ def main(argv=None) -> int:
             return _fail(f"{flag} must be 1..255, got {v}")
     if args.give_up <= 0:
         return _fail("--give-up must be > 0")
+    if not (math.isfinite(args.truth_full_s) and args.truth_full_s >= 0
+            and math.isfinite(args.truth_tail_hz) and args.truth_tail_hz > 0):
+        return _fail("--truth-full-s must be >= 0 and --truth-tail-hz > 0")
     seed = sc.seed if args.seed is None else args.seed
     out = Path(args.out) if args.out else Path("runs") / time.strftime(f"plant-%Y%m%d-%H%M%S-{os.getpid()}")
     try:
@@ -147,7 +159,9 @@ def main(argv=None) -> int:
     cfg = RunConfig(mode=args.mode, fc_addr=fc, bind_addr=bind, out_dir=out, duration_s=duration,
                     seed=seed, sysid=args.sysid, fc_sysid=args.fc_sysid,
                     rerequest_timeout_s=args.rerequest_timeout, give_up_s=args.give_up,
-                    progress_every_s=args.progress_every)
+                    progress_every_s=args.progress_every,
+                    truth_full_rate_s=None if args.truth_full_rate else args.truth_full_s,
+                    truth_tail_hz=args.truth_tail_hz)
     try:
         stats = run(sc, cfg, log)
     except _Fatal as e:

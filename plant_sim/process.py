@@ -62,6 +62,10 @@ class RunConfig:
     give_up_s: float = 120.0
     progress_every_s: float = 1.0
     quiet: bool = False
+    #: truth log (plant_sim/truthlog.py): every frame for this long (s of sim time), then
+    #: ``truth_tail_hz`` rows per second; None: every frame however long the run
+    truth_full_rate_s: float | None = 60.0
+    truth_tail_hz: float = 50.0
 
 
 @dataclass
@@ -77,6 +81,15 @@ class RunStats:
     wall_time_s: float = 0.0
     exit_reason: str = "completed"
     extra: dict = field(default_factory=dict)
+
+
+def truth_decimation(cfg: RunConfig, frame_dt_s: float) -> dict:
+    """TruthWriter's ``full_rows`` and ``every`` for ``cfg`` at frames of ``frame_dt_s`` s."""
+    if cfg.truth_full_rate_s is None:
+        return {"full_rows": None, "every": 1}
+    frame_hz = 1.0 / frame_dt_s
+    return {"full_rows": int(round(cfg.truth_full_rate_s * frame_hz)),
+            "every": max(1, int(round(frame_hz / cfg.truth_tail_hz)))}
 
 
 class _Stop:
@@ -115,7 +128,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     log.info("link: plant %s:%d -> fc %s:%d (sysid %d, fc sysid %d), mode %s",
              link.local_addr[0], link.local_addr[1], link.fc_addr[0], link.fc_addr[1],
              cfg.sysid, cfg.fc_sysid, cfg.mode)
-    writer = TruthWriter(out, sim.TRUTH_NAMES)
+    writer = TruthWriter(out, sim.TRUTH_NAMES, **truth_decimation(cfg, sim.frame_dt_s))
     stop = _Stop()
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     # None: open-ended; nothing below is sized by the requested duration
@@ -129,7 +142,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
                 _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
         # the final state, measured but not sent
         if stats.exit_reason == "completed":
-            sim.truth_row(writer.row())      # t_end: state and the measurement taken there
+            sim.truth_row(writer.row(keep=True))     # t_end: the state and its measurement
         # a planned end (complete or stopped by a signal, not a failure): say so before the
         # logs are written, so the fc does not take the silence for a loss of plant data
         stats.extra["goodbye_sent"] = link.send_goodbye()
@@ -166,6 +179,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
             "resyncs": stats.resyncs,
             "aero_clip_frames": stats.aero_clip_frames,
             "truth_rows": writer.rows,
+            "truth_rows_decimated": writer.decimated,
             "gnss_samples": sim.gnss.samples,
             "exit_reason": stats.exit_reason,
             **stats.extra,

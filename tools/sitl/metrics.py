@@ -445,9 +445,13 @@ def hold_figures(truth: dict, fc: dict, t_from_s: float,
         out["inner_e1_max_deg"] = [float(np.degrees(np.max(np.abs(fc[k][fsel])))) for k in e1]
     d = np.stack([truth[k][sel] for k in ("delta_left_rad", "delta_right_rad",
                                           "delta_rudder_rad")], 1)
+    at_limit = np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG, 1)
     dt = float(np.median(np.diff(truth["t_s"])))
-    out["surface_at_limit_s"] = float(np.sum(np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG,
-                                                    1)) * dt)
+    gaps = np.diff(truth["t_s"][sel])
+    if np.all(np.abs(gaps - dt) <= 1e-9):
+        out["surface_at_limit_s"] = float(np.sum(at_limit)) * dt
+    else:   # a decimated truth log (plant_sim/truthlog.py): each row's own interval
+        out["surface_at_limit_s"] = float(np.sum(gaps[at_limit[:-1]]))
     out["surface_peak_deg"] = [float(v) for v in np.degrees(np.max(np.abs(d), 0))]
     rho = [k for k in fc if k.startswith("law_rho")]
     if rho:
