@@ -9,8 +9,11 @@ these. Pure numeric code: no sockets, clocks or logging.
 """
 from __future__ import annotations
 
+import ctypes
+
 import numpy as np
 from numba import types
+from numba.core import config as numba_config
 from numba.extending import intrinsic
 
 __all__ = ["ArrayAddress", "address_of", "f8p", "i8p", "u8p"]
@@ -28,10 +31,23 @@ def _pointer_cast(elem):
     return cast
 
 
-#: int64 address -> typed pointer (compiled code only): for ``carray(f8p(addr), (n,))``
-f8p = intrinsic(_pointer_cast(types.float64))
-i8p = intrinsic(_pointer_cast(types.int64))
-u8p = intrinsic(_pointer_cast(types.uint8))
+def _ctypes_cast(ctype):
+    def cast(addr):
+        return ctypes.cast(int(addr), ctypes.POINTER(ctype))
+    return cast
+
+
+if numba_config.DISABLE_JIT:
+    # NUMBA_DISABLE_JIT=1 (tools.mutate's stage 1, debugging): the kernels run as plain
+    # Python, where ``numba.carray`` takes a ctypes pointer; an intrinsic is not callable there.
+    f8p = _ctypes_cast(ctypes.c_double)
+    i8p = _ctypes_cast(ctypes.c_int64)
+    u8p = _ctypes_cast(ctypes.c_uint8)
+else:
+    #: int64 address -> typed pointer (compiled code only): for ``carray(f8p(addr), (n,))``
+    f8p = intrinsic(_pointer_cast(types.float64))
+    i8p = intrinsic(_pointer_cast(types.int64))
+    u8p = intrinsic(_pointer_cast(types.uint8))
 
 
 def address_of(arr: np.ndarray, dtype, n: int) -> int:
