@@ -1,9 +1,9 @@
-"""tools/coordination.py - what the coordinated factors do, factor by factor (issue 15, point 2).
+"""tools/evidence/coordination.py - what the coordinated factors do, factor by factor (issue 15, point 2).
 
 One command flies every configuration of the study and writes its rows and a summary::
 
-    python -m tools.coordination --out runs/coord            # paper case + dispersed cases
-    python -m tools.coordination --out runs/coord --cases 0  # the paper case only (seconds)
+    python -m tools.evidence.coordination --out runs/coord            # paper case + dispersed cases
+    python -m tools.evidence.coordination --out runs/coord --cases 0  # the paper case only (seconds)
 
 A *configuration* is (factor set, reading, sideslip sign, rate-command limit):
 
@@ -18,7 +18,7 @@ A *configuration* is (factor set, reading, sideslip sign, rate-command limit):
 - ``SLW_OMC_MAX``: the 3 deg/s rate-command limit of deviation V1 and looser values.
 
 The paper case is flown in process with the law fed the plant's truth (tools.sitl.closed_loop,
-as docs/control_law.md's figures). Dispersed cases are those of ``tools.montecarlo`` (the
+as docs/control_law.md's figures). Dispersed cases are those of ``tools.evidence.montecarlo`` (the
 ``paper`` dispersion file, campaign seed ``--seed``; case i is the montecarlo's case i), flown
 with the sensors and the fc's estimator in the loop, as the montecarlo's closed-loop backend
 does; every configuration flies the same cases, so coordinated and uncoordinated are compared
@@ -160,7 +160,7 @@ def fly(cfg: Config, case: int | None, campaign_seed: int = 1, duration_s: float
 
 
 def _scenario_for(case, campaign_seed):
-    from tools.montecarlo import case as mc_case
+    from tools.evidence.montecarlo import case as mc_case
     if case is None:
         return mc_case._base_scenario("paper"), None, "truth"
     cc = _campaign_config(campaign_seed)
@@ -169,8 +169,8 @@ def _scenario_for(case, campaign_seed):
 
 
 def _campaign_config(campaign_seed: int):
-    from tools.montecarlo import dispersions as dsp
-    from tools.montecarlo.case import CampaignConfig
+    from tools.evidence.montecarlo import dispersions as dsp
+    from tools.evidence.montecarlo.case import CampaignConfig
     path = dsp.resolve_path("paper")
     return CampaignConfig(scenario="paper", dispersions_text=path.read_text(),
                           dispersions_name="paper", seed=int(campaign_seed))
@@ -210,7 +210,7 @@ def run_study(configs: list, cases: list, campaign_seed: int = 1, workers: int =
                 progress(k + 1, len(tasks))
         return rows
     from distributed import as_completed
-    from tools.montecarlo.campaign import cluster_client
+    from tools.evidence.montecarlo.campaign import cluster_client
     with cluster_client(workers) as client:
         futs = [client.submit(fly_chunk, c, cs, campaign_seed, pure=False) for c, cs in tasks]
         for k, fut in enumerate(as_completed(futs)):
@@ -355,12 +355,12 @@ def read_rows(path: Path) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.coordination", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.evidence.coordination", description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("runs/coord"),
                     help="output directory for the tables and JSON (default runs/coord)")
     ap.add_argument("--cases", type=int, default=200,
                     help="dispersed cases per configuration (0 = the paper case only; 200)")
-    ap.add_argument("--seed", type=int, default=1, help="tools.montecarlo campaign seed (1)")
+    ap.add_argument("--seed", type=int, default=1, help="tools.evidence.montecarlo campaign seed (1)")
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0 = in process)")
     ap.add_argument("--limits", default="3,5,10", help="SLW_OMC_MAX values, deg/s (3,5,10)")
     ap.add_argument("--dispersed-limits", default="3,5",
@@ -401,7 +401,7 @@ def main(argv=None) -> int:
     text = ["# Coordination study", "", "## Paper case (truth, steps)", "",
             paper_table(read_rows(a.out / "paper.csv"))]
     if (a.out / "dispersed.csv").exists():
-        text += ["", "## Dispersed cases (tools.montecarlo paper dispersions, sensors)", "",
+        text += ["", "## Dispersed cases (tools.evidence.montecarlo paper dispersions, sensors)", "",
                  dispersed_table(read_rows(a.out / "dispersed.csv"))]
     (a.out / "summary.md").write_text("\n".join(text) + "\n")
     print(f"wrote {a.out / 'summary.md'}")

@@ -1,4 +1,4 @@
-"""tools/envelope.py - the paper's fixed gains across the flight envelope (issue 15, point 5).
+"""tools/evidence/envelope.py - the paper's fixed gains across the flight envelope (issue 15, point 5).
 
 A grid of flight conditions (Mach x altitude) across the winged-cone's hypersonic corridor;
 at each point inside the dynamic-pressure corridor the paper's case is flown with the paper's
@@ -8,7 +8,7 @@ surfaces starting at the plant's moment trim of the initial state (``actuators.i
 "trim"``). Each point is first trimmed with ``plant_sim.trim.trim_at`` at the initial state and
 at the commanded one (alpha 5, beta 0 deg): a point whose commanded state cannot be trimmed
 within the surface limits is reported as such. Variants: uncoordinated, and coordinated with
-the factors of Eq. 14 and of Eq. 19 (readings set explicitly, tools.coordination.READINGS).
+the factors of Eq. 14 and of Eq. 19 (readings set explicitly, tools.evidence.coordination.READINGS).
 The law sees the plant's truth (as tools.sitl.closed_loop's paper-case figures). Each point is one
 Dask task (LocalCluster, ``--workers``; 0 = in this process).
 
@@ -18,10 +18,10 @@ a moment coefficient (scenario ``[disturbance] qbar_ref_Pa``, docs/plant.md s. 8
 paper's at the paper's dynamic pressure, proportional to the point's dynamic pressure elsewhere,
 as a gust or an asymmetry would be.
 
-    python -m tools.envelope --out runs/env                 # the full grid, map (a)
-    python -m tools.envelope --disturbance coefficient --out runs/env_b   # map (b)
-    python -m tools.envelope --quick --out runs/env_quick   # 2 x 2 points, a smoke test
-    python -m tools.envelope --out runs/env --plots-only --img docs/img   # pictures again
+    python -m tools.evidence.envelope --out runs/env                 # the full grid, map (a)
+    python -m tools.evidence.envelope --disturbance coefficient --out runs/env_b   # map (b)
+    python -m tools.evidence.envelope --quick --out runs/env_quick   # 2 x 2 points, a smoke test
+    python -m tools.evidence.envelope --out runs/env --plots-only --img docs/img   # pictures again
 
 Writes ``points.csv`` (one row per point and variant), ``envelope.json`` (grid, corridor,
 wall time) and heat maps (PNG) of overshoot, settling, saturation and divergence, and of
@@ -45,7 +45,7 @@ Q_MIN_PA = 10e3
 Q_MAX_PA = 300e3
 #: the issue-20 target corridor (the spec at >= 90 % of its points), kPa
 TARGET_Q_KPA = (24.0, 300.0)
-#: the paper's spec of the campaigns (tools/dispersions/paper.toml [spec])
+#: the paper's spec of the campaigns (tools/evidence/dispersions/paper.toml [spec])
 SPEC_OS_PCT = 10.0
 SPEC_TS_S = 5.0
 VARIANTS = {"unco": (False, "eq14"), "co_eq14": (True, "eq14"), "co_eq19": (True, "eq19")}
@@ -113,7 +113,7 @@ def fly_point(mach: float, h_m: float, duration_s: float = 20.0, variants=tuple(
               disturbance: str = "accel") -> list:
     """The Dask task: trim one point and fly each variant; one row per variant."""
     from tools.sitl.closed_loop import simulate
-    from tools.coordination import READINGS, run_metrics
+    from tools.evidence.coordination import READINGS, run_metrics
     v, q = flight_condition(mach, h_m)
     base = {"mach": float(mach), "h_km": h_m / 1e3, "V_m_s": v, "qbar_kPa": q / 1e3}
     try:
@@ -160,7 +160,7 @@ def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20
             rows += fly_point(m, h, duration_s, variants, disturbance)
     else:
         from distributed import as_completed
-        from tools.montecarlo.campaign import cluster_client
+        from tools.evidence.montecarlo.campaign import cluster_client
         with cluster_client(workers) as client:
             futs = [client.submit(fly_point, m, h, duration_s, variants, disturbance, pure=False)
                     for m, h in pts]
@@ -168,7 +168,7 @@ def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20
                 rows += fut.result()
     wall = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
-    from tools.coordination import write_rows
+    from tools.evidence.coordination import write_rows
     write_rows(out / "points.csv", rows)
     info = {"mach": machs.tolist(), "h_m": hs.tolist(), "points": len(pts), "runs": len(rows),
             "q_corridor_Pa": [Q_MIN_PA, Q_MAX_PA], "workers": workers, "wall_s": wall,
@@ -179,7 +179,7 @@ def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20
 
 
 def read_points(path: Path) -> list[dict]:
-    from tools.coordination import read_csv_rows
+    from tools.evidence.coordination import read_csv_rows
     return read_csv_rows(path, ("variant", "error"))
 
 
@@ -360,7 +360,7 @@ def summary(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.envelope",
+    ap = argparse.ArgumentParser(prog="python -m tools.evidence.envelope",
                                  description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("runs/env"),
                     help="output directory for the grid results (default runs/env)")

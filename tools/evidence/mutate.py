@@ -1,9 +1,9 @@
 """Mutation testing of the control law: does a wrong law fail the law's tests?
 
-    python -m tools.mutate                       # the law's modules, fast unit tests, report
-    python -m tools.mutate --quick               # 10 mutants, ~12 s of CPU (run by the tests)
-    python -m tools.mutate --list                # the mutants only, no test run
-    python -m tools.mutate --jit-tests "test_closed_loop.py::test_documented_figures[paper-co-steps-truth]"
+    python -m tools.evidence.mutate                       # the law's modules, fast unit tests, report
+    python -m tools.evidence.mutate --quick               # 10 mutants, ~12 s of CPU (run by the tests)
+    python -m tools.evidence.mutate --list                # the mutants only, no test run
+    python -m tools.evidence.mutate --jit-tests "test_closed_loop.py::test_documented_figures[paper-co-steps-truth]"
 
 Each mutant is ONE change to the source of a law module (default: every module of
 ``TARGETS``, fc/control/slow_loop.py, fast_loop.py, factors.py, ...), inside the functions
@@ -49,7 +49,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: The law's modules and, in each, the functions that carry the paper's equations (and their
 #: helpers). solve3 and det3 (3x3 algebra, checked against numpy) are available with
@@ -458,7 +458,7 @@ def _run_worker(work: Path, tests, items, timeout_s: float, on_result):
     env = dict(os.environ, PYTHONPATH=str(work), PYTHONDONTWRITEBYTECODE="1",
                NUMBA_DISABLE_JIT="1")
     by_key = {_key(m): m for m, _ in items}
-    proc = subprocess.Popen([sys.executable, "-m", "tools.mutate", "--worker", str(job)],
+    proc = subprocess.Popen([sys.executable, "-m", "tools.evidence.mutate", "--worker", str(job)],
                             cwd=work, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True)
     for line in proc.stdout:
@@ -547,7 +547,7 @@ def _commit() -> str:
 
 
 def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: float,
-           kinds=KINDS, command: str = "python -m tools.mutate") -> str:
+           kinds=KINDS, command: str = "python -m tools.evidence.mutate") -> str:
     n = len(mutants)
     killed = [m for m in mutants if m.verdict == "killed"]
     surv = [m for m in mutants if m.verdict == "survived"]
@@ -575,7 +575,7 @@ def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: f
         out.append(f"| {k} | {a} | {b} |")
     named = [m for m in mutants if m.kind == "named"]
     if named:
-        out += ["", "## Hand-made mutants (`tools.mutate.NAMED`)", "",
+        out += ["", "## Hand-made mutants (`tools.evidence.mutate.NAMED`)", "",
                 "| line | wrong law | change | verdict |", "|---|---|---|---|"]
         for m in named:
             out.append(f"| {m.file}:{m.line} | {m.equation} | `{m.change}` | {m.verdict} |")
@@ -599,7 +599,7 @@ def report(targets: dict, mutants, tests, jit_tests, equivalent: dict, wall_s: f
 
 def main(argv=None) -> int:
     """Exit status 0 when every mutant is killed or judged equivalent, 1 otherwise."""
-    ap = argparse.ArgumentParser(prog="python -m tools.mutate", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.evidence.mutate", description=__doc__.split("\n")[0])
     ap.add_argument("--files", nargs="+", default=list(TARGETS),
                     help="modules to mutate, relative to the project root (default: TARGETS)")
     ap.add_argument("--tests", nargs="+", default=list(DEFAULT_TESTS),
@@ -651,7 +651,7 @@ def main(argv=None) -> int:
               for m in mutants)
     report_path = a.report or (None if a.quick else ROOT / "docs" / "mutation_report.md")
     if report_path is not None:
-        command = "python -m tools.mutate" + "".join(
+        command = "python -m tools.evidence.mutate" + "".join(
             f" {x}" if x.startswith("-") or " " not in x else f' "{x}"'
             for x in (sys.argv[1:] if argv is None else argv))
         text = report(targets if not a.quick else {m.file: () for m in mutants}, mutants,

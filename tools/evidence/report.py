@@ -1,9 +1,9 @@
-"""tools/report.py - the README's and the docs' headline tables, written from the runs' JSON.
+"""tools/evidence/report.py - the README's and the docs' headline tables, written from the runs' JSON.
 
-    python -m tools.report import-hil runs/<run> --as hil_paper --command "python -m tools.hil run"
-    python -m tools.report import-mc runs/mc-paper --as mc_paper --command "python -m tools.montecarlo ..."
-    python -m tools.report write          # rewrite every generated table from docs/data/*.json
-    python -m tools.report check          # exit 1 if a committed table differs from its data
+    python -m tools.evidence.report import-hil runs/<run> --as hil_paper --command "python -m tools.hil run"
+    python -m tools.evidence.report import-mc runs/mc-paper --as mc_paper --command "python -m tools.evidence.montecarlo ..."
+    python -m tools.evidence.report write          # rewrite every generated table from docs/data/*.json
+    python -m tools.evidence.report check          # exit 1 if a committed table differs from its data
 
 A run's figures reach the documents in two steps, and no figure is typed by hand:
 1. ``import-hil`` / ``import-mc`` copy a run's ``summary.json`` (the main job's, or a
@@ -25,7 +25,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA_DIR = "docs/data"
 #: documents that may hold generated blocks
 DOCUMENTS = ("README.md", "docs/coordination.md", "docs/montecarlo.md", "docs/metrics.md",
@@ -106,7 +106,7 @@ def _f(x, fmt: str) -> str:
 
 
 def _caption(d: dict, source: str) -> str:
-    return (f"*Written by `python -m tools.report` from `{DATA_DIR}/{source}.json`: "
+    return (f"*Written by `python -m tools.evidence.report` from `{DATA_DIR}/{source}.json`: "
             f"`{d['command']}`, commit {d['commit']}, {d['created_utc'][:16].replace('T', ' ')}"
             f" UTC.*")
 
@@ -261,7 +261,7 @@ def claim_mc_surfaces(root: Path = ROOT) -> str:
             f"left-elevon peak in {sh('peak_left_elevon_deg', 'coordinated_larger_share')}; "
             f"the rate-command limit is active longer in "
             f"{sh('rate_cmd_limited_s', 'coordinated_larger_share')} (`{d['command']}`, "
-            f"commit {d['commit']}, `python -m tools.report`).")
+            f"commit {d['commit']}, `python -m tools.evidence.report`).")
 
 
 #: block name -> the function that renders it
@@ -280,7 +280,7 @@ def render(text: str, root: Path = ROOT) -> tuple[str, list[str]]:
     def sub(m):
         name = m.group("name")
         if name not in TABLES:
-            raise KeyError(f"unknown generated table {name!r} (tools.report.TABLES)")
+            raise KeyError(f"unknown generated table {name!r} (tools.evidence.report.TABLES)")
         names.append(name)
         return m.group(1) + TABLES[name](root) + "\n" + m.group(4)
 
@@ -319,7 +319,7 @@ def write(root: Path = ROOT) -> list[str]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.report",
+    ap = argparse.ArgumentParser(prog="python -m tools.evidence.report",
                                  description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     for kind in ("hil", "mc"):

@@ -184,7 +184,7 @@ def build_summary(run_dir: Path, meta: dict, plots: bool = True) -> tuple[dict, 
     (run_dir / "summary.txt").write_text(format_table(summary) + "\n")
     written = []
     if plots and plot_runs:
-        from tools import plots as plotmod
+        from tools.sitl import plots as plotmod
         written = plotmod.write_all(plot_runs, meta, run_dir)
     return summary, written
 

@@ -5,7 +5,7 @@ log (``plant_sim.truthlog.load``), the controller's internals log (``fc.internal
 ``plant_summary.json`` and the command timeline actually flown (``timeline.toml``), and builds
 
 - the per-variant entry of ``summary.json`` (docs/metrics.md), and
-- the normalised arrays ``tools.plots`` draws (SI, names with units).
+- the normalised arrays ``tools.sitl.plots`` draws (SI, names with units).
 
 ``python -m tools.hil report RUN_DIR`` is this module applied to every variant of a run.
 """

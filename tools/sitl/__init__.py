@@ -12,7 +12,7 @@ Modules (imported explicitly; importing the package imports nothing):
 - ``metrics``: step-response and surface metrics (docs/metrics.md) of summary.json and the
   campaigns.
 
-Direction: tools.sitl imports fc, plant_sim and the link-impairment relay (tools.linkimpair)
+Direction: tools.sitl imports fc, plant_sim and the link-impairment relay (tools.sitl.linkimpair)
 only; the command lines (``python -m tools.X``) import tools.sitl, never the reverse
 (tests/unit/test_architecture.py).
 """

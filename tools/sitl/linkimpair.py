@@ -1,4 +1,4 @@
-"""tools/linkimpair.py - a seeded UDP impairment relay (loss, delay, jitter, duplicates, reordering).
+"""tools/sitl/linkimpair.py - a seeded UDP impairment relay (loss, delay, jitter, duplicates, reordering).
 
 The relay sits between a *client* that sends first (the plant, a ground station) and a
 *server* that binds and answers whoever writes to it (the fc):
@@ -29,7 +29,7 @@ same traffic give the same decisions. Per datagram, in this order:
   frame being answered (``time_usec``), so the plant applies at frame k the fc's answer to
   frame k - N (the first N frames get the first answer). Applied before the other impairments;
   a datagram that is not exactly one SERVO_OUTPUT_RAW passes unchanged. Counted as
-  ``frame_delayed``. Used by ``tools.margins wire`` (time-delay margin over the wire).
+  ``frame_delayed``. Used by ``tools.evidence.margins wire`` (time-delay margin over the wire).
 
 Counters per direction (``received, dropped, duplicated, reordered, delivered, send_errors``)
 are exact counts of what the relay did (``reordered`` = held datagrams actually overtaken), so
@@ -38,9 +38,9 @@ tests can check rates against the seed.
 Command line (runs until SIGINT/SIGTERM, prints ``LISTEN HOST:PORT`` once bound and one JSON
 line of counters at exit)::
 
-    python -m tools.linkimpair --listen 127.0.0.1:14570 --target 127.0.0.1:14560 \\
+    python -m tools.relay --listen 127.0.0.1:14570 --target 127.0.0.1:14560 \\
         --loss 0.05 --jitter-ms 5 --dup 0.01 --reorder 0.01 [--down-loss ...] --seed 1
-    python -m tools.linkimpair --listen ... --target ... --down-delay-frames 20   # lockstep
+    python -m tools.relay --listen ... --target ... --down-delay-frames 20   # lockstep
 
 ``--loss/--delay-ms/--jitter-ms/--dup/--reorder`` set both directions; ``--up-*`` and
 ``--down-*`` override one direction. From Python::
@@ -438,7 +438,7 @@ class LinkImpair:
 
 
 class RelayProcess:
-    """The relay as a separate process (``python -m tools.linkimpair``), context manager.
+    """The relay as a separate process (``python -m tools.relay``), context manager.
 
     Keeps the relay's work off the caller's interpreter (GIL) in timing-sensitive tests.
     ``listen_address`` is known after start; ``counters`` after stop (the JSON line).
@@ -447,7 +447,7 @@ class RelayProcess:
     def __init__(self, target: tuple[str, int], up: Impairment | None = None,
                  down: Impairment | None = None, seed: int = 0,
                  listen: tuple[str, int] = ("127.0.0.1", 0), start_timeout_s: float = 20.0):
-        self.argv = [sys.executable, "-m", "tools.linkimpair",
+        self.argv = [sys.executable, "-m", "tools.relay",
                      "--listen", f"{listen[0]}:{listen[1]}",
                      "--target", f"{target[0]}:{target[1]}", "--seed", str(seed)]
         for prefix, imp in (("up", up or Impairment()), ("down", down or Impairment())):
@@ -506,7 +506,7 @@ def _impairment(args, prefix: str) -> Impairment:
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.linkimpair",
+        prog="python -m tools.relay",
         description="Seeded UDP impairment relay: the client sends to --listen, the relay "
                     "forwards to --target and relays the replies back. Prints LISTEN HOST:PORT "
                     "when bound; SIGINT/SIGTERM print the counters as one JSON line and exit 0.")
@@ -570,6 +570,3 @@ def main(argv: list[str] | None = None) -> int:
     relay.up_sock.close()
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

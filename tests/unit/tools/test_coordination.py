@@ -1,4 +1,4 @@
-"""tools/coordination.py: the study's switches reach the law (issue 15, point 2)."""
+"""tools/evidence/coordination.py: the study's switches reach the law (issue 15, point 2)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""tools/envelope.py: the grid, its trim and its verdicts (issue 15, point 5)."""
+"""tools/evidence/envelope.py: the grid, its trim and its verdicts (issue 15, point 5)."""
 from __future__ import annotations
 
 import math

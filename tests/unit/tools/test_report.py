@@ -1,4 +1,4 @@
-"""tools.report: the README's and the docs' generated tables agree with their committed data."""
+"""tools.evidence.report: the README's and the docs' generated tables agree with their committed data."""
 from __future__ import annotations
 
 import json
@@ -11,7 +11,7 @@ from tools import report
 
 def test_committed_tables_match_their_data():
     """Every ``<!-- report:NAME -->`` block of the documents is what its docs/data/*.json
-    renders today (run ``python -m tools.report write`` after importing a new run)."""
+    renders today (run ``python -m tools.evidence.report write`` after importing a new run)."""
     blocks = []
     for doc in report.DOCUMENTS:
         path = report.ROOT / doc

@@ -1,6 +1,6 @@
 """The gain-scheduled law (the default since issue 20) flies the paper's case across the
 corridor: in process, the fc's estimator on the scenario's seeded sensor noise, the paper's
-d(t) as a moment coefficient (tools.envelope map b: it scales with dynamic pressure).
+d(t) as a moment coefficient (tools.evidence.envelope map b: it scales with dynamic pressure).
 
 Measured (seed 3, 20 s; overshoot % / final error deg, worst channel), scheduled vs the
 paper's fixed gains (CTL_SCHED 0):
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from tools.envelope import point_scenario
+from tools.evidence.envelope import point_scenario
 from tools.sitl.closed_loop import simulate
 
 POINTS = [(8.0, 26e3), (7.5, 28e3), (8.0, 30e3)]

@@ -1,5 +1,5 @@
-"""tools/margins_flight.py - one injected flight and its stability verdict, shared by
-tools.margins (in process) and tools.margins_wire (over the wire), which import this module
+"""tools/evidence/margins/flight.py - one injected flight and its stability verdict, shared by
+tools.evidence.margins (in process) and tools.evidence.margins.wire (over the wire), which import this module
 and not each other (tests/unit/test_architecture.py: no import cycle)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""tools/margins.py - gain, phase and time-delay margins of the nonlinear law (issue 15, point 4).
+"""tools/evidence/margins/inproc.py - gain, phase and time-delay margins of the nonlinear law (issue 15, point 4).
 
 The loop is broken at the actuator input, one channel at a time, as an autopilot is certified:
 the law's surface command is split into three *virtual* channels
@@ -23,12 +23,12 @@ plant's actuators, in closed-loop simulation of the full nonlinear law against t
   crossover |L| = 1 with its phase margin, and the gain margin at the -180 deg crossing.
 
 Over the wire (``wire`` subcommand): the same delay, but between the two processes in
-lockstep: tools.linkimpair's ``delay_frames`` holds the fc's SERVO_OUTPUT_RAW answers N frames
+lockstep: tools.sitl.linkimpair's ``delay_frames`` holds the fc's SERVO_OUTPUT_RAW answers N frames
 and re-stamps them, so the plant applies at frame k the fc's answer to frame k - N (exactly the
 in-process ring buffer).
 
-    python -m tools.margins --out runs/margins              # in process, both variants
-    python -m tools.margins wire --frames 20,40 --out runs/margins_wire
+    python -m tools.evidence.margins --out runs/margins              # in process, both variants
+    python -m tools.evidence.margins wire --frames 20,40 --out runs/margins_wire
 
 The case: the paper's (scenario ``paper``, uncertainty on, steps) at 1 kHz frames (1 ms delay
 resolution, law at 500/100 Hz), with the paper's sinusoidal disturbance OFF (``--disturbance``
@@ -50,7 +50,7 @@ from numba import njit
 from fc.control import layout as L
 from plant_sim import dynamics as dy
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, truth_kernel
-from tools.margins_flight import Flight, stable
+from tools.evidence.margins.flight import Flight, stable
 from tools.sitl.closed_loop import law_frame
 
 from hyfc_wire.numba_cache import drop_stale
@@ -58,8 +58,9 @@ from hyfc_wire.numba_cache import drop_stale
 # _loop inlines the law's and the plant's kernels (numba links a callee into its caller's
 # cache and checks only the caller's file): recompile when any of them changed. Without it,
 # a parameter slot that moved (a parameter added before it) was read from its old index.
-_ROOT = Path(__file__).resolve().parents[1]
-drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire", "tools/sitl")
+_ROOT = Path(__file__).resolve().parents[3]
+drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire", "tools/sitl",
+                                   "tools/sitl/closed_loop")
                       for f in (_ROOT / pkg).glob("*.py")])
 
 CHANNELS = ("roll", "pitch", "yaw")
@@ -214,13 +215,13 @@ def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: s
     """The paper's scenario at ``frame_hz`` frames, its disturbance on or off, its sensor noise
     on or off (the noise only matters over the wire, where the fc estimates from sensors);
     ``point`` = (Mach, altitude m): flown there instead, surfaces starting at the initial trim
-    (tools.envelope.point_scenario); ``initial_beta_deg``: the initial sideslip instead of the
+    (tools.evidence.envelope.point_scenario); ``initial_beta_deg``: the initial sideslip instead of the
     scenario's (where the paper's 5 deg cannot be trimmed within the surfaces' limits)."""
     from plant_sim.scenario import load, parse
     if point is None:
         sc = load(base)
     else:
-        from tools.envelope import point_scenario
+        from tools.evidence.envelope import point_scenario
         sc = point_scenario(float(point[0]), float(point[1]), base)
     d = copy.deepcopy(sc.data)
     d["timing"]["frame_hz"] = float(frame_hz)
@@ -536,7 +537,7 @@ def grid_table(dirs) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.margins", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.evidence.margins", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd")
     ap.add_argument("--out", type=Path, default=Path("runs/margins"),
                     help="output directory (default runs/margins)")
@@ -581,7 +582,7 @@ def main(argv=None) -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":
         sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
-        from tools.margins_wire import wire_delay_runs
+        from tools.evidence.margins.wire import wire_delay_runs
         if a.realtime_ms is not None:
             return wire_delay_runs(sc, [float(x) for x in a.realtime_ms.split(",")], a.out,
                                    a.variant, ov, realtime=True)
@@ -640,6 +641,3 @@ def main(argv=None) -> int:
     print(f"wall {time.perf_counter() - t0:.0f} s")
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

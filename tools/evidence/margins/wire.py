@@ -1,7 +1,7 @@
-"""tools/margins_wire.py - the time-delay margin over the wire (tools.margins ``wire``).
+"""tools/evidence/margins/wire.py - the time-delay margin over the wire (tools.evidence.margins ``wire``).
 
 Lockstep (default): the two processes fly in lockstep (tools.hil.runner.run_variant, the main
-job's machinery) with tools.linkimpair's frame delay between them: the plant applies at frame
+job's machinery) with tools.sitl.linkimpair's frame delay between them: the plant applies at frame
 k the fc's answer to frame k - N. Real time (``realtime=True``): the two processes fly in real
 time and the relay holds each fc -> plant datagram (SERVO_OUTPUT_RAW) N wall-clock ms
 (``Impairment(delay_s=...)``); the plant applies the newest answer at its next frame boundary,
@@ -9,7 +9,7 @@ so the loop sees N ms plus up to one frame plus the link's latency, and the load
 matters (each row records the load average).
 
 The relay runs inside the plant's process: the runner starts the plant as
-``python -m tools.margins_wire --delay-frames N -- <plant arguments>`` (or ``--delay-ms X``),
+``python -m tools.evidence.margins.wire --delay-frames N -- <plant arguments>`` (or ``--delay-ms X``),
 which starts the relay toward the fc's port (the plant's ``--fc``), points the plant at the
 relay, and runs the plant's own main (lockstep: the relay thread costs speed, never results).
 """
@@ -29,10 +29,10 @@ def plant_with_relay(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     cut = argv.index("--") if "--" in argv else len(argv)
     ap = argparse.ArgumentParser(
-        prog="python -m tools.margins_wire",
-        usage="python -m tools.margins_wire --delay-frames N -- <plant_sim arguments>",
+        prog="python -m tools.evidence.margins.wire",
+        usage="python -m tools.evidence.margins.wire --delay-frames N -- <plant_sim arguments>",
         description="The plant with a lockstep frame-delay relay toward its --fc "
-                    "(tools.margins wire starts it).")
+                    "(tools.evidence.margins wire starts it).")
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--delay-frames", type=int,
                    help="lockstep: the plant applies at frame k the fc's answer to frame k - N")
@@ -42,7 +42,7 @@ def plant_with_relay(argv=None) -> int:
     plant_argv = argv[cut + 1:]
     if "--fc" not in plant_argv:
         ap.error("the plant's arguments after -- must name --fc HOST:PORT")
-    from tools.linkimpair import Impairment, LinkImpair, parse_hostport
+    from tools.sitl.linkimpair import Impairment, LinkImpair, parse_hostport
     i = plant_argv.index("--fc")
     target = parse_hostport(plant_argv[i + 1])
     down = (Impairment(delay_frames=a.delay_frames) if a.delay_frames is not None
@@ -64,11 +64,11 @@ def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinat
                     realtime: bool = False) -> int:
     """Fly ``scenario`` over the wire with each extra delay in ``frames`` (lockstep frames, or
     with ``realtime`` wall-clock ms); print and write ``out/wire.md`` / ``wire.json`` with the
-    stability verdict of each (tools.margins_flight.stable)."""
+    stability verdict of each (tools.evidence.margins.flight.stable)."""
     import os
     from tools.hil import rundata
     from tools.hil.runner import RunConfig, run_variant
-    from tools.margins_flight import stable
+    from tools.evidence.margins.flight import stable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scen_path = out / "scenario.toml"
@@ -91,7 +91,7 @@ def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinat
         cfg = RunConfig(scenario=str(scen_path), mode="realtime" if realtime else "lockstep",
                         variants=(variant,), out_dir=out, duration_s=duration_s,
                         seed=int(scenario.seed), quiet=True, params_file=params,
-                        plant_cmd=(sys.executable, "-m", "tools.margins_wire", *relay, "--"))
+                        plant_cmd=(sys.executable, "-m", "tools.evidence.margins.wire", *relay, "--"))
         load0 = os.getloadavg()[0]
         res = run_variant(cfg, variant, vdir, commands, str(scen_path), threading.Event())
         if realtime:
@@ -136,9 +136,9 @@ def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinat
 
 
 def truth_flight(vdir: Path, cmd_rad: np.ndarray, frame_dt_s: float):
-    """A tools.margins_flight.Flight from a run directory's plant truth log."""
+    """A tools.evidence.margins.flight.Flight from a run directory's plant truth log."""
     from plant_sim.truthlog import load
-    from tools.margins_flight import Flight
+    from tools.evidence.margins.flight import Flight
     tr = load(str(Path(vdir) / "truth.npz"))
     att = np.column_stack([tr["alpha_rad"], tr["beta_rad"], tr["mu_rad"]])
     rate = np.column_stack([tr["p_rad_s"], tr["q_rad_s"], tr["r_rad_s"]])

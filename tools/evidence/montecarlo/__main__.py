@@ -1,12 +1,12 @@
 """Command line of the robustness campaigns (docs/montecarlo.md).
 
-    python -m tools.montecarlo --scenario NAME --runs N [--variant coordinated|uncoordinated|both]
+    python -m tools.evidence.montecarlo --scenario NAME --runs N [--variant coordinated|uncoordinated|both]
                                [--dispersions NAME|FILE] [--workers K] [--scheduler ADDRESS]
                                [--connect-timeout S]
                                [--out DIR] [--seed S] [--hil] [--duration S] [--spec FILE]
-    python -m tools.montecarlo rerun OUT_DIR --case I [--variant V] [--out DIR]
-    python -m tools.montecarlo summary OUT_DIR [--spec FILE] [--no-plots]
-    python -m tools.montecarlo compare DIR_A DIR_B
+    python -m tools.evidence.montecarlo rerun OUT_DIR --case I [--variant V] [--out DIR]
+    python -m tools.evidence.montecarlo summary OUT_DIR [--spec FILE] [--no-plots]
+    python -m tools.evidence.montecarlo compare DIR_A DIR_B
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from tools.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo import dispersions as dsp
 
 
 def _variants(s: str) -> tuple[str, ...]:
@@ -61,7 +61,7 @@ def load_spec(path: str | None, default: dict) -> dict:
 
 def _run_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m tools.montecarlo",
+        prog="python -m tools.evidence.montecarlo",
         description="Monte Carlo robustness campaign: dispersed cases of a scenario flown by "
                     "the coordinated and/or uncoordinated controller, as tasks on Dask "
                     "distributed. Other commands: 'rerun OUT_DIR --case I', "
@@ -72,7 +72,7 @@ def _run_parser() -> argparse.ArgumentParser:
     p.add_argument("--variant", type=_variants, default=_variants("both"),
                    help="coordinated, uncoordinated or both (default both)")
     p.add_argument("--dispersions", default="paper",
-                   help="shipped name (tools/dispersions/NAME.toml) or path (default paper)")
+                   help="shipped name (tools/evidence/dispersions/NAME.toml) or path (default paper)")
     p.add_argument("--workers", type=_positive_int, default=None,
                    help="LocalCluster worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None,
@@ -99,9 +99,9 @@ def _run_parser() -> argparse.ArgumentParser:
 
 
 def _finish(out_dir: Path, cfg, spec: dict, plots: bool, quiet: bool, extra_meta=None) -> dict:
-    from tools.montecarlo import plots as mcplots
-    from tools.montecarlo import results, summary
-    from tools.montecarlo.case import command_timeline_deg, dispersions_of
+    from tools.evidence.montecarlo import plots as mcplots
+    from tools.evidence.montecarlo import results, summary
+    from tools.evidence.montecarlo.case import command_timeline_deg, dispersions_of
     disp = dispersions_of(cfg)
     meta = {"scenario": cfg.scenario, "dispersions": cfg.dispersions_name, "seed": cfg.seed,
             "backend": cfg.backend, "variants": list(cfg.variants),
@@ -126,8 +126,8 @@ def _finish(out_dir: Path, cfg, spec: dict, plots: bool, quiet: bool, extra_meta
 
 
 def main_run(argv) -> int:
-    from tools.montecarlo.campaign import CampaignError, run_campaign
-    from tools.montecarlo.case import CampaignConfig
+    from tools.evidence.montecarlo.campaign import CampaignError, run_campaign
+    from tools.evidence.montecarlo.case import CampaignConfig
     args = _run_parser().parse_args(argv)
     if args.scheduler and args.workers:
         print("error: --workers sizes the local cluster; with --scheduler the existing "
@@ -177,9 +177,9 @@ def main_run(argv) -> int:
 
 
 def main_summary(argv) -> int:
-    from tools.montecarlo.campaign import CampaignError, load_manifest
-    from tools.montecarlo.case import dispersions_of
-    p = argparse.ArgumentParser(prog="python -m tools.montecarlo summary",
+    from tools.evidence.montecarlo.campaign import CampaignError, load_manifest
+    from tools.evidence.montecarlo.case import dispersions_of
+    p = argparse.ArgumentParser(prog="python -m tools.evidence.montecarlo summary",
                                 description="Summary, table and plots of a campaign directory "
                                             "(recomputed from its rows).")
     p.add_argument("out_dir", help="campaign directory")
@@ -197,9 +197,9 @@ def main_summary(argv) -> int:
 
 
 def main_rerun(argv) -> int:
-    from tools.montecarlo.campaign import CampaignError
-    from tools.montecarlo.rerun import rerun
-    p = argparse.ArgumentParser(prog="python -m tools.montecarlo rerun",
+    from tools.evidence.montecarlo.campaign import CampaignError
+    from tools.evidence.montecarlo.rerun import rerun
+    p = argparse.ArgumentParser(prog="python -m tools.evidence.montecarlo rerun",
                                 description="Re-run one case of a campaign alone, with full "
                                             "logs and the main job's plots.")
     p.add_argument("out_dir", help="campaign directory")
@@ -218,9 +218,9 @@ def main_rerun(argv) -> int:
 
 
 def main_compare(argv) -> int:
-    from tools.montecarlo.campaign import CampaignError
-    from tools.montecarlo.compare import compare, table
-    p = argparse.ArgumentParser(prog="python -m tools.montecarlo compare",
+    from tools.evidence.montecarlo.campaign import CampaignError
+    from tools.evidence.montecarlo.compare import compare, table
+    p = argparse.ArgumentParser(prog="python -m tools.evidence.montecarlo compare",
                                 description="Compare two campaigns case by case (e.g. a --hil "
                                             "subset against the in-process campaign).")
     p.add_argument("dir_a", help="first campaign directory")

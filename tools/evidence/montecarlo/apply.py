@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from tools.montecarlo.dispersions import DispersionError
+from tools.evidence.montecarlo.dispersions import DispersionError
 
 _SET = {
     "mass.x_cg_m": "vehicle.x_cg_m",
@@ -122,10 +122,10 @@ def fly_closed_loop(scenario, variant: str, duration_s, sim_seed: int, law_overr
 def flight_from_result(res, full: bool = False):
     """A ``case.Flight`` from a ``tools.sitl.closed_loop.ClosedLoopResult``.
 
-    With ``full``, ``Flight.full`` holds the arrays ``tools.plots`` draws (rates, surfaces,
+    With ``full``, ``Flight.full`` holds the arrays ``tools.sitl.plots`` draws (rates, surfaces,
     limits) plus the plant's truth and the law's status with their column names.
     """
-    from tools.montecarlo.flight import Flight
+    from tools.evidence.montecarlo.flight import Flight
     fl = Flight(t_s=res.t_s, alpha_rad=res.alpha_rad, beta_rad=res.beta_rad, mu_rad=res.mu_rad,
                 cmd_t_s=np.asarray(res.cmd_t_s, float), cmd_rad=np.asarray(res.cmd_rad, float),
                 diverged=bool(res.diverged), surfaces=res.surface_figures())

@@ -22,9 +22,9 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tools.montecarlo import results
-from tools.montecarlo.case import CampaignConfig, code_fingerprint, dispersions_of, run_case
-from tools.montecarlo.progress import Progress
+from tools.evidence.montecarlo import results
+from tools.evidence.montecarlo.case import CampaignConfig, code_fingerprint, dispersions_of, run_case
+from tools.evidence.montecarlo.progress import Progress
 
 MANIFEST = "campaign.json"
 
@@ -104,8 +104,8 @@ def check_applicable(cfg: CampaignConfig) -> None:
     if cfg.backend == "standin":
         return
     from plant_sim.scenario import ScenarioError
-    from tools.montecarlo.case import case_values, dispersed_scenario
-    from tools.montecarlo.dispersions import DispersionError
+    from tools.evidence.montecarlo.case import case_values, dispersed_scenario
+    from tools.evidence.montecarlo.dispersions import DispersionError
     values, _ = case_values(cfg, 0)
     try:
         dispersed_scenario(cfg, values)

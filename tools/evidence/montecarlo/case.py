@@ -2,14 +2,14 @@
 
 :func:`run_case` is the Dask task: a pure function of ``(config, case index)``; everything it
 draws comes from the campaign seed and the index (``dispersions.variable_rng``,
-``dispersions.case_sim_seed``), so a case re-run alone (``python -m tools.montecarlo rerun``)
+``dispersions.case_sim_seed``), so a case re-run alone (``python -m tools.evidence.montecarlo rerun``)
 gives the same rows.
 
 A *backend* flies one variant of one dispersed case and returns its attitude history:
 
 - ``closed_loop`` (default): ``tools.sitl.closed_loop.simulate``, the product's control law flying
   the product's plant in process (same code as the two-process product, without UDP);
-- ``hil``: the two processes over loopback UDP (``tools.montecarlo.hil``), a faithful subset;
+- ``hil``: the two processes over loopback UDP (``tools.evidence.montecarlo.hil``), a faithful subset;
 - ``standin``: a cheap decoupled second-order model, **not a flight simulation**: it exists
   only to exercise the campaign machinery (tests of resumption, summaries, plots) in a few
   milliseconds. A campaign run with it says so in every row and in its summary.
@@ -32,8 +32,8 @@ from dataclasses import dataclass, field, asdict
 import numpy as np
 
 from tools.sitl import metrics as mt
-from tools.montecarlo import dispersions as dsp
-from tools.montecarlo.flight import Flight
+from tools.evidence.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo.flight import Flight
 
 CHANNELS = ("alpha", "beta", "mu")
 VARIANTS = ("coordinated", "uncoordinated")
@@ -179,7 +179,7 @@ def dispersed_scenario(cfg: CampaignConfig, values: dict):
     case. The Scenario is not modified by the flights (plant_sim.sim.PlantSim reads it)."""
     key = (cfg.scenario, tuple(sorted((k, float(v)) for k, v in values.items())))
     if _last_dispersed[0] != key:
-        from tools.montecarlo import apply
+        from tools.evidence.montecarlo import apply
         _last_dispersed[:] = [key, apply.apply(_base_scenario(cfg.scenario), values)]
     return _last_dispersed[1]
 
@@ -189,7 +189,7 @@ _last_dispersed: list = [None, None]
 
 def _closed_loop_flight(cfg: CampaignConfig, values: dict, variant: str, sim_seed: int,
                         full: bool) -> Flight:
-    from tools.montecarlo import apply
+    from tools.evidence.montecarlo import apply
     scen = dispersed_scenario(cfg, values)
     return apply.fly_closed_loop(scen, variant, cfg.duration_s, sim_seed, cfg.law_overrides,
                                  full=full)
@@ -197,7 +197,7 @@ def _closed_loop_flight(cfg: CampaignConfig, values: dict, variant: str, sim_see
 
 def _hil_flight(cfg: CampaignConfig, values: dict, variant: str, sim_seed: int,
                 full: bool, log_dir=None) -> Flight:
-    from tools.montecarlo import hil
+    from tools.evidence.montecarlo import hil
     scen = dispersed_scenario(cfg, values)
     return hil.fly(scen, variant, cfg.duration_s, sim_seed, cfg.law_overrides, full=full,
                    keep_dir=log_dir)
@@ -312,9 +312,9 @@ def command_timeline_deg(cfg: CampaignConfig) -> tuple[np.ndarray, np.ndarray]:
 
 #: the sources whose contents decide a case's result (fingerprinted into campaign.json)
 _CODE_GLOBS = ("hyfc_wire/*.py", "fc/control/*.py", "fc/control/data/*", "plant_sim/*.py",
-               "plant_sim/scenarios/*", "tools/sitl/closed_loop.py", "tools/sitl/metrics.py",
-               "tools/montecarlo/case.py", "tools/montecarlo/apply.py",
-               "tools/montecarlo/dispersions.py", "tools/montecarlo/flight.py")
+               "plant_sim/scenarios/*", "tools/sitl/closed_loop/core.py", "tools/sitl/metrics.py",
+               "tools/evidence/montecarlo/case.py", "tools/evidence/montecarlo/apply.py",
+               "tools/evidence/montecarlo/dispersions.py", "tools/evidence/montecarlo/flight.py")
 
 
 def code_fingerprint() -> str:
@@ -324,7 +324,7 @@ def code_fingerprint() -> str:
     and its re-run can be told apart from a change of the code in between.
     """
     from pathlib import Path
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     h = hashlib.sha256()
     for pattern in _CODE_GLOBS:
         for f in sorted(root.glob(pattern)):

@@ -1,6 +1,6 @@
 """Compare two campaigns case by case (e.g. a ``--hil`` subset against the in-process run).
 
-``python -m tools.montecarlo compare DIR_A DIR_B``: for every (case, variant) present in both,
+``python -m tools.evidence.montecarlo compare DIR_A DIR_B``: for every (case, variant) present in both,
 the difference B - A of each summary metric; prints, per variant, channel and metric, the
 number of pairs, the largest |difference| and the case where it occurs. Meaningful when both
 campaigns have the same scenario, dispersion text and seed (then case i is the same dispersed
@@ -12,10 +12,10 @@ import json
 import math
 from pathlib import Path
 
-from tools.montecarlo import results
-from tools.montecarlo.campaign import MANIFEST, load_manifest
-from tools.montecarlo.case import CHANNELS
-from tools.montecarlo.summary import SUMMARY_METRICS
+from tools.evidence.montecarlo import results
+from tools.evidence.montecarlo.campaign import MANIFEST, load_manifest
+from tools.evidence.montecarlo.case import CHANNELS
+from tools.evidence.montecarlo.summary import SUMMARY_METRICS
 
 
 def compare(dir_a, dir_b) -> dict:

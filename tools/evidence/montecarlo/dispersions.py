@@ -1,6 +1,6 @@
 """Dispersion files: what a campaign varies, how, and within which bounds.
 
-A dispersion file is TOML (``tools/dispersions/NAME.toml`` or any path). Each section groups
+A dispersion file is TOML (``tools/evidence/dispersions/NAME.toml`` or any path). Each section groups
 variables of one part of the plant; each variable is either a fixed value (a number, or a
 boolean for switches) or a distribution table::
 

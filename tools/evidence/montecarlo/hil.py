@@ -23,7 +23,7 @@ def fly(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
     """Fly one variant of a dispersed scenario through the two processes (lockstep)."""
     from tools.hil import rundata
     from tools.hil.runner import RunConfig, run_variant
-    from tools.montecarlo.flight import Flight
+    from tools.evidence.montecarlo.flight import Flight
     if law_overrides:
         raise ValueError("law overrides are not supported with --hil yet")
     tmp = Path(tempfile.mkdtemp(prefix="mc-hil-")) if keep_dir is None else Path(keep_dir)

@@ -21,9 +21,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from tools.montecarlo import results  # noqa: E402
-from tools.montecarlo.case import CHANNELS  # noqa: E402
-from tools.montecarlo.summary import SUMMARY_METRICS, _SPEC_OF, _columns  # noqa: E402
+from tools.evidence.montecarlo import results  # noqa: E402
+from tools.evidence.montecarlo.case import CHANNELS  # noqa: E402
+from tools.evidence.montecarlo.summary import SUMMARY_METRICS, _SPEC_OF, _columns  # noqa: E402
 
 COLORS = {"coordinated": "tab:blue", "uncoordinated": "tab:orange"}
 LABELS = {"alpha": "alpha (deg)", "beta": "beta (deg)", "mu": "mu (deg)"}

@@ -1,6 +1,6 @@
 """Re-run one case of a campaign alone, with full logs and the main job's plots.
 
-``python -m tools.montecarlo rerun OUT_DIR --case I`` rebuilds case I from the campaign's
+``python -m tools.evidence.montecarlo rerun OUT_DIR --case I`` rebuilds case I from the campaign's
 manifest (same scenario, dispersion text, seed, duration, backend), flies each variant with
 the full logging of the backend, and writes into ``OUT_DIR/case-I/``:
 
@@ -10,7 +10,7 @@ the full logging of the backend, and writes into ``OUT_DIR/case-I/``:
   ``python -m tools.hil run --scenario OUT_DIR/case-I/scenario.toml --seed SIM_SEED``);
 - per variant the backend's full history (``<variant>/history.npz``); with ``--hil`` also the
   two processes' whole run directory (``<variant>/hil/``: truth.npz, fc.log, fc.tlog, ...);
-- the main job's plots (``tools.plots``: fig2_attitude.png, ...), variants overlaid.
+- the main job's plots (``tools.sitl.plots``: fig2_attitude.png, ...), variants overlaid.
 """
 from __future__ import annotations
 
@@ -23,9 +23,9 @@ import numpy as np
 
 from tools.sitl import metrics as mt
 from tools.hil.rundata import json_safe
-from tools.montecarlo import results
-from tools.montecarlo.campaign import load_manifest
-from tools.montecarlo.case import CHANNELS, code_fingerprint, fly_case, flight_metrics
+from tools.evidence.montecarlo import results
+from tools.evidence.montecarlo.campaign import load_manifest
+from tools.evidence.montecarlo.case import CHANNELS, code_fingerprint, fly_case, flight_metrics
 
 
 def _row_metrics(out_dir, case: int) -> dict:
@@ -99,7 +99,7 @@ def rerun(out_dir, case: int, variants=None, out=None) -> str:
                      f"{'(same as the campaign row)' if match else '(DIFFERS from the campaign row)' if match is False else '(no campaign row)'}")
     report["values"] = report.get("values", {})
     if cfg.backend != "standin":
-        from tools.montecarlo.case import dispersed_scenario
+        from tools.evidence.montecarlo.case import dispersed_scenario
         (dest / "scenario.toml").write_text(
             f"# case {case} of campaign {out_dir} (seed {cfg.seed}, plant seed "
             f"{report.get('sim_seed')})\n" + dispersed_scenario(cfg, report["values"]).to_toml())
@@ -116,7 +116,7 @@ def _fmt(x, f="{:.2f}"):
 
 
 def _plot_data(fl, entry) -> dict:
-    """The normalised per-variant dict tools.plots expects (see tools.hil.rundata)."""
+    """The normalised per-variant dict tools.sitl.plots expects (see tools.hil.rundata)."""
     d = {"t_s": fl.t_s, "alpha_rad": fl.alpha_rad, "beta_rad": fl.beta_rad, "mu_rad": fl.mu_rad,
          "cmd_t_s": fl.cmd_t_s, "cmd_rad": fl.cmd_rad, "metrics": entry["metrics"]}
     for i, ch in enumerate(CHANNELS):
@@ -128,9 +128,9 @@ def _plot_data(fl, entry) -> dict:
 
 
 def _main_job_plots(runs: dict, cfg, case: int, dest: Path) -> list[Path]:
-    """tools.plots figures for the re-run (as many as the backend's data allows)."""
+    """tools.sitl.plots figures for the re-run (as many as the backend's data allows)."""
     try:
-        from tools import plots
+        from tools.sitl import plots
     except ImportError:
         return []
     meta = {"scenario": cfg.scenario, "mode": f"montecarlo case {case} ({cfg.backend})",

@@ -32,7 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from tools.sitl import metrics as mt
-from tools.montecarlo.case import CHANNELS
+from tools.evidence.montecarlo.case import CHANNELS
 
 ROWS_DIR = "rows"
 TRACE_COLUMNS = tuple(f"trace.{ch}_deg" for ch in CHANNELS)

@@ -2,7 +2,7 @@
 
 Everything here is computed from the rows on disk (``results.read_rows``), so it can be
 recomputed at any time, with another specification, without re-running a case
-(``python -m tools.montecarlo summary OUT_DIR [--spec FILE]``).
+(``python -m tools.evidence.montecarlo summary OUT_DIR [--spec FILE]``).
 
 A row *meets the spec* when it did not diverge, raised no error, and every channel has
 overshoot <= overshoot_max_pct (an undefined overshoot, for a step under
@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from tools.montecarlo import results
-from tools.montecarlo.case import CHANNELS
+from tools.evidence.montecarlo import results
+from tools.evidence.montecarlo.case import CHANNELS
 
 PERCENTILES = (5, 50, 95, 99)
 SUMMARY_METRICS = ("overshoot_pct", "settling_time_s", "final_error_deg")

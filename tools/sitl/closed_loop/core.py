@@ -1,6 +1,6 @@
 """In-process closed loop: the control law (fc.control) flying the plant (plant_sim), no UDP.
 
-Used by the law's closed-loop tests, by campaigns (tools.montecarlo) and by benchmarks. The
+Used by the law's closed-loop tests, by campaigns (tools.evidence.montecarlo) and by benchmarks. The
 whole loop runs inside one numba function (plant RK4 frames, the law's slow and fast loops,
 recording), so a 20 s flight at 500 Hz takes a fraction of a second once compiled.
 
@@ -41,7 +41,7 @@ from hyfc_wire.numba_cache import drop_stale
 from hyfc_wire.timeline import command_arrays
 
 # _run inlines the law's and the plant's kernels: recompile when any of them changed
-_ROOT = Path(__file__).resolve().parents[2]
+_ROOT = Path(__file__).resolve().parents[3]
 drop_stale(__file__, [str(f) for pkg in ("fc/control", "plant_sim", "hyfc_wire")
                       for f in (_ROOT / pkg).glob("*.py")]
            + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])

@@ -6,13 +6,13 @@ truth), the guidance when due (default 50 Hz), the law's slow and fast loops whe
 throttle and surface commands into the plant, one plant frame. Targets come from the
 scenario's ``[[target]]`` timeline (cruise, mission) or from the caller.
 
-    from tools.guided_loop import fly
+    from tools.sitl.closed_loop.guided import fly
     res = fly("cruise", duration_s=600)
     res.hold_figures(t_from_s=300)      # altitude / course / speed / inner-loop errors
 
-    python -m tools.guided_loop cruise --duration 3600       # the 1-hour hold figures
-    python -m tools.guided_loop steps                          # +2 km, +30 deg, +100 m/s
-    python -m tools.guided_loop mission                        # the mission scenario, per leg
+    python -m tools.fly guided cruise --duration 3600       # the 1-hour hold figures
+    python -m tools.fly guided steps                          # +2 km, +30 deg, +100 m/s
+    python -m tools.fly guided mission                        # the mission scenario, per leg
 """
 from __future__ import annotations
 
@@ -36,12 +36,12 @@ from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
 from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW
 from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
-from tools.sitl.closed_loop import _divisor, sense_frame
+from tools.sitl.closed_loop.core import _divisor, sense_frame
 
 from hyfc_wire.numba_cache import drop_stale
 from hyfc_wire.timeline import target_arrays
 
-_ROOT = Path(__file__).resolve().parents[1]
+_ROOT = Path(__file__).resolve().parents[3]
 drop_stale(__file__, [str(f) for pkg in ("fc/control", "fc/guidance", "plant_sim", "hyfc_wire")
                       for f in (_ROOT / pkg).glob("*.py")]
            + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])
@@ -411,7 +411,7 @@ def step_responses(scenario: str = "cruise", t_step_s: float = 100.0, after_s: f
 def plot_flight(res: GuidedResult, path, title: str = "") -> Path:
     """One PNG of a guided flight: altitude, course, speed and throttle against their targets
     (left), alpha, beta, mu against the guidance's commands and the surfaces (right)."""
-    from tools.plots import CMD_STYLE, R2D, SURFACE_LABELS, _finish_axis, _save, _stairs, plt
+    from tools.sitl.plots import CMD_STYLE, R2D, SURFACE_LABELS, _finish_axis, _save, _stairs, plt
     t = res.t_s
     fig, ax = plt.subplots(4, 2, figsize=(13, 10), sharex=True)
     line = dict(color="tab:blue", linewidth=1.3)
@@ -464,7 +464,7 @@ def _fmt(d: dict) -> str:
 
 def main(argv=None) -> int:
     import argparse
-    ap = argparse.ArgumentParser(description="Guided flight in process: hold, steps, mission.")
+    ap = argparse.ArgumentParser(prog="python -m tools.fly guided", description="Guided flight in process: hold, steps, mission.")
     ap.add_argument("what", choices=("cruise", "steps", "mission"), nargs="?", default="cruise",
                     help="cruise: hold the cruise point; steps: altitude, course and speed steps; "
                          "mission: the mission scenario's targets (default cruise)")
@@ -511,6 +511,3 @@ def main(argv=None) -> int:
     print(_fmt(res.hold_figures(a.transient)))
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

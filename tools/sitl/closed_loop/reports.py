@@ -1,4 +1,4 @@
-"""``python -m tools.closed_loop``: fly a scenario in process and print the figures.
+"""``python -m tools.fly attitude``: fly a scenario in process and print the figures.
 
 The machinery (``simulate``, ``ClosedLoopResult``) is the SITL harness's
 ``tools.sitl.closed_loop``; this module holds the command line and its text reports.
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from plant_sim.scenario import Scenario, load
-from tools.sitl.closed_loop import ClosedLoopResult, simulate
+from tools.sitl.closed_loop.core import ClosedLoopResult, simulate
 
 
 def summary_line(res: ClosedLoopResult) -> str:
@@ -63,7 +63,7 @@ def perturbed_comparison(n: int = 40, seed: int = 7, command_shaping: str = "ste
     Each draw (numpy Generator seeded with ``seed``): every coefficient uncertainty
     (CL, CD, CY, Cl, Cm, Cn) uniform in +-30 %, initial sideslip uniform in +-5 deg,
     disturbance scale uniform in 0.5..1.5. Returns a text summary (the figures of
-    docs/control_law.md section 9). A quick look, not a campaign: tools.montecarlo is that.
+    docs/control_law.md section 9). A quick look, not a campaign: tools.evidence.montecarlo is that.
     """
     import copy
     base = load(scenario)
@@ -104,7 +104,7 @@ def perturbed_comparison(n: int = 40, seed: int = 7, command_shaping: str = "ste
 
 def main(argv=None) -> int:
     import argparse
-    ap = argparse.ArgumentParser(description="Fly a scenario in process and print the figures.")
+    ap = argparse.ArgumentParser(prog="python -m tools.fly attitude", description="Fly a scenario in process and print the figures.")
     ap.add_argument("scenario", nargs="?", default="paper",
                     help="plant scenario name or TOML path (default paper)")
     ap.add_argument("--duration", type=float, default=None, metavar="S",
@@ -143,6 +143,3 @@ def main(argv=None) -> int:
         print(summary_line(res) + f" | wall {res.wall_s:.2f}s")
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
