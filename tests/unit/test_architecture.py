@@ -37,10 +37,17 @@ ALLOWED: dict[str, tuple[str, ...]] = {
     "fc.guidance": ("fc.control",),        # the pure outer loop: itself and the law's layout
     "fc": (),                              # never plant_sim, tools or tests
     "plant_sim": (),                       # never fc, tools or tests
-    "tools.sitl": ("fc", "plant_sim"),   # the harness: no command line
-    "tools": ("fc", "plant_sim"),          # never tests
+    "tools.sitl": ("fc", "plant_sim"),     # the harness: libraries, no command, no evidence
+    "tools.evidence": ("fc", "plant_sim", "tools.sitl"),   # the evidence tools: never a command
+    "tools": ("fc", "plant_sim"),          # the commands: never tests (see COMMANDS below)
     "tests": ("fc", "plant_sim", "tools"),
 }
+
+#: the commands live under this package; everything below it except LIBRARIES is a command
+#: unit (``tools.hil``, ``tools.bench``, ``tools.soak``, ...), which may import the LIBRARIES and
+#: its own modules, never another command unit (docs/architecture.md section 1)
+COMMANDS = "tools"
+LIBRARIES: tuple[str, ...] = ("tools.sitl", "tools.evidence")
 
 
 def our_packages() -> list[str]:
@@ -135,6 +142,31 @@ def violations(modules: dict[str, Path]) -> list[str]:
     return bad
 
 
+def command_unit(name: str) -> str | None:
+    """``tools.X`` for a module of a command (``tools.hil.cli`` -> ``tools.hil``), None for a
+    library module or a module outside COMMANDS."""
+    if not _within(name, COMMANDS) or name == COMMANDS:
+        return None
+    if any(_within(name, lib) for lib in LIBRARIES):
+        return None
+    return ".".join(name.split(".")[:2])
+
+
+def command_violations(modules: dict[str, Path]) -> list[str]:
+    """Imports from one command unit into another (deferred imports included)."""
+    bad = []
+    for name, path in modules.items():
+        unit = command_unit(name)
+        if unit is None:
+            continue
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        for target, line, _top in imports_of(name, path, modules):
+            other = command_unit(target)
+            if other is not None and other != unit:
+                bad.append(f"{where}:{line}: command {unit} must not import command {target}")
+    return bad
+
+
 def cycles(modules: dict[str, Path], deferred: bool = False) -> list[list[str]]:
     """Strongly connected components (size > 1) of the import graph: module-level imports
     only, or (``deferred``) every import, also those inside functions and classes."""
@@ -192,6 +224,32 @@ def test_walk_sees_our_packages(modules):
 def test_import_direction(modules):
     bad = violations(modules)
     assert not bad, "imports against docs/architecture.md's direction:\n" + "\n".join(bad)
+
+
+def test_commands_import_libraries_not_commands(modules):
+    bad = command_violations(modules)
+    assert not bad, "a command imports another command:\n" + "\n".join(bad)
+
+
+def test_layer_walk_sees_wrong_way_imports(modules, tmp_path):
+    """The walk reports a harness module importing an evidence tool or a command, an evidence
+    tool importing a command, and a command importing another command (deferred or not)."""
+    sitl = tmp_path / "sitl_fake.py"
+    sitl.write_text("from tools.evidence.mutate import ROOT\n\n\ndef f():\n"
+                    "    from tools.hil import cli\n")
+    ev = tmp_path / "ev_fake.py"
+    ev.write_text("def f():\n    from tools.hil.cli import main\n")
+    cmd = tmp_path / "cmd_fake.py"
+    cmd.write_text("from tools.sitl.procs import Child\nfrom tools.evidence import mutate\n"
+                   "from tools.soak import main\n")
+    more = {**modules, "tools.sitl.sitl_fake": sitl, "tools.evidence.ev_fake": ev,
+            "tools.cmd_fake": cmd}
+    bad = violations(more)
+    assert any("tools.sitl must not import tools.evidence.mutate" in b for b in bad), bad
+    assert any("tools.sitl must not import tools.hil.cli" in b for b in bad), bad
+    assert any("tools.evidence must not import tools.hil.cli" in b for b in bad), bad
+    cbad = command_violations(more)
+    assert cbad == [f"{cmd}:3: command tools.cmd_fake must not import command tools.soak"], cbad
 
 
 def test_no_import_cycles(modules):

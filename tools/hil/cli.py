@@ -13,8 +13,8 @@ import sys
 import threading
 from pathlib import Path
 
-from tools.hil import rundata
-from tools.hil.runner import RunConfig, controller_params, run_variant
+from tools.sitl import rundata
+from tools.sitl.runner import RunConfig, controller_params, run_variant
 
 VARIANTS = ("coordinated", "uncoordinated")
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130

@@ -1,7 +1,7 @@
 """Plots of a run (PNG, matplotlib Agg): the counterparts of the paper's Figs. 2-4 and more.
 
 Each function takes the per-variant data of a run in the normalised form built by
-``tools.hil.rundata`` (SI arrays, names with units) and writes one PNG:
+``tools.sitl.rundata`` (SI arrays, names with units) and writes one PNG:
 
 - ``fig2_attitude.png``: alpha, beta, mu with their commands (paper Fig. 2);
 - ``fig3_rates.png``: body rates p, q, r (paper Fig. 3);

@@ -12,7 +12,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tools.hil import rundata
+from tools.sitl import rundata
 from tools.sitl.procs import Child, free_udp_port
 
 FLIGHT_MODE = {"coordinated": "COORDINATED", "uncoordinated": "UNCOORDINATED"}

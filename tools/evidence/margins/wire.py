@@ -1,6 +1,6 @@
 """tools/evidence/margins/wire.py - the time-delay margin over the wire (tools.evidence.margins ``wire``).
 
-Lockstep (default): the two processes fly in lockstep (tools.hil.runner.run_variant, the main
+Lockstep (default): the two processes fly in lockstep (tools.sitl.runner.run_variant, the main
 job's machinery) with tools.sitl.linkimpair's frame delay between them: the plant applies at frame
 k the fc's answer to frame k - N. Real time (``realtime=True``): the two processes fly in real
 time and the relay holds each fc -> plant datagram (SERVO_OUTPUT_RAW) N wall-clock ms
@@ -66,8 +66,8 @@ def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinat
     with ``realtime`` wall-clock ms); print and write ``out/wire.md`` / ``wire.json`` with the
     stability verdict of each (tools.evidence.margins.flight.stable)."""
     import os
-    from tools.hil import rundata
-    from tools.hil.runner import RunConfig, run_variant
+    from tools.sitl import rundata
+    from tools.sitl.runner import RunConfig, run_variant
     from tools.evidence.margins.flight import stable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +109,7 @@ def wire_delay_runs(scenario, frames: list, out: Path, variant: str = "coordinat
             row["tail_att_err_deg"] = np.degrees(np.abs(fl.att_rad[-tail:] - cmd)).max(0).tolist()
             row["tail_rate_rms_deg_s"] = np.degrees(np.std(fl.rate_rad_s[-tail:], axis=0)).tolist()
             if realtime:
-                from tools.hil.rundata import late_ticks_from_log
+                from tools.sitl.rundata import late_ticks_from_log
                 row["late_ticks"] = late_ticks_from_log(vdir / "fc.log")
         rows.append(row)
         print(json.dumps(row), flush=True)

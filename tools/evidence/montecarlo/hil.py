@@ -1,9 +1,9 @@
 """The ``--hil`` backend: a case flown by the two processes over loopback UDP.
 
-Uses the main job's machinery (``tools.hil.runner.run_variant``, lockstep mode): the dispersed
+Uses the main job's machinery (``tools.sitl.runner.run_variant``, lockstep mode): the dispersed
 scenario is written as a TOML file, the controller process (``python -m fc``) and the plant
 process (``python -m plant_sim run``) are started on free loopback ports, fly the variant, are
-stopped, and the run directory's logs are read back with ``tools.hil.rundata`` (the same code
+stopped, and the run directory's logs are read back with ``tools.sitl.rundata`` (the same code
 that makes the main job's ``summary.json``). Slower than in process (process start-up plus a
 UDP exchange per frame), so meant for a faithful subset of cases; each Dask task then runs two
 processes of its own.
@@ -21,8 +21,8 @@ import numpy as np
 def fly(scenario, variant: str, duration_s, sim_seed: int, law_overrides: dict,
         full: bool = False, keep_dir: Path | None = None):
     """Fly one variant of a dispersed scenario through the two processes (lockstep)."""
-    from tools.hil import rundata
-    from tools.hil.runner import RunConfig, run_variant
+    from tools.sitl import rundata
+    from tools.sitl.runner import RunConfig, run_variant
     from tools.evidence.montecarlo.flight import Flight
     if law_overrides:
         raise ValueError("law overrides are not supported with --hil yet")

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.sitl import metrics as mt
-from tools.hil.rundata import json_safe
+from tools.sitl.rundata import json_safe
 from tools.evidence.montecarlo import results
 from tools.evidence.montecarlo.campaign import load_manifest
 from tools.evidence.montecarlo.case import CHANNELS, code_fingerprint, fly_case, flight_metrics
@@ -116,7 +116,7 @@ def _fmt(x, f="{:.2f}"):
 
 
 def _plot_data(fl, entry) -> dict:
-    """The normalised per-variant dict tools.sitl.plots expects (see tools.hil.rundata)."""
+    """The normalised per-variant dict tools.sitl.plots expects (see tools.sitl.rundata)."""
     d = {"t_s": fl.t_s, "alpha_rad": fl.alpha_rad, "beta_rad": fl.beta_rad, "mu_rad": fl.mu_rad,
          "cmd_t_s": fl.cmd_t_s, "cmd_rad": fl.cmd_rad, "metrics": entry["metrics"]}
     for i, ch in enumerate(CHANNELS):

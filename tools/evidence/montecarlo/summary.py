@@ -196,7 +196,7 @@ def _paired(cols: dict) -> dict:
 
 def to_json(summary: dict) -> dict:
     """Replace every NaN/inf by None, recursively (strict JSON)."""
-    from tools.hil.rundata import json_safe
+    from tools.sitl.rundata import json_safe
     return json_safe(summary)
 
 
