@@ -21,7 +21,6 @@ ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("fc", "plant_sim", "tools")
 #: subcommands chosen by argv[0] before any parser is built: module -> argv prefixes
 DISPATCHED = {"tools.evidence.montecarlo": [[], ["rerun"], ["summary"], ["compare"]],
-              "tools.fly": [[], ["attitude"], ["guided"]],
               "tools.bench": [[], ["law"], ["plant"], ["pingpong"], ["fc-timing"], ["campaign"]]}
 
 

@@ -91,6 +91,18 @@ def law_frame(k, n_slow, n_fast, dt_slow, dt_fast, est, cmd,
 
 
 @njit(cache=True)
+def diverged_row(row):
+    """True when the truth row's |alpha|, |beta| or |mu| exceeds DIVERGED_RAD (45 deg) or is
+    not a number: the in-process loops stop there."""
+    bad = False
+    for i in range(3):
+        v = row[1 + i]
+        if not (abs(v) < 0.7853981633974483):     # 45 deg, also catches NaN
+            bad = True
+    return bad
+
+
+@njit(cache=True)
 def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
          px, pp, pw, n_sub, meas, row, est, cmd,
          par, lx, nm, st, tab, atm, grid, delta,
@@ -126,12 +138,7 @@ def _run(n_frames, n_fast, n_slow, dt_fast, dt_slow, rec_every, cmd_t, cmd_v,
             for i in range(st.shape[0]):
                 out_status[n_rec, i] = st[i]
             n_rec += 1
-        bad = False
-        for i in range(3):
-            v = row[1 + i]
-            if not (abs(v) < 0.7853981633974483):     # 45 deg, also catches NaN
-                bad = True
-        if bad:
+        if diverged_row(row):
             return k + 1, n_rec
         dy.advance_frame(px, delta, pp, pw, n_sub)
     return n_frames, n_rec
@@ -228,6 +235,56 @@ class ClosedLoopResult:
                                self.surface_limit_rad, self.omega_c_limited)
 
 
+@dataclass
+class LoopSetup:
+    """What every in-process loop builds before its first frame (``simulate``,
+    tools.sitl.closed_loop.guided.fly): the plant, the loops' frame divisors, the number of
+    frames and of recorded samples, and the per-frame work arrays of the sensors and the
+    estimator (``sense_frame``'s arguments)."""
+    sim: PlantSim
+    n_frames: int               # frames to fly (duration / frame period + 1)
+    n_fast: int                 # frames per fast-loop tick
+    n_slow: int                 # frames per slow-loop tick
+    rec: int                    # record one sample every ``rec`` frames
+    n_rec_max: int              # samples at most
+    plant: tuple                # PlantSim.kernel_args(): x, p, w, n_sub, ring, ring_count,
+                                #   rng_state, meas_work
+    meas: np.ndarray            # float64[M_N] the measurement
+    row: np.ndarray             # float64[TRUTH_N] the truth row
+    est: np.ndarray             # float64[E_N] the estimated state the law sees
+    cmd: np.ndarray             # float64[3] alpha, beta, mu commands, rad
+    good: np.ndarray            # float64[M_N] the estimator's last good measurement
+    good_t: np.ndarray          # float64[M_N] its time stamps, s
+    masks: np.ndarray           # int64[2] the estimator's rejection masks
+
+    def frame_dt_s(self, n: int) -> float:
+        """The period of a loop ticking every ``n`` frames, s."""
+        return n * self.sim.frame_dt_s
+
+
+def loop_setup(sc: Scenario, *, seed: int | None, duration_s: float | None, fast_hz: float,
+               slow_hz: float, record_every: int) -> LoopSetup:
+    """The plant of ``sc`` and the arrays of a flight of ``duration_s`` (None: the
+    scenario's) with the fast and slow loops at ``fast_hz`` / ``slow_hz``.
+
+    Raises ValueError when a rate does not divide the frame rate or the duration is not > 0.
+    """
+    sim = PlantSim(sc, seed=seed)
+    frame_hz = 1.0 / sim.frame_dt_s
+    n_fast = _divisor(frame_hz, fast_hz, "fast_hz")
+    n_slow = _divisor(frame_hz, slow_hz, "slow_hz")
+    dur = sc.duration_s if duration_s is None else float(duration_s)
+    if not dur > 0.0:
+        raise ValueError(f"duration_s must be > 0, got {dur}")
+    n_frames = int(round(dur / sim.frame_dt_s)) + 1
+    rec = int(record_every)
+    return LoopSetup(sim=sim, n_frames=n_frames, n_fast=n_fast, n_slow=n_slow, rec=rec,
+                     n_rec_max=(n_frames + rec - 1) // rec, plant=sim.kernel_args(),
+                     meas=np.zeros(M_N), row=np.zeros(TRUTH_N), est=np.zeros(L.E_N),
+                     cmd=np.zeros(3), good=np.zeros(M_N), good_t=np.full(M_N, -np.inf),
+                     masks=np.zeros(2, dtype=np.int64))
+
+
 def simulate(scenario: str | Scenario, *, coordinated: bool = True,
              duration_s: float | None = None, seed: int | None = None,
              law_overrides: dict | None = None, fast_hz: float = 500.0,
@@ -277,34 +334,20 @@ def simulate(scenario: str | Scenario, *, coordinated: bool = True,
                              f"coordinated={coordinated} / command_shaping={command_shaping!r}")
         overrides[k] = v
     law = AttitudeLaw(overrides)
-    sim = PlantSim(sc, seed=seed)
-    frame_hz = 1.0 / sim.frame_dt_s
-    n_fast = _divisor(frame_hz, fast_hz, "fast_hz")
-    n_slow = _divisor(frame_hz, slow_hz, "slow_hz")
-    dur = sc.duration_s if duration_s is None else float(duration_s)
-    if not dur > 0.0:
-        raise ValueError(f"duration_s must be > 0, got {dur}")
-    n_frames = int(round(dur / sim.frame_dt_s)) + 1
+    su = loop_setup(sc, seed=seed, duration_s=duration_s, fast_hz=fast_hz, slow_hz=slow_hz,
+                    record_every=record_every)
+    n_frames = su.n_frames
     cmd_t, cmd_v = command_arrays(sc.commands)
-    rec = int(record_every)
-    n_rec_max = (n_frames + rec - 1) // rec
-    out_truth = np.zeros((n_rec_max, TRUTH_N))
-    out_status = np.zeros((n_rec_max, L.S_N))
-    x, p, w, n_sub, ring, ring_count, rng_state, meas_work = sim.kernel_args()
-    good = np.zeros(M_N)
-    good_t = np.full(M_N, -np.inf)
-    masks = np.zeros(2, dtype=np.int64)
+    out_truth = np.zeros((su.n_rec_max, TRUTH_N))
+    out_status = np.zeros((su.n_rec_max, L.S_N))
+    x, p, w, n_sub, ring, ring_count, rng_state, meas_work = su.plant
     k = law.kernel_args()
-    meas = np.zeros(M_N)
-    row = np.zeros(TRUTH_N)
-    est = np.zeros(L.E_N)
-    cmd = np.zeros(3)
-    args = (n_fast, n_slow, n_fast * sim.frame_dt_s, n_slow * sim.frame_dt_s, rec, cmd_t, cmd_v,
-            x, p, w, n_sub, meas, row, est, cmd,
+    args = (su.n_fast, su.n_slow, su.frame_dt_s(su.n_fast), su.frame_dt_s(su.n_slow), su.rec,
+            cmd_t, cmd_v, x, p, w, n_sub, su.meas, su.row, su.est, su.cmd,
             k["par"], k["x"], k["nm"], k["st"], k["tab"], k["atm"], k["grid"],
             k["delta"], out_truth, out_status,
-            estimate == "sensors", ring, ring_count, rng_state, meas_work, good, good_t,
-            LIMITS_LO, LIMITS_HI, 0.1, masks)
+            estimate == "sensors", ring, ring_count, rng_state, meas_work, su.good, su.good_t,
+            LIMITS_LO, LIMITS_HI, 0.1, su.masks)
     _run(0, *args)          # zero frames: loads (or compiles) the machine code, not timed
     t0 = time.perf_counter()
     _frames, n_rec = _run(n_frames, *args)

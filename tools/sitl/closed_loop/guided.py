@@ -25,7 +25,6 @@ import numpy as np
 from numba import njit
 
 from fc.control import layout as L
-from fc.control.kernels import fast_kernel, reset_kernel, slow_kernel
 from fc.control.law import AttitudeLaw
 from fc.estimator import LIMITS_HI, LIMITS_LO
 from fc.guidance import layout as G
@@ -34,9 +33,9 @@ from fc.guidance.kernels import course_from_air_data, guidance_reset, guidance_s
 from hyfc_wire.earth import EARTH_RADIUS_M
 from plant_sim import dynamics as dy
 from plant_sim.scenario import Scenario, load
-from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_N, M_PITCH, M_ROLL, M_SSA, M_YAW
-from plant_sim.sim import TRUTH_N, TRUTH_NAMES, PlantSim
-from tools.sitl.closed_loop.core import _divisor, sense_frame
+from plant_sim.sensors import M_AIRSPEED, M_AOA, M_CLIMB, M_PITCH, M_ROLL, M_SSA, M_YAW
+from plant_sim.sim import TRUTH_N, TRUTH_NAMES
+from tools.sitl.closed_loop.core import _divisor, diverged_row, law_frame, loop_setup, sense_frame
 
 from hyfc_wire.numba_cache import drop_stale
 from hyfc_wire.timeline import target_arrays
@@ -44,7 +43,8 @@ from hyfc_wire.timeline import target_arrays
 _ROOT = Path(__file__).resolve().parents[3]
 drop_stale(__file__, [str(f) for pkg in ("fc/control", "fc/guidance", "plant_sim", "hyfc_wire")
                       for f in (_ROOT / pkg).glob("*.py")]
-           + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py")])
+           + [str(_ROOT / "fc" / "estimator.py"), str(_ROOT / "fc" / "link.py"),
+              str(_ROOT / "tools" / "sitl" / "closed_loop" / "core.py")])
 
 DEG = math.pi / 180.0
 _T_CHI = TRUTH_NAMES.index("chi_rad")
@@ -98,17 +98,14 @@ def _run_guided(n_frames, n_fast, n_slow, n_guid, dt_fast, dt_slow, dt_guid, rec
                 gest[i] = est[i]
         if k == 0:
             guidance_reset(gest, gp, mass_kg, xcg_m, gx, px[dy.X_THR], gw, tab, atm, grid)
-            reset_kernel(est, par, lx, st, delta)
         if k % n_guid == 0:
             guidance_step(gest, chi, tgt, dt_guid, gp, mass_kg, xcg_m, gx, gout, gst, gw,
                           tab, atm, grid)
             cmd[0] = gout[0]
             cmd[1] = gout[1]
             cmd[2] = gout[2]
-        if k % n_slow == 0:
-            slow_kernel(est, cmd, dt_slow, par, lx, nm, st, tab, atm, grid)
-        if k % n_fast == 0:
-            fast_kernel(est, dt_fast, par, lx, nm, st, tab, atm, grid, delta)
+        law_frame(k, n_slow, n_fast, dt_slow, dt_fast, est, cmd,
+                  par, lx, nm, st, tab, atm, grid, delta)
         if k % rec_every == 0:
             for i in range(row.shape[0]):
                 out_truth[n_rec, i] = row[i]
@@ -120,12 +117,7 @@ def _run_guided(n_frames, n_fast, n_slow, n_guid, dt_fast, dt_slow, dt_guid, rec
                 out_cmd[n_rec, i] = gout[i]
             out_cmd[n_rec, 4] = px[dy.X_THR]
             n_rec += 1
-        bad = False
-        for i in range(3):
-            v = row[1 + i]
-            if not (abs(v) < 0.7853981633974483):
-                bad = True
-        if bad:
+        if diverged_row(row):
             return k + 1, n_rec
         px[dy.X_CMD_THR] = gout[3]
         dy.advance_frame(px, delta, pp, pw, n_sub)
@@ -325,38 +317,30 @@ def fly(scenario: str | Scenario, *, duration_s: float | None = None, seed: int 
     gd = Guidance(guidance_overrides)
     lp = law.params()
     gd.set_model(lp["MDL_MASS"], lp["MDL_XCG"])
-    sim = PlantSim(sc, seed=seed)
-    frame_hz = 1.0 / sim.frame_dt_s
-    n_fast = _divisor(frame_hz, fast_hz, "fast_hz")
-    n_slow = _divisor(frame_hz, slow_hz, "slow_hz")
-    n_guid = _divisor(frame_hz, guidance_hz, "guidance_hz")
-    dur = sc.duration_s if duration_s is None else float(duration_s)
-    if not dur > 0.0:
-        raise ValueError(f"duration_s must be > 0, got {dur}")
+    su = loop_setup(sc, seed=seed, duration_s=duration_s, fast_hz=fast_hz, slow_hz=slow_hz,
+                    record_every=record_every)
+    n_guid = _divisor(1.0 / su.sim.frame_dt_s, guidance_hz, "guidance_hz")
     tg_t, tg_v = targets if targets is not None else target_timeline(sc)
     tg_t = np.ascontiguousarray(tg_t, dtype=np.float64)
     tg_v = np.ascontiguousarray(tg_v, dtype=np.float64)
     if tg_v.ndim != 2 or tg_v.shape[1] != G.TG_N or tg_v.shape[0] != tg_t.shape[0]:
         raise ValueError("targets must be (times (k,), values (k, TG_N))")
-    n_frames = int(round(dur / sim.frame_dt_s)) + 1
-    rec = int(record_every)
-    n_rec_max = (n_frames + rec - 1) // rec
+    n_frames, n_rec_max = su.n_frames, su.n_rec_max
     out_truth = np.zeros((n_rec_max, TRUTH_N))
     out_status = np.zeros((n_rec_max, L.S_N))
     out_gst = np.zeros((n_rec_max, G.GS_N))
     out_cmd = np.zeros((n_rec_max, 5))
-    x, p, w, n_sub, ring, ring_count, rng_state, meas_work = sim.kernel_args()
+    x, p, w, n_sub, ring, ring_count, rng_state, meas_work = su.plant
     k = law.kernel_args()
     gk = gd.kernel_args()
-    args = (n_fast, n_slow, n_guid, n_fast * sim.frame_dt_s, n_slow * sim.frame_dt_s,
-            n_guid * sim.frame_dt_s, rec, tg_t, tg_v,
-            x, p, w, n_sub, np.zeros(M_N), np.zeros(TRUTH_N), np.zeros(L.E_N), np.zeros(3),
+    args = (su.n_fast, su.n_slow, n_guid, su.frame_dt_s(su.n_fast), su.frame_dt_s(su.n_slow),
+            su.frame_dt_s(n_guid), su.rec, tg_t, tg_v,
+            x, p, w, n_sub, su.meas, su.row, su.est, su.cmd,
             k["par"], k["x"], k["nm"], k["st"], k["tab"], k["atm"], k["grid"], k["delta"],
             gk["par"], gk["mass_kg"], gk["xcg_m"], gk["gx"], gk["out"], gk["st"], gk["gw"],
             gk["tgt"], out_truth, out_status, out_gst, out_cmd,
-            estimate == "sensors", ring, ring_count, rng_state, meas_work, np.zeros(M_N),
-            np.full(M_N, -np.inf), LIMITS_LO, LIMITS_HI, 0.1, np.zeros(2, dtype=np.int64),
-            np.zeros(L.E_N))
+            estimate == "sensors", ring, ring_count, rng_state, meas_work, su.good, su.good_t,
+            LIMITS_LO, LIMITS_HI, 0.1, su.masks, np.zeros(L.E_N))
     _run_guided(0, *args)      # zero frames: load or compile the machine code, not timed
     t0 = time.perf_counter()
     frames, n_rec = _run_guided(n_frames, *args)
@@ -450,7 +434,9 @@ def plot_flight(res: GuidedResult, path, title: str = "") -> Path:
     return _save(fig, Path(path))
 
 
-def _fmt(d: dict) -> str:
+def format_figures(d: dict) -> str:
+    """A figures dict as one line ``key=value ...`` (floats to 4 significant digits, lists of
+    floats joined with '/')."""
     parts = []
     for k, v in d.items():
         if isinstance(v, float):
@@ -462,52 +448,22 @@ def _fmt(d: dict) -> str:
     return " ".join(parts)
 
 
-def main(argv=None) -> int:
-    import argparse
-    ap = argparse.ArgumentParser(prog="python -m tools.fly guided", description="Guided flight in process: hold, steps, mission.")
-    ap.add_argument("what", choices=("cruise", "steps", "mission"), nargs="?", default="cruise",
-                    help="cruise: hold the cruise point; steps: altitude, course and speed steps; "
-                         "mission: the mission scenario's targets (default cruise)")
-    ap.add_argument("--scenario", default=None, help="scenario (default: cruise, or mission)")
-    ap.add_argument("--duration", type=float, default=None,
-                    help="sim time to fly, s (default: the chosen flight's own length)")
-    ap.add_argument("--transient", type=float, default=300.0,
-                    help="hold figures from this sim time on (s)")
-    ap.add_argument("--estimate", choices=("truth", "sensors"), default="sensors",
-                    help="feed the loops the truth or the fc's estimator on the sensors")
-    ap.add_argument("--seed", type=int, default=None,
-                    help="sensor noise seed (default: the scenario's)")
-    ap.add_argument("--uncoordinated", action="store_true",
-                    help="fly the uncoordinated inner law (default coordinated)")
-    ap.add_argument("--plot", default=None, metavar="PNG",
-                    help="cruise/mission: write a plot of the flight to this file")
-    a = ap.parse_args(argv)
-    co = not a.uncoordinated
-    if a.what == "steps":
-        for f in step_responses(a.scenario or "cruise", estimate=a.estimate, coordinated=co,
-                                seed=a.seed):
-            print(_fmt(f))
-        return 0
-    name = a.scenario or a.what
-    res = fly(name, duration_s=a.duration, estimate=a.estimate, coordinated=co, seed=a.seed)
-    print(f"{name}: {res.t_s[-1]:.0f} s sim in {res.wall_s:.1f} s wall, diverged={res.diverged}")
-    if a.plot:
-        print(f"plot: {plot_flight(res, a.plot)}")
-    if a.what == "mission":
-        tt = list(res.targets_t_s) + [res.t_s[-1]]
-        nz = res.load_factor()
-        for i in range(len(tt) - 1):
-            sel = (res.t_s >= tt[i]) & (res.t_s < tt[i + 1])
-            bits = int(np.bitwise_or.reduce(res.gstatus[sel, G.GS_LIMITS].astype(np.int64)))
-            print(f"leg {i} t {tt[i]:.0f}-{tt[i + 1]:.0f} s: target h {res.targets[i, 0]:.0f} m "
-                  f"chi {math.degrees(res.targets[i, 1]):.0f} deg V {res.targets[i, 2]:.0f} m/s; "
-                  f"end h {res.col('h_m')[sel][-1]:.0f} chi "
-                  f"{math.degrees(res.col('chi_rad')[sel][-1]):.2f} V {res.col('V_m_s')[sel][-1]:.1f}; "
-                  f"peak alpha {math.degrees(res.col('alpha_rad')[sel].max()):.2f} deg, |mu| "
-                  f"{math.degrees(np.abs(res.col('mu_rad')[sel]).max()):.2f} deg, n "
-                  f"{nz[sel][2:-2].max():.3f}; limits {limit_names(bits)}")
-        print(_fmt(res.hold_figures(0.0)))
-        return 0
-    print(_fmt(res.hold_figures(a.transient)))
-    return 0
+def mission_legs(res: GuidedResult) -> list[str]:
+    """One line per leg of a flight's target timeline (a mission): the targets, where the leg
+    ended (altitude m, course deg, speed m/s), its peak alpha, |mu| and load factor, and the
+    guidance limits that were in force."""
+    tt = list(res.targets_t_s) + [res.t_s[-1]]
+    nz = res.load_factor()
+    out = []
+    for i in range(len(tt) - 1):
+        sel = (res.t_s >= tt[i]) & (res.t_s < tt[i + 1])
+        bits = int(np.bitwise_or.reduce(res.gstatus[sel, G.GS_LIMITS].astype(np.int64)))
+        out.append(f"leg {i} t {tt[i]:.0f}-{tt[i + 1]:.0f} s: target h {res.targets[i, 0]:.0f} m "
+                   f"chi {math.degrees(res.targets[i, 1]):.0f} deg V {res.targets[i, 2]:.0f} m/s; "
+                   f"end h {res.col('h_m')[sel][-1]:.0f} chi "
+                   f"{math.degrees(res.col('chi_rad')[sel][-1]):.2f} V {res.col('V_m_s')[sel][-1]:.1f}; "
+                   f"peak alpha {math.degrees(res.col('alpha_rad')[sel].max()):.2f} deg, |mu| "
+                   f"{math.degrees(np.abs(res.col('mu_rad')[sel]).max()):.2f} deg, n "
+                   f"{nz[sel][2:-2].max():.3f}; limits {limit_names(bits)}")
+    return out
 

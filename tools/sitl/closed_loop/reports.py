@@ -1,7 +1,7 @@
-"""``python -m tools.fly attitude``: fly a scenario in process and print the figures.
-
-The machinery (``simulate``, ``ClosedLoopResult``) is the SITL harness's
-``tools.sitl.closed_loop``; this module holds the command line and its text reports.
+"""Text reports of attitude flights in process (tools.sitl.closed_loop.core.simulate): one
+summary line per flight, a markdown table of both variants with steps and with the prefilter,
+and a coordinated-vs-uncoordinated comparison over perturbed copies of a scenario. The
+command that prints them is ``python -m tools.fly attitude`` (tools/fly.py).
 """
 from __future__ import annotations
 
@@ -100,46 +100,3 @@ def perturbed_comparison(n: int = 40, seed: int = 7, command_shaping: str = "ste
                    f"{np.max(un[ok, j]):.1f}; co lower in {int(np.sum(co[ok, j] < un[ok, j]))}"
                    f"/{int(ok.sum())}")
     return "\n".join(out)
-
-
-def main(argv=None) -> int:
-    import argparse
-    ap = argparse.ArgumentParser(prog="python -m tools.fly attitude", description="Fly a scenario in process and print the figures.")
-    ap.add_argument("scenario", nargs="?", default="paper",
-                    help="plant scenario name or TOML path (default paper)")
-    ap.add_argument("--duration", type=float, default=None, metavar="S",
-                    help="sim seconds to fly (default: the scenario's)")
-    ap.add_argument("--shaping", choices=("steps", "prefilter"), default="steps",
-                    help="the paper's step commands or the law's reference prefilter "
-                         "(default steps)")
-    ap.add_argument("--variant", choices=("coordinated", "uncoordinated", "both"), default="both",
-                    help="controller variant(s) to fly (default both)")
-    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="law parameter override (table units), repeatable")
-    ap.add_argument("--estimate", choices=("truth", "sensors"), default="truth",
-                    help="the law sees the plant's truth, or the sensors through the fc's "
-                         "estimator (default truth)")
-    ap.add_argument("--perturbed", type=int, default=0, metavar="N",
-                    help="compare the variants over N perturbed copies of the scenario")
-    ap.add_argument("--table", action="store_true",
-                    help="print a markdown table (both variants, steps and prefilter)")
-    a = ap.parse_args(argv)
-    ov = {}
-    for s in a.set:
-        name, _, val = s.partition("=")
-        ov[name.strip()] = float(val)
-    variants = (True, False) if a.variant == "both" else (a.variant == "coordinated",)
-    if a.perturbed:
-        print(perturbed_comparison(a.perturbed, command_shaping=a.shaping, law_overrides=ov,
-                                   scenario=a.scenario))
-        return 0
-    if a.table:
-        print(markdown_table(a.scenario, duration_s=a.duration, law_overrides=ov,
-                             estimate=a.estimate))
-        return 0
-    for co in variants:
-        res = simulate(a.scenario, coordinated=co, duration_s=a.duration,
-                       command_shaping=a.shaping, law_overrides=ov, estimate=a.estimate)
-        print(summary_line(res) + f" | wall {res.wall_s:.2f}s")
-    return 0
-
