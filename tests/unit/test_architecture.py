@@ -115,6 +115,61 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> list[tuple[st
     return found
 
 
+def _defines(path: Path, name: str) -> bool:
+    """Whether the module at ``path`` binds ``name`` at module level (def, class, assignment,
+    import; also inside a module-level ``try``/``if``/``with``), or star-imports anything."""
+    def stmts(body):
+        for node in body:
+            yield node
+            if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                for field in ("body", "orelse", "finalbody", "handlers"):
+                    yield from stmts(getattr(node, field, []) or [])
+
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in stmts(tree.body):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) \
+                and node.name == name:
+            return True
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            if any(a.name == "*" or (a.asname or a.name.split(".")[0]) == name
+                   for a in node.names):
+                return True
+        targets = node.targets if isinstance(node, ast.Assign) else \
+            [node.target] if isinstance(node, (ast.AnnAssign, ast.AugAssign)) else []
+        for t in targets:
+            for n in ast.walk(t):
+                if isinstance(n, ast.Name) and n.id == name:
+                    return True
+    return False
+
+
+def unresolved_imports(modules: dict[str, Path]) -> list[str]:
+    """Imports of our packages that name a module (or a package's member) that is not in this
+    tree. With the project installed in editable mode elsewhere, such an import would quietly
+    load the other tree's file (a module moved here, still present there), so it is reported."""
+    tops = set(our_packages())
+    bad = []
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] in tops and a.name not in modules:
+                        bad.append(f"{where}:{node.lineno}: import {a.name}")
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module \
+                    and node.module.split(".")[0] in tops:
+                if node.module not in modules:
+                    bad.append(f"{where}:{node.lineno}: from {node.module} import ...")
+                    continue
+                for a in node.names:
+                    if a.name == "*" or f"{node.module}.{a.name}" in modules:
+                        continue
+                    if not _defines(modules[node.module], a.name):
+                        bad.append(f"{where}:{node.lineno}: from {node.module} import {a.name}")
+    return bad
+
+
 def rule_for(name: str) -> tuple[str, tuple[str, ...]] | None:
     """(package, allowed packages) of the longest matching ``ALLOWED``/``SHARED`` key."""
     for pkg in SHARED:
@@ -219,6 +274,22 @@ def test_walk_sees_our_packages(modules):
     assert "fc.control.law" in modules and "plant_sim.sim" in modules
     law = imports_of("fc.control.law", modules["fc.control.law"], modules)
     assert any(t.startswith("fc.control.") for t, _, _ in law)
+
+
+def test_every_import_of_ours_resolves_in_this_tree(modules, tmp_path):
+    """Every ``import``/``from ... import`` of our packages names a module of this tree (or a
+    name its module defines): a path left behind by a move fails here, instead of loading the
+    old file from another checkout through the editable install. The check itself sees a
+    stale path."""
+    bad = unresolved_imports(modules)
+    assert not bad, "imports that do not resolve in this tree:\n" + "\n".join(bad)
+    stale = tmp_path / "stale.py"
+    stale.write_text("from tools import no_such_tool\nimport tools.no_such_module\n"
+                     "from tools.sitl.closed_loop import simulate, no_such_name\n")
+    found = unresolved_imports({"tools.stale": stale, **modules})
+    assert [b.split(": ", 1)[1] for b in found] == [
+        "from tools import no_such_tool", "import tools.no_such_module",
+        "from tools.sitl.closed_loop import no_such_name"], found
 
 
 def test_import_direction(modules):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from tools import envelope as E
+from tools.evidence import envelope as E
 
 
 def test_paper_point_has_the_papers_speed_and_dynamic_pressure():

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from tools import margins as M
+from tools.evidence.margins import inproc as M
 
 K_LOOP = 2.0
 DT = 0.01
