@@ -111,10 +111,11 @@ def _caption(d: dict, source: str) -> str:
             f" UTC.*")
 
 
-def table_hil_steps(root: Path = ROOT, source: str = "hil_paper") -> str:
+def table_hil_steps(root: Path = ROOT, source: str = "hil_paper", paper: bool = True) -> str:
     """The main job's comparison (README): metrics and surfaces of both variants, with the
-    paper's own figures quoted (they are the paper's, not measured here). ``source``: the
-    default law's run (``hil_paper``) or the paper's fixed gains' (``hil_paper_gains``)."""
+    paper's own figures quoted (they are the paper's, not measured here) when ``paper``.
+    ``source``: the default law's run (``hil_paper``), the paper's fixed gains'
+    (``hil_paper_gains``) or the prefilter's (``hil_prefilter``)."""
     d = load_data(source, root)
     runs = d["summary"]["runs"]
     co, un = runs["coordinated"], runs["uncoordinated"]
@@ -150,9 +151,13 @@ def table_hil_steps(root: Path = ROOT, source: str = "hil_paper") -> str:
          surf(co, ["rate_cmd_limited_s"], "{:.2f}"), surf(un, ["rate_cmd_limited_s"], "{:.2f}"),
          "", ""),
     ]
-    lines = [f"| `{d['command']}` | coordinated | uncoordinated | paper, coordinated | "
-             "paper, uncoordinated |", "|---|---|---|---|---|"]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    if paper:
+        lines = [f"| `{d['command']}` | coordinated | uncoordinated | paper, coordinated | "
+                 "paper, uncoordinated |", "|---|---|---|---|---|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+    else:
+        lines = [f"| `{d['command']}` | coordinated | uncoordinated |", "|---|---|---|"]
+        lines += ["| " + " | ".join(r[:3]) + " |" for r in rows]
     return "\n".join(lines) + "\n\n" + _caption(d, source)
 
 
@@ -160,6 +165,38 @@ def table_hil_steps_paper_gains(root: Path = ROOT) -> str:
     """The main job flown with the paper's fixed gains (``--gains paper``), for the README's
     comparison with the paper."""
     return table_hil_steps(root, "hil_paper_gains")
+
+
+def table_hil_prefilter(root: Path = ROOT) -> str:
+    """The main job with the law's reference prefilter (``--command-shaping prefilter``); the
+    paper flew steps, so its figures are not quoted beside it."""
+    return table_hil_steps(root, "hil_prefilter", paper=False)
+
+
+def claim_eq14_mirror(root: Path = ROOT) -> str:
+    """The paper's fixed gains with the coordinated factors of Eq. 14 instead of Eq. 19, and
+    with the sideslip and bank signs mirrored, in two sentences (README), from the runs' data."""
+    e19 = load_data("hil_paper_gains", root)
+    e14 = load_data("hil_paper_gains_eq14", root)
+    m19 = load_data("hil_paper_gains_mirror", root)
+    m14 = load_data("hil_paper_gains_eq14_mirror", root)
+
+    def three(d, variant, key="overshoot_pct", fmt="{:.1f}"):
+        run = d["summary"]["runs"][variant]
+        return " / ".join(_f(run[ch].get(key), fmt) for ch in CHANNELS)
+
+    return (f"With the paper's fixed gains and Eq. 14's factors instead (`CO_FAC_EQ` 14) the "
+            f"coordinated law overshoots alpha / beta / mu by {three(e14, 'coordinated')} % "
+            f"and settles in {three(e14, 'coordinated', 'settling_time_s', '{:.2f}')} s (Eq. 19: "
+            f"{three(e19, 'coordinated')} % and "
+            f"{three(e19, 'coordinated', 'settling_time_s', '{:.2f}')} s; uncoordinated "
+            f"{three(e19, 'uncoordinated')} %). With the sideslip and bank signs mirrored "
+            f"(scenario `paper_mirror`) coordination gives {three(m19, 'coordinated')} % with "
+            f"Eq. 19 and {three(m14, 'coordinated')} % with Eq. 14, against "
+            f"{three(m19, 'uncoordinated')} % uncoordinated. (`{e14['command']}`, "
+            f"`{m19['command']}`, `{m14['command']}`; the parameter file holds `CO_FAC_EQ 14`; "
+            f"commit {e14['commit']}, {e14['created_utc'][:10]}, written by "
+            f"`python -m tools.evidence.report`.)")
 
 
 def table_beta0(root: Path = ROOT) -> str:
@@ -266,6 +303,7 @@ def claim_mc_surfaces(root: Path = ROOT) -> str:
 
 #: block name -> the function that renders it
 TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
+          "hil_prefilter": table_hil_prefilter, "eq14_mirror_claim": claim_eq14_mirror,
           "beta0_dip": table_beta0, "mc_paper": table_mc,
           "mc_surfaces": table_mc_surfaces, "mc_surfaces_claim": claim_mc_surfaces}
 
