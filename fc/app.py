@@ -218,6 +218,16 @@ class FlightController:
             self.mode_ctl.resync()           # re-sync CO_ENABLE (and reset the law)
         return reason
 
+    def save_params(self, done) -> bool:
+        """The parameter file written now on the I/O thread; ``done(error or None)`` from
+        there (a ground station's PARAM_SET is answered once it is on disk, fc/gcs.py)."""
+        values = self.param_svc.snapshot(force=True)
+
+        def job():
+            done(self.param_svc.save(values))
+        self.io.submit(job)
+        return True
+
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
         """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
         pairs = [(n, v) for n, v in (("CMD_ALPHA_DEG", alpha_deg), ("CMD_BETA_DEG", beta_deg),

@@ -50,7 +50,7 @@ class SurfaceHold:
     """The trim the law flew: its surface commands (rad, left elevon, right elevon, rudder)
     averaged, a running mean over the first TRIM_EST_TAU_S of flight and a first-order
     low-pass after it. What FAILSAFE holds (the plant holds the commands of a silent fc
-    averaged the same way: plant_sim/process.py ``HOLD_TAU_S``). Three floats, updated in
+    averaged the same way: plant_sim/hold.py ``HOLD_TAU_S``). Three floats, updated in
     place, no allocation."""
 
     def __init__(self, tau_s: float = TRIM_EST_TAU_S) -> None:

@@ -5,6 +5,8 @@
                             [--sysid 2] [--fc-sysid 1] [--rerequest-timeout S] [--give-up S]
                             [--progress-every S]
     python -m plant_sim trim --scenario NAME|PATH
+    python -m plant_sim modes --scenario NAME|PATH [--offset-deg 0.2] [--surface rudder]
+                              [--hold-s 10]
     python -m plant_sim list
 """
 from __future__ import annotations
@@ -23,7 +25,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m plant_sim",
         description="Winged-cone hypersonic plant simulator speaking MAVLink 2 over UDP "
                     "(docs/plant.md, docs/wire.md).")
-    sub = ap.add_subparsers(dest="cmd", required=True, metavar="{run,trim,list}")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="{run,trim,modes,list}")
     r = sub.add_parser("run", help="run a scenario against a flight controller",
                        description="Run a scenario: send sensor frames to the fc, apply its "
                                    "SERVO_OUTPUT_RAW, write truth.npz, plant.log, "
@@ -57,6 +59,18 @@ def _parser() -> argparse.ArgumentParser:
                                    "scenario's initial state and at each commanded attitude "
                                    "(or the best within the limits and the moment left).")
     t.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    m = sub.add_parser("modes", help="the small-perturbation modes, open loop and with the "
+                                     "hold's backup damper",
+                       description="Linearise the plant at the scenario's initial condition "
+                                   "(plant_sim/modes.py): eigenvalues open loop and with the "
+                                   "servo table's backup damper (plant_sim/hold.py), and the "
+                                   "bank of a surface held off the trim.")
+    m.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    m.add_argument("--offset-deg", type=float, default=0.2,
+                   help="the held surface's offset from the trim, deg (0.2)")
+    m.add_argument("--surface", choices=("left", "right", "rudder"), default="rudder",
+                   help="which surface is held off the trim (rudder)")
+    m.add_argument("--hold-s", type=float, default=10.0, help="how long it is held, s (10)")
     sub.add_parser("list", help="list the shipped scenarios")
     return ap
 
@@ -81,6 +95,11 @@ def main(argv=None) -> int:
         sc = load(args.scenario)
     except ScenarioError as e:
         return _fail(str(e))
+    if args.cmd == "modes":
+        from plant_sim.modes import report
+        surface = ("left", "right", "rudder").index(args.surface)
+        print(report(sc, args.offset_deg, surface, args.hold_s))
+        return 0
     if args.cmd == "trim":
         from plant_sim.trim import trim_report
         text, ok = trim_report(sc)
