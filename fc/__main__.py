@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "(default %(default)g)")
     ap.add_argument("--internals-tail-hz", type=float, default=None, metavar="HZ",
                     help="internals log: rows per second of sensor time after "
-                         "--internals-full-s (default: the slow-loop rate, --slow-hz)")
+                         "--internals-full-s (default: half the slow-loop rate, --slow-hz)")
     ap.add_argument("--internals-full-rate", action="store_true",
                     help="internals log: every fast tick however long the run (816 bytes a "
                          "row: about 1.5 GB per hour at 500 Hz)")

@@ -11,6 +11,7 @@ injected: ``law_module`` names a module exposing ``AttitudeLaw`` and ``LAW_PARAM
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import logging
 import math
@@ -26,7 +27,8 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink, surfaces_pwm
+from fc.frame_calls import ArrayAddress, address_of, surfaces_pwm_p
+from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
 from fc.mission_store import FILE_NAME as MISSION_FILE, MissionStore
@@ -71,10 +73,11 @@ class FcConfig:
     spin_us: int = 0                       # busy-wait the last microseconds before a deadline
     sync: str = "frame"                    # realtime: frame (tick on the sensor frame) | clock
     law_module: str = "fc.control"
-    #: internals log: every row for this long (s of sensor time), then one per slow tick;
+    #: internals log: every row for this long (s of sensor time), then one per two slow ticks;
     #: None: every row however long the run (fc/internals_log.py)
     internals_full_rate_s: float | None = 60.0
-    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz
+    #: internals log: rows per second after ``internals_full_rate_s`` (Hz); None: slow_hz / 2
+    #: (50 Hz: the hour's logs within 300 MB with the plant's decimated truth, issue 24)
     internals_tail_hz: float | None = None
 
 
@@ -134,6 +137,8 @@ class FlightController:
         self.mission = Mission()
         self.mission_flight = MissionFlight(self.mission)
         self.cruise_track = CruiseTrack(EARTH_RADIUS_M)
+        # CRUISE's course target, set before each guidance step (bound once: no allocation)
+        self._cruise_course = functools.partial(self.cruise_track.tick, self)
         # RTL, DO_REPOSITION and DO_ORBIT: a point flown by the guidance (fc/point_mode.py)
         self.point_flight = PointFlight()
 
@@ -147,6 +152,10 @@ class FlightController:
         self.settings = self.param_svc.settings
         self.out = TickOutput(self.settings.cmd_rad)
         self.pwm_us = self.out.pwm_us           # VehicleView (the same array)
+        # the tick's output kernel's arrays by address (fc/frame_calls.py: no array record)
+        self._src_at = ArrayAddress(np.float64, 3)
+        self._delta_p = address_of(self.out.delta_rad, np.float64, 3)
+        self._pwm_p = address_of(self.out.pwm_us, np.int64, 4)
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -187,7 +196,7 @@ class FlightController:
                                    self.status_names, self.guid)
         self.ilog = InternalsLog(cfg.out, self.telemetry.columns(), disk=self.disk,
                                  full_rate_s=cfg.internals_full_rate_s,
-                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz)
+                                 tail_hz=cfg.internals_tail_hz or cfg.slow_hz / 2.0)
         # state files saved at 1 Hz when changed and at exit: (snapshot, save) pairs
         self.savers = ((self.gcs.signing_snapshot, self.gcs.save_signing),
                        (self.mission_store.snapshot, self.mission_store.save))
@@ -217,6 +226,16 @@ class FlightController:
         if reason is None and name == "GUID_INNER_CO" and self.modes.mode in GUIDANCE_MODES:
             self.mode_ctl.resync()           # re-sync CO_ENABLE (and reset the law)
         return reason
+
+    def save_params(self, done) -> bool:
+        """The parameter file written now on the I/O thread; ``done(error or None)`` from
+        there (a ground station's PARAM_SET is answered once it is on disk, fc/gcs.py)."""
+        values = self.param_svc.snapshot(force=True)
+
+        def job():
+            done(self.param_svc.save(values))
+        self.io.submit(job)
+        return True
 
     def set_attitude_command(self, alpha_deg: float, beta_deg: float, mu_deg: float) -> str | None:
         """MAV_CMD_USER_1 / timeline: set alpha_c, beta_c, mu_c [deg]; NaN keeps a value."""
@@ -349,7 +368,8 @@ class FlightController:
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
-                    if self.guid.tick(self.est.est, self.meas):
+                    pre = self._cruise_course if modes.mode == FlightMode.CRUISE else None
+                    if self.guid.tick(self.est.est, self.meas, pre):
                         self._navigate()
                     out.cmd_active = self.guid.cmd_rad
                 else:
@@ -375,13 +395,15 @@ class FlightController:
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        surfaces_pwm(src, out.delta_rad,
-                     self.guid.throttle_pwm() if modes.guidance_active else 0, self.pwm_us)
+        surfaces_pwm_p(self._src_at.of(src), self._delta_p,
+                       self.guid.throttle_pwm() if modes.guidance_active else 0, self._pwm_p)
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
-        the targets; in CRUISE the course follows the great circle flown at entry. Ground-station state enters the guidance here only, and never as an
-        exception (the navigators answer ``("hold", why)`` instead, fc/mission_mode.py)."""
+        the targets (CRUISE's course follows the great circle flown at entry, set before each
+        step: ``_cruise_course``, fc/cruise_track.py). Ground-station state enters the guidance
+        here only, and never as an exception (the navigators answer ``("hold", why)`` instead,
+        fc/mission_mode.py)."""
         mode = self.modes.mode
         if mode == FlightMode.MISSION:
             self._nav_out(self.mission_flight.tick(self))
@@ -395,8 +417,6 @@ class FlightController:
             self._nav_out(pf.tick(self))
         elif mode == FlightMode.GUIDED and self.point_flight.active:
             self._nav_out(self.point_flight.tick(self))
-        elif mode == FlightMode.CRUISE:
-            self.cruise_track.tick(self)      # the great circle flown at entry (fc/cruise_track.py)
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
         self.gcs.statustext(severity, text)

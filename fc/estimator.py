@@ -36,10 +36,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N,
                               M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
+
+from fc.frame_calls import ArrayAddress, f8p
 
 try:  # the law owns its input layout (architecture.md section 5)
     from fc.control.layout import (E_ALPHA, E_BETA, E_GAMMA, E_H, E_MU, E_N, E_P,  # noqa: F401
@@ -51,8 +53,9 @@ except ImportError:  # the law is not there yet: same layout, section 5
 try:  # the kernels below freeze hyfc_wire's M_* and layout's E_* (and the EM_* built on them)
     import hyfc_wire.layout as _wire_layout
     from fc.control import layout as _layout
+    from fc.control import carrays as _carrays
     from hyfc_wire.numba_cache import drop_stale
-    drop_stale(__file__, [_wire_layout.__file__, _layout.__file__])
+    drop_stale(__file__, [_wire_layout.__file__, _layout.__file__, _carrays.__file__])
 except ImportError:
     pass
 
@@ -181,6 +184,15 @@ def accept_entry(frame, meas, mem):
     return estimate_entry(meas, mem)
 
 
+@njit(cache=True)
+def accept_p(frame, meas, meas_n, mem, mem_n):
+    """:func:`accept_entry` on the float64[meas_n] ``frame`` and ``meas`` and the estimator's
+    float64[mem_n] buffer, all given by address (fc/frame_calls.py: no array record per call).
+    True when healthy."""
+    return accept_entry(carray(f8p(frame), (meas_n,)), carray(f8p(meas), (meas_n,)),
+                        carray(f8p(mem), (mem_n,)))
+
+
 class Estimator:
     """Allocates the estimator's arrays once; ``update(meas)`` returns True when healthy.
 
@@ -203,6 +215,10 @@ class Estimator:
         self.hi[:] = LIMITS_HI
         self.stale_s = stale_s
         self.healthy = False
+        # accept()'s arguments by address (fc/frame_calls.py), bound on first use
+        self._mem_addr = ArrayAddress(np.float64, EM_N, m).addr
+        self._frame_at = ArrayAddress(np.float64, M_N)
+        self._meas_at = ArrayAddress(np.float64, M_N)
         self.update(np.full(M_N, np.nan))  # compile / load from cache now, not in the loop
         self.accept(np.full(M_N, np.nan), np.zeros(M_N))
         self.reset()
@@ -242,7 +258,7 @@ class Estimator:
     def accept(self, frame: np.ndarray, meas: np.ndarray) -> bool:
         """:meth:`update` on ``frame`` after copying it into ``meas`` (float64[M_N] both), in
         one compiled call (fc/intake.py, a new plant frame)."""
-        h = accept_entry(frame, meas, self.mem)
+        h = accept_p(self._frame_at.of(frame), self._meas_at.of(meas), M_N, self._mem_addr, EM_N)
         self.healthy = h
         return h
 

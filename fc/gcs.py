@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 import struct
 import time
 from collections import deque
@@ -177,6 +178,9 @@ HEADING_LIMIT_DEG = 360.0
 #: more are refused with a STATUSTEXT (each change resets the law and the guidance's state)
 MODE_BURST = 4.0
 MODE_RATE_HZ = 1.0
+#: PARAM_SETs answered after their save (``GcsLink._save_then_echo``): beyond this many waiting
+#: (a stuck disk, a flood) the answer goes at once, as before the save-first answer
+ECHO_WAIT_MAX = 32
 
 
 class _Streams:
@@ -242,6 +246,12 @@ class GcsLink:
         # download, which is a cursor: a repeated PARAM_REQUEST_LIST restarts it and can never
         # push out a pending read (a flood of list requests cannot starve a real GCS)
         self.param_queue: deque[int] = deque()
+        # a PARAM_SET of a setting is answered once the parameter file is on disk (or with
+        # ``NOT saved`` when it could not be written): (token, index, name) waiting for their
+        # save, and the saves' results (token, error or None) from the I/O thread
+        self._echo_wait: deque[tuple[int, int, str]] = deque()
+        self._saved: queue.SimpleQueue = queue.SimpleQueue()
+        self._save_token = 0
         self.list_next = -1        # next index of the list download, -1 = none running
         # STATUSTEXT: rate-limited and de-duplicated (fc/ratelimit.py), queued as chunks
         # (severity, text bytes, id, chunk_seq); the GCS link's own fc.log warnings likewise
@@ -627,11 +637,46 @@ class GcsLink:
         if reason is not None:
             self._param_error(m, idx, code)
             self.statustext(ML.MAV_SEVERITY_WARNING, f"refused: {reason}")
-        elif self.disk is not None and self.disk.failing:
+        elif self._save_then_echo(idx, name):
+            return                          # answered by ``service`` once the file is written
+        elif (self.disk is not None and self.disk.failing
+              and self.v.params.defs[idx].group != "command"):
             # set in memory, but the disk refuses writes: it would revert at a restart
+            # (commands are never kept on file)
             err = self.disk.error_of("parameters") or "writes failing"
             self.statustext(ML.MAV_SEVERITY_ERROR, f"{name} set, NOT saved (disk: {err})")
         self.send(self._param_value(idx))   # current value, also when refused
+
+    def _save_then_echo(self, idx: int, name: str) -> bool:
+        """A setting was set: write the parameter file now (the I/O thread) and answer when it
+        is on disk, so a value that cannot be saved is never echoed as simply accepted, not
+        even before the disk's first failure (issue 22). False (answer at once) for commands
+        (not kept on file), a vehicle without a file, or too many answers already waiting."""
+        if (self.v.params.defs[idx].group == "command"
+                or len(self._echo_wait) >= ECHO_WAIT_MAX):
+            return False
+        self._save_token += 1
+        token = self._save_token
+        self._echo_wait.append((token, idx, name))
+        if not self.v.save_params(lambda err, tok=token: self._saved.put((tok, err))):
+            self._echo_wait.pop()
+            return False
+        return True
+
+    def _answer_saved(self) -> None:
+        """The answers of the PARAM_SETs whose save finished (saves run in order on the one
+        I/O thread): ``NOT saved (disk: ...)`` as an ERROR STATUSTEXT first when the file
+        could not be written, then PARAM_VALUE with the value (set in memory either way)."""
+        while True:
+            try:
+                token, err = self._saved.get_nowait()
+            except queue.Empty:
+                return
+            while self._echo_wait and self._echo_wait[0][0] <= token:
+                _, idx, name = self._echo_wait.popleft()
+                if err is not None:
+                    self.statustext(ML.MAV_SEVERITY_ERROR, f"{name} set, NOT saved (disk: {err})")
+                self.send(self._param_value(idx))
 
     def _param_error(self, m, idx: int, code: int) -> None:
         self.send(MD.MAVLink_param_error_message(m.get_srcSystem(), m.get_srcComponent(),
@@ -1145,6 +1190,8 @@ class GcsLink:
         the .tlog's streams due on the time base. Returns how many were sent."""
         if self.home is None and self.v.plant.gps_samples:
             self._gnss()                   # home = the first fix, taken when it arrives
+        if self._echo_wait:
+            self._answer_saved()
         self._service_log()
         mission_out = self.mission.tick(now_s)
         if mission_out:

@@ -136,9 +136,11 @@ class GuidanceRunner:
         self.engaged = True
 
     # ------------------------------------------------------------------ the tick
-    def tick(self, est: np.ndarray, meas: np.ndarray) -> bool:
+    def tick(self, est: np.ndarray, meas: np.ndarray, before_step=None) -> bool:
         """Called every fast tick while a guidance mode flies: steps the guidance on every
-        ``div``-th call (the first call after engagement included). True if it stepped."""
+        ``div``-th call (the first call after engagement included). True if it stepped.
+        ``before_step`` (no arguments), if given, is called after the frame's inputs are read
+        and before the step: CRUISE's course target for this frame (fc/cruise_track.py)."""
         due = self.count == 0
         self.count += 1
         if self.count >= self.div:
@@ -146,9 +148,17 @@ class GuidanceRunner:
         if not due:
             return False
         self._inputs(est, meas)
+        if before_step is not None:
+            before_step()
         self.limits = self.g.step(self.gest, self.chi_rad, self.dt_s)
         self.steps += 1
         return True
+
+    def course_error_filtered(self) -> float:
+        """The course loop's filtered error wrap(chi_t - chi) (rad) after the last step; 0
+        before the first (docs/guidance.md section 3, GH_CHI_TAU)."""
+        e = float(self.g.gx[G.GX_CHI_ERR_F])
+        return e if math.isfinite(e) else 0.0
 
     def throttle(self) -> float:
         """The throttle command 0..1 (0 when not engaged)."""

@@ -72,6 +72,8 @@ class InternalsLog:
             self._free.put(np.zeros((chunk_rows, self.ncol)))
         self._full: queue.Queue = queue.Queue()
         self.chunk = self._free.get()
+        self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
+        self._row_b = self.ncol * 8        # bytes per row (C-contiguous float64 chunks)
         self._chunk_rows = chunk_rows
         self.n = 0
         self.rows = 0
@@ -92,9 +94,20 @@ class InternalsLog:
         between two tail rows; without a stamp every row is kept).
         A full chunk goes to the writer on the next call (or ``flush``), after the caller has
         filled its last row."""
+        i = self._take(stamp_us)
+        return None if i < 0 else self.chunk[i]
+
+    def row_address(self, stamp_us: int | None = None) -> int:
+        """:meth:`row` as the address of its float64[ncol] (0 for None), for a compiled filler
+        that takes addresses (fc/telemetry.py ``fill_row_p``: no array object per row)."""
+        i = self._take(stamp_us)
+        return 0 if i < 0 else self._chunk_addr + i * self._row_b
+
+    def _take(self, stamp_us: int | None) -> int:
+        """Index in ``chunk`` of the next row, or -1 (see :meth:`row`)."""
         if self._full_us is not None and stamp_us is not None and not self._keep(stamp_us):
             self.decimated += 1
-            return None
+            return -1
         if self.n == self._chunk_rows or self.chunk is None:
             if self.chunk is not None:
                 self._full.put((self.chunk, self.n))
@@ -103,12 +116,13 @@ class InternalsLog:
                 self.chunk = self._free.get_nowait()
             except queue.Empty:
                 self.dropped += 1
-                return None
+                return -1
+            self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
             self.n = 0
-        r = self.chunk[self.n]
-        self.n += 1
+        i = self.n
+        self.n = i + 1
         self.rows += 1
-        return r
+        return i
 
     def _keep(self, stamp_us: int) -> bool:
         """Is the row of this frame stamp (us) kept? Every one in the first ``full_rate_s``,

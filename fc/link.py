@@ -19,11 +19,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fc.frame_calls import (ArrayAddress, address_of, decode_sensor_p, servo_frame_p,
+                            surfaces_pwm_p)
 from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
 from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
                                      GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
                                      GR_VN, SERVO_FRAME_MAX_B, decode_sensor, pwm_map,
-                                     servo_frame, surfaces_pwm)
+                                     servo_frame, surfaces_pwm)  # noqa: F401 (re-exported)
 from hyfc_wire.frame_kernels import GR_ALT_M as GR_ALT
 from hyfc_wire.framing import LeanFramer
 from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
@@ -126,7 +128,9 @@ def _lean_self_check(link: "PlantLink") -> bool:
         delta = np.zeros(3)
         for d in ((0.0, 0.1, -0.1), (0.35, -0.35, math.nan), (1e-3, -2e-3, 0.2)):
             # (also compiles/loads the fast tick's kernel before the first tick)
-            surfaces_pwm(np.array(d), delta, 0, pwm)
+            src = np.array(d)
+            surfaces_pwm_p(address_of(src, np.float64, 3), address_of(delta, np.float64, 3), 0,
+                           address_of(pwm, np.int64, 4))
             if (pwm.tolist() != [deflection_to_pwm(x) for x in d] + [0]
                     or not np.array_equal(delta, d, equal_nan=True)):
                 return False
@@ -136,8 +140,8 @@ def _lean_self_check(link: "PlantLink") -> bool:
             c.seq = seq
             ref = c.servo_output_raw_encode(args[0], 0, args[1], args[2], args[3],
                                             args[4], 0, 0, 0, 0).pack(c)
-            n = servo_frame(link._tx_u8, seq, link.sysid, link.compid, args[0],
-                            np.array(args[1:], np.int64))
+            n = servo_frame_p(link._tx_addr, SERVO_FRAME_MAX_B, seq, link.sysid, link.compid,
+                              args[0], link._pwm_at.of(np.array(args[1:], np.int64)))
             if bytes(link._tx[:n]) != ref:
                 return False
         return True
@@ -211,6 +215,12 @@ class PlantLink:
     _tx: bytearray = None           # the SERVO_OUTPUT_RAW frame being sent, and as uint8
     _tx_u8: np.ndarray = None
     _tx_mv: memoryview = None
+    # the compiled calls' arrays by address (fc/frame_calls.py: no numba array record per call)
+    _rx_addr: int = 0
+    _gps_raw_addr: int = 0
+    _tx_addr: int = 0
+    _meas_at: ArrayAddress = None
+    _pwm_at: ArrayAddress = None
 
     def __post_init__(self) -> None:
         self.gps = np.zeros(G_N)
@@ -222,6 +232,11 @@ class PlantLink:
         self._tx = bytearray(SERVO_FRAME_MAX_B)
         self._tx_u8 = np.frombuffer(self._tx, np.uint8)
         self._tx_mv = memoryview(self._tx)
+        self._rx_addr = ArrayAddress(np.uint8, MAX_DATAGRAM_B, self._rx_u8).addr
+        self._gps_raw_addr = ArrayAddress(np.float64, GR_N, self._gps_raw).addr
+        self._tx_addr = ArrayAddress(np.uint8, SERVO_FRAME_MAX_B, self._tx_u8).addr
+        self._meas_at = ArrayAddress(np.float64, M_N)
+        self._pwm_at = ArrayAddress(np.int64, 4)
         self._fast = _lean_self_check(self)
 
     def read_frame(self, meas_out: np.ndarray) -> int:
@@ -270,7 +285,8 @@ class PlantLink:
         the common case; anything it rejects (its code says why) goes to the codec's general
         parser, which counts what it rejects: the same result, only the cost changes."""
         if self._fast:
-            stamp = decode_sensor(self._rx_u8, n, self.plant_sysid, meas_out, self._gps_raw)
+            stamp = decode_sensor_p(self._rx_addr, MAX_DATAGRAM_B, n, self.plant_sysid,
+                                    self._meas_at.of(meas_out), M_N, self._gps_raw_addr, GR_N)
             if stamp >= 0:
                 g = self._gps_raw
                 if g[GR_PRESENT]:
@@ -378,8 +394,13 @@ class PlantLink:
         if self._fast:                  # same bytes as the codec's pack (self-checked)
             if type(pwm_us) is not np.ndarray or len(pwm_us) != 4:
                 pwm_us = _pwm4(pwm_us)
-            buf = self._tx_mv[:servo_frame(self._tx_u8, self._tx_codec.seq, self.sysid,
-                                           self.compid, stamp_us & 0xFFFFFFFF, pwm_us)]
+            try:
+                pwm_addr = self._pwm_at.of(pwm_us)
+            except ValueError:          # not int64: converted as servo_frame would
+                pwm_addr = self._pwm_at.of(_pwm4(pwm_us))
+            buf = self._tx_mv[:servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
+                                             self._tx_codec.seq, self.sysid, self.compid,
+                                             stamp_us & 0xFFFFFFFF, pwm_addr)]
         else:
             s4 = pwm_us[3] if len(pwm_us) > 3 else 0
             buf = self._tx_codec.servo_output_raw_encode(

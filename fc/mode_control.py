@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from fc.estimator import Estimator
+from fc.frame_calls import ArrayAddress, address_of, blend3_p
 from fc.gcs_streams import IN_AIR_SPEED_M_S
 from fc.guided import GuidanceRunner
 from fc.link import M_AIRSPEED, PlantLink
@@ -50,21 +51,22 @@ class SurfaceHold:
     """The trim the law flew: its surface commands (rad, left elevon, right elevon, rudder)
     averaged, a running mean over the first TRIM_EST_TAU_S of flight and a first-order
     low-pass after it. What FAILSAFE holds (the plant holds the commands of a silent fc
-    averaged the same way: plant_sim/process.py ``HOLD_TAU_S``). Three floats, updated in
+    averaged the same way: plant_sim/hold.py ``HOLD_TAU_S``). Three floats, updated in
     place, no allocation."""
 
     def __init__(self, tau_s: float = TRIM_EST_TAU_S) -> None:
         self.tau_s = tau_s
         self.est_rad = np.zeros(3)
         self.flown_s = 0.0          # law time averaged so far (0: no estimate)
+        # update()'s arrays by address (fc/frame_calls.py: no object allocated per tick)
+        self._est_p = address_of(self.est_rad, np.float64, 3)
+        self._src_at = ArrayAddress(np.float64, 3)
 
     def update(self, delta_rad: np.ndarray, dt_s: float) -> None:
         """One fast tick of the law's fresh command ``delta_rad`` (rad)."""
         self.flown_s += dt_s
         k = dt_s / min(self.flown_s, self.tau_s)
-        e = self.est_rad
-        for i in range(3):
-            e[i] += k * (delta_rad[i] - e[i])
+        blend3_p(self._est_p, self._src_at.of(delta_rad), k)
 
     def clear(self) -> None:
         self.flown_s = 0.0

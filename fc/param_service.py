@@ -119,16 +119,18 @@ class ParamService:
         self.log.info("param %s = %g (was %g)", name, new, old)
         return None
 
-    def snapshot(self) -> np.ndarray | None:
-        """The values to save when a setting changed since the last call, else None."""
-        if not self.dirty:
+    def snapshot(self, force: bool = False) -> np.ndarray | None:
+        """The values to save when a setting changed since the last call (or ``force``),
+        else None."""
+        if not (self.dirty or force):
             return None
         self.dirty = False
         return self.table.values.copy()
 
-    def save(self, values: np.ndarray | None = None) -> None:
+    def save(self, values: np.ndarray | None = None) -> str | None:
         """Write the parameter file (runs on the I/O thread; ``values`` is a snapshot).
-        Commands are not settings: their defaults go on file."""
+        Commands are not settings: their defaults go on file. None when written, else the
+        error (also given to the disk health; the next save tries again)."""
         try:
             saved = ParamTable(self.table.defs)
             saved.values[:] = self.table.values if values is None else values
@@ -140,6 +142,7 @@ class ParamService:
             self.dirty = True               # tried again at the next save
             if self.disk is None or self.disk.failed("parameters", exc):
                 self.log.error("cannot save parameters to %s: %s", self.path, exc)
-            return
+            return exc.strerror or repr(exc)
         if self.disk is not None:
             self.disk.ok("parameters")
+        return None

@@ -13,9 +13,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
-from fc.estimator import E_N, EM_EST, EM_MASKS, Estimator
+import fc.control.carrays as _carrays
+import fc.estimator as _estimator
+import fc.guidance.layout as _guid_layout
+import hyfc_wire.layout as _wire_layout
+from fc.control.carrays import ArrayAddress, address_of, f8p
+from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
@@ -23,11 +28,17 @@ from fc.internals_log import InternalsLog
 from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
 from fc.scheduler import FrameGate, LoopStats, TickPlanner
+from hyfc_wire.numba_cache import drop_stale
 
 __all__ = ["EST_COLS", "FcCounters", "TickOutput", "Telemetry"]
 
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
             "h_m", "gamma_rad")
+
+
+# fill_row(_p) freeze the estimator's EM_*, the layouts' indices and the address views
+drop_stale(__file__, [_estimator.__file__, _carrays.__file__, _wire_layout.__file__,
+                      _guid_layout.__file__])
 
 
 @njit(cache=True)
@@ -66,6 +77,18 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
         r[k + 2 + i] = tgt[i]
 
 
+@njit(cache=True)
+def fill_row_p(r, ncol, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
+               lateness_ns, exec_ns, status, status_n, n_status, throttle, limits, tgt):
+    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): the row
+    float64[ncol], meas float64[M_N], emem float64[EM_N], cmd/delta/tgt float64[3], status
+    float64[status_n]."""
+    fill_row(carray(f8p(r), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
+             armed, healthy, carray(f8p(emem), (EM_N,)), carray(f8p(cmd), (3,)),
+             carray(f8p(delta), (3,)), lateness_ns, exec_ns, carray(f8p(status), (status_n,)),
+             n_status, throttle, limits, carray(f8p(tgt), (3,)))
+
+
 _NO_STATUS = np.zeros(0)
 
 
@@ -77,6 +100,9 @@ class _OneRow:
 
     def row(self, stamp_us: int | None = None) -> np.ndarray:
         return self._row
+
+    def row_address(self, stamp_us: int | None = None) -> int:
+        return address_of(self._row, np.float64, self._row.size)
 
 
 @dataclass
@@ -151,6 +177,13 @@ class Telemetry:
         self._emem = self.est.mem
         self._delta = self.out.delta_rad
         self._tgt = self.guid.g.tgt
+        self._ncol = len(self.columns())
+        self._meas_at = ArrayAddress(np.float64, M_N)
+        self._cmd_at = ArrayAddress(np.float64, 3)
+        self._emem_p = address_of(self._emem, np.float64, EM_N)
+        self._delta_p = address_of(self._delta, np.float64, 3)
+        self._tgt_p = address_of(self._tgt, np.float64, 3)
+        self._status_p = address_of(st, np.float64, 0) if self._status is not None else 0
         # compile / load the row kernel now (the guidance's command array, which the tick
         # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
@@ -237,12 +270,23 @@ class Telemetry:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
         frame's arrival, in real time the wake-up."""
+        modes = self.modes
+        st = self._status
+        if st is not None:
+            # by address (fc/control/carrays.py): no array object nor numba record per row
+            ra = ilog.row_address(stamp_us)
+            if ra:
+                fill_row_p(ra, self._ncol, self._meas_at.of(meas), wall_s, float(stamp_us),
+                           int(modes.mode), modes.armed, self.est.healthy, self._emem_p,
+                           self._cmd_at.of(self.out.cmd_active), self._delta_p, lateness_ns,
+                           exec_ns, self._status_p, st.size, self._n_status,
+                           self.guid.throttle() if modes.guidance_active else math.nan,
+                           self.guid.limits, self._tgt_p)
+            return
         r = ilog.row(stamp_us)
         if r is None:
             return
         # the parts' arrays are bound once (__post_init__; they update them in place)
-        modes = self.modes
-        st = self._status
         # the stamp as a float: a u64 stamp beyond the int64 range (the plant's to send) would
         # not convert to the kernel's integer argument
         fill_row(r, meas, wall_s, float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,

@@ -6,7 +6,7 @@
 """
 from __future__ import annotations
 
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -53,6 +53,11 @@ class VehicleView(Protocol):
 
     # commands: None / (True, text) on success, else the reason
     def set_param(self, name: str, value: float) -> str | None: ...
+
+    # the parameter file written now, off the loop: ``done(error)`` is called (from the I/O
+    # thread) once it is on disk (None) or could not be written (the error); False when the
+    # vehicle keeps no file (nothing to wait for)
+    def save_params(self, done: Callable[[str | None], None]) -> bool: ...
 
     def request_mode(self, mode: int) -> tuple[bool, str]: ...
 

@@ -153,8 +153,10 @@ def decode_sensor(buf, n, plant_sysid, meas_out, gps_out):
     (float64[M_N], SI) and ``gps_out`` (float64[GR_N], raw GPS_INPUT fields, GR_PRESENT 0.0
     when the datagram has none). Returns the frame stamp (AOA_SSA.time_usec, us) or a
     ``REJ_*`` code (< 0), in which case neither output was written."""
-    off = np.zeros(4, np.int64)
-    ln = np.zeros(4, np.int64)
+    # each message's payload offset and length: scalars, not arrays (an array made here would
+    # be a numba runtime record per call, issue 24)
+    off0 = off1 = off2 = off3 = np.int64(0)
+    ln0 = ln1 = ln2 = ln3 = np.int64(0)
     seen = 0
     pos = 0
     while pos < n:
@@ -185,20 +187,26 @@ def decode_sensor(buf, n, plant_sysid, meas_out, gps_out):
         crc = _crc_byte(extra, crc16_range(buf, pos + 1, end, 0xFFFF))
         if crc != (np.int64(buf[end]) | (np.int64(buf[end + 1]) << 8)):
             return REJ_CRC
-        off[slot] = pos + _HDR
-        ln[slot] = mlen
+        if slot == 0:
+            off0, ln0 = np.int64(pos + _HDR), mlen
+        elif slot == 1:
+            off1, ln1 = np.int64(pos + _HDR), mlen
+        elif slot == 2:
+            off2, ln2 = np.int64(pos + _HDR), mlen
+        else:
+            off3, ln3 = np.int64(pos + _HDR), mlen
         seen |= 1 << slot
         pos = end + 2
     if seen & 7 != 7:
         return REJ_INCOMPLETE
-    o, m = off[1], ln[1]
+    o, m = off1, ln1
     stamp_u = _uint(buf, o, m, 0, 8)                 # AOA_SSA.time_usec
     if stamp_u > np.uint64(0x7FFFFFFFFFFFFFFF):
         return REJ_STAMP
     stamp = np.int64(stamp_u)
     aoa_deg = _f32(buf, o, m, 8)
     ssa_deg = _f32(buf, o, m, 12)
-    o, m = off[0], ln[0]                             # ATTITUDE
+    o, m = off0, ln0                                 # ATTITUDE
     meas_out[M_T_S] = stamp * 1e-6
     meas_out[M_ROLL] = _f32(buf, o, m, 4)
     meas_out[M_PITCH] = _f32(buf, o, m, 8)
@@ -208,7 +216,7 @@ def decode_sensor(buf, n, plant_sysid, meas_out, gps_out):
     meas_out[M_R] = _f32(buf, o, m, 24)
     meas_out[M_AOA] = aoa_deg * _DEG2RAD
     meas_out[M_SSA] = ssa_deg * _DEG2RAD
-    o, m = off[2], ln[2]                             # VFR_HUD
+    o, m = off2, ln2                                 # VFR_HUD
     meas_out[M_AIRSPEED] = _f32(buf, o, m, 0)
     meas_out[M_GROUNDSPEED] = _f32(buf, o, m, 4)
     meas_out[M_ALT] = _f32(buf, o, m, 8)
@@ -218,7 +226,7 @@ def decode_sensor(buf, n, plant_sysid, meas_out, gps_out):
         hdg -= 65536
     meas_out[M_HEADING] = np.float64(hdg) * _DEG2RAD
     if seen & 8:
-        o, m = off[3], ln[3]                         # GPS_INPUT
+        o, m = off3, ln3                             # GPS_INPUT
         gps_out[GR_PRESENT] = 1.0
         gps_out[GR_LAT_E7] = np.float64(_i32(buf, o, m, 12))
         gps_out[GR_LON_E7] = np.float64(_i32(buf, o, m, 16))

@@ -5,6 +5,8 @@
                             [--sysid 2] [--fc-sysid 1] [--rerequest-timeout S] [--give-up S]
                             [--progress-every S]
     python -m plant_sim trim --scenario NAME|PATH
+    python -m plant_sim modes --scenario NAME|PATH [--offset-deg 0.2] [--surface rudder]
+                              [--hold-s 10]
     python -m plant_sim list
 """
 from __future__ import annotations
@@ -23,7 +25,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m plant_sim",
         description="Winged-cone hypersonic plant simulator speaking MAVLink 2 over UDP "
                     "(docs/plant.md, docs/wire.md).")
-    sub = ap.add_subparsers(dest="cmd", required=True, metavar="{run,trim,list}")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="{run,trim,modes,list}")
     r = sub.add_parser("run", help="run a scenario against a flight controller",
                        description="Run a scenario: send sensor frames to the fc, apply its "
                                    "SERVO_OUTPUT_RAW, write truth.npz, plant.log, "
@@ -52,11 +54,32 @@ def _parser() -> argparse.ArgumentParser:
                    help="lockstep: fail when one frame stays unanswered for S (default 120)")
     r.add_argument("--progress-every", type=float, default=1.0, metavar="S",
                    help="print 'PROGRESS t_s=.. rtf=..' every S wall seconds; 0 = never")
+    r.add_argument("--truth-full-s", type=float, default=60.0, metavar="S",
+                   help="truth log (truth.npz): every frame for the first S s of sim time, "
+                        "then --truth-tail-hz rows per second (default %(default)g)")
+    r.add_argument("--truth-tail-hz", type=float, default=50.0, metavar="HZ",
+                   help="truth log: rows per second of sim time after --truth-full-s "
+                        "(default %(default)g)")
+    r.add_argument("--truth-full-rate", action="store_true",
+                   help="truth log: every frame however long the run (about 0.7 GB per hour "
+                        "at 500 Hz)")
     t = sub.add_parser("trim", help="report the trim deflections of a scenario",
                        description="Surface deflections that balance the moments at the "
                                    "scenario's initial state and at each commanded attitude "
                                    "(or the best within the limits and the moment left).")
     t.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    m = sub.add_parser("modes", help="the small-perturbation modes, open loop and with the "
+                                     "hold's backup damper",
+                       description="Linearise the plant at the scenario's initial condition "
+                                   "(plant_sim/modes.py): eigenvalues open loop and with the "
+                                   "servo table's backup damper (plant_sim/hold.py), and the "
+                                   "bank of a surface held off the trim.")
+    m.add_argument("--scenario", required=True, help="shipped scenario name or a TOML path")
+    m.add_argument("--offset-deg", type=float, default=0.2,
+                   help="the held surface's offset from the trim, deg (0.2)")
+    m.add_argument("--surface", choices=("left", "right", "rudder"), default="rudder",
+                   help="which surface is held off the trim (rudder)")
+    m.add_argument("--hold-s", type=float, default=10.0, help="how long it is held, s (10)")
     sub.add_parser("list", help="list the shipped scenarios")
     return ap
 
@@ -81,6 +104,11 @@ def main(argv=None) -> int:
         sc = load(args.scenario)
     except ScenarioError as e:
         return _fail(str(e))
+    if args.cmd == "modes":
+        from plant_sim.modes import report
+        surface = ("left", "right", "rudder").index(args.surface)
+        print(report(sc, args.offset_deg, surface, args.hold_s))
+        return 0
     if args.cmd == "trim":
         from plant_sim.trim import trim_report
         text, ok = trim_report(sc)
@@ -106,6 +134,9 @@ def main(argv=None) -> int:
             return _fail(f"{flag} must be 1..255, got {v}")
     if args.give_up <= 0:
         return _fail("--give-up must be > 0")
+    if not (math.isfinite(args.truth_full_s) and args.truth_full_s >= 0
+            and math.isfinite(args.truth_tail_hz) and args.truth_tail_hz > 0):
+        return _fail("--truth-full-s must be >= 0 and --truth-tail-hz > 0")
     seed = sc.seed if args.seed is None else args.seed
     out = Path(args.out) if args.out else Path("runs") / time.strftime(f"plant-%Y%m%d-%H%M%S-{os.getpid()}")
     try:
@@ -128,7 +159,9 @@ def main(argv=None) -> int:
     cfg = RunConfig(mode=args.mode, fc_addr=fc, bind_addr=bind, out_dir=out, duration_s=duration,
                     seed=seed, sysid=args.sysid, fc_sysid=args.fc_sysid,
                     rerequest_timeout_s=args.rerequest_timeout, give_up_s=args.give_up,
-                    progress_every_s=args.progress_every)
+                    progress_every_s=args.progress_every,
+                    truth_full_rate_s=None if args.truth_full_rate else args.truth_full_s,
+                    truth_tail_hz=args.truth_tail_hz)
     try:
         stats = run(sc, cfg, log)
     except _Fatal as e:

@@ -12,7 +12,9 @@ microsecond timeouts while receiving, then a busy poll for the last 200 us). At 
 command it has (newest by stamp), measures, sends, logs and advances. If no command has been
 accepted for ``no_command_s`` (or none yet) it applies the scenario's ``servo.no_command``:
 ``hold`` keeps the commands' recent mean (:data:`HOLD_TAU_S`; the last command before any
-came), ``trim`` goes to the initial-state trim; such frames are counted. A frame more than one period late counts as late; more than 50 periods behind, the
+came), ``trim`` goes to the initial-state trim, either with the backup damper of the
+``servo.backup_*`` gains on the plant's own rates and sideslip (plant_sim/hold.py); such
+frames are counted. A frame more than one period late counts as late; more than 50 periods behind, the
 schedule is re-based on the current time (counted as a resync) instead of bursting.
 """
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
+from plant_sim.hold import HOLD_TAU_S, SilentHold  # noqa: F401  (HOLD_TAU_S: also here)
 from plant_sim.link import PlantLink
 from plant_sim.scenario import Scenario
 from plant_sim.sim import PlantSim
@@ -43,9 +46,6 @@ from plant_sim.truthlog import TruthWriter
 U32 = 1 << 32
 DEG = math.pi / 180.0
 SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
-#: real time, ``servo.no_command = "hold"``: time constant of the commands' mean it holds, s
-#: (the fc's FAILSAFE holds its law's commands averaged the same way: fc/mode_control.py)
-HOLD_TAU_S = 3.0
 
 
 @dataclass
@@ -62,6 +62,10 @@ class RunConfig:
     give_up_s: float = 120.0
     progress_every_s: float = 1.0
     quiet: bool = False
+    #: truth log (plant_sim/truthlog.py): every frame for this long (s of sim time), then
+    #: ``truth_tail_hz`` rows per second; None: every frame however long the run
+    truth_full_rate_s: float | None = 60.0
+    truth_tail_hz: float = 50.0
 
 
 @dataclass
@@ -77,6 +81,15 @@ class RunStats:
     wall_time_s: float = 0.0
     exit_reason: str = "completed"
     extra: dict = field(default_factory=dict)
+
+
+def truth_decimation(cfg: RunConfig, frame_dt_s: float) -> dict:
+    """TruthWriter's ``full_rows`` and ``every`` for ``cfg`` at frames of ``frame_dt_s`` s."""
+    if cfg.truth_full_rate_s is None:
+        return {"full_rows": None, "every": 1}
+    frame_hz = 1.0 / frame_dt_s
+    return {"full_rows": int(round(cfg.truth_full_rate_s * frame_hz)),
+            "every": max(1, int(round(frame_hz / cfg.truth_tail_hz)))}
 
 
 class _Stop:
@@ -115,7 +128,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     log.info("link: plant %s:%d -> fc %s:%d (sysid %d, fc sysid %d), mode %s",
              link.local_addr[0], link.local_addr[1], link.fc_addr[0], link.fc_addr[1],
              cfg.sysid, cfg.fc_sysid, cfg.mode)
-    writer = TruthWriter(out, sim.TRUTH_NAMES)
+    writer = TruthWriter(out, sim.TRUTH_NAMES, **truth_decimation(cfg, sim.frame_dt_s))
     stop = _Stop()
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     # None: open-ended; nothing below is sized by the requested duration
@@ -129,7 +142,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
                 _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log)
         # the final state, measured but not sent
         if stats.exit_reason == "completed":
-            sim.truth_row(writer.row())      # t_end: state and the measurement taken there
+            sim.truth_row(writer.row(keep=True))     # t_end: the state and its measurement
         # a planned end (complete or stopped by a signal, not a failure): say so before the
         # logs are written, so the fc does not take the silence for a loss of plant data
         stats.extra["goodbye_sent"] = link.send_goodbye()
@@ -166,6 +179,7 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
             "resyncs": stats.resyncs,
             "aero_clip_frames": stats.aero_clip_frames,
             "truth_rows": writer.rows,
+            "truth_rows_decimated": writer.decimated,
             "gnss_samples": sim.gnss.samples,
             "exit_reason": stats.exit_reason,
             **stats.extra,
@@ -291,11 +305,10 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
         trim[:] = trim_at(sc, ini["alpha_deg"] * DEG, ini["beta_deg"] * DEG).deflection_rad
     x = sim.x
     gnss = sim.gnss
-    # ``hold``: the commands' recent mean (running mean over the first HOLD_TAU_S of commands,
-    # a first-order low-pass after): the trim they flew, not the last command, which may be a
-    # transient (issue 22: a law answering late frames at -16 deg, held for 1 s, departed)
-    mean = np.zeros(3)
-    flown_s = 0.0
+    # the hold on a silent fc (plant_sim/hold.py): the commands' recent mean (not the last
+    # command, which may be a transient: issue 22, a law answering late frames at -16 deg, held
+    # for 1 s, departed) or the trim, with the backup damper on the plant's own rates
+    hold = SilentHold(sv, trim, frame_dt)
     tmax = float(sim.p[dy.P_TMAX])
     thr_scale = 100.0 / tmax if tmax > 0 else 0.0
     t0 = perf()                # the schedule's base: re-based by a resync
@@ -304,6 +317,7 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
     next_gc = t0 + 1.0
     last_cmd_wall = -math.inf
     silent = False
+    engaged = False            # the hold's base fixed for the current silence
     last_count = 0
     k = 0
     base_k = 0
@@ -344,29 +358,25 @@ def _realtime(sim, link, writer, cfg, stats, stop, n_frames, sc, log):
                 stats.resyncs += 1
         if now - last_cmd_wall > no_cmd_s:
             stats.no_command_frames += 1
+            if not engaged:
+                engaged = True                     # the base is fixed for the whole silence
+                hold.engage(x[dy.X_CMD_L:dy.X_CMD_L + 3])
             if not silent and last_cmd_wall > -math.inf:
                 silent = True                      # logged once per episode, not per frame
                 stats.no_command_episodes += 1
-                log.warning("no servo command for %.2f s (t=%.3f s): %s", now - last_cmd_wall,
+                log.warning("no servo command for %.2f s (t=%.3f s): %s%s", now - last_cmd_wall,
                             k * frame_dt, "surfaces to trim" if to_trim
-                            else "holding the commands' recent mean")
-            if to_trim:
-                cmd[:] = trim
-            elif flown_s > 0.0:
-                cmd[:] = mean
-            else:
-                cmd[:] = x[dy.X_CMD_L:dy.X_CMD_L + 3]
+                            else "holding the commands' recent mean",
+                            ", backup damper on" if hold.damping else "")
+            hold.output(meas, cmd)
         else:
+            engaged = False
             c = link.cmd_rad
             cmd[0] = c[0]
             cmd[1] = c[1]
             cmd[2] = c[2]
             if fresh:                              # the mean of the commands received
-                flown_s += frame_dt
-                g = frame_dt / min(flown_s, HOLD_TAU_S)
-                mean[0] += g * (cmd[0] - mean[0])
-                mean[1] += g * (cmd[1] - mean[1])
-                mean[2] += g * (cmd[2] - mean[2])
+                hold.command_received(cmd)
             if link.cmd_throttle >= 0.0:      # servo4 (engine model only; else ignored)
                 x[dy.X_CMD_THR] = link.cmd_throttle
         stamp = int(round(k * frame_dt * 1e6))

@@ -127,6 +127,18 @@ SCHEMA: dict[str, Any] = {
                             doc="real time: after this long without SERVO_OUTPUT_RAW apply no_command"),
         "no_command": Key("str", "hold", choices=("hold", "trim"),
                           doc="hold the commands' recent mean (3 s), or go to the initial-state trim"),
+        # the backup stability augmentation around the hold while the fc is silent
+        # (plant_sim/hold.py, docs/plant.md s. 14); 0 = off, positive gains damp
+        "backup_p_gain_s": Key("float", 0.0, 0.0, 10.0,
+                               doc="differential elevon per measured roll rate (rad per rad/s)"),
+        "backup_q_gain_s": Key("float", 0.0, 0.0, 10.0,
+                               doc="symmetric elevon per measured pitch rate (rad per rad/s)"),
+        "backup_r_gain_s": Key("float", 0.0, 0.0, 10.0,
+                               doc="rudder per measured yaw rate (rad per rad/s)"),
+        "backup_beta_gain": Key("float", 0.0, 0.0, 10.0,
+                                doc="rudder per measured sideslip (rad per rad)"),
+        "backup_authority_deg": Key("float", 5.0, 0.0, 20.0,
+                                    doc="largest increment the damper adds to each surface"),
     },
     "sensors": {
         "enabled": Key("bool", True, doc="false: exact measurements (no noise, bias, latency)"),

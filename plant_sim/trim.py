@@ -52,15 +52,19 @@ class TrimResult:
                 f"m {self.moment_zero_defl_N_m[1]:+.4g}, n {self.moment_zero_defl_N_m[2]:+.4g}")
 
 
-def trim_at(sc: Scenario, alpha_rad: float, beta_rad: float) -> TrimResult:
-    """Trim deflections at (alpha, beta) with the scenario's flight condition and vehicle."""
+def _state_at(sc: Scenario, alpha_rad: float, beta_rad: float):
+    """(params, state, work array, surface limit rad) at the scenario's V and h, rates zero."""
     p, _ = build_params(sc)
     ini = sc.data["initial"]
     x = np.zeros(dy.X_N)
     dy.initial_state(ini["V_m_s"], ini["h_m"], alpha_rad, beta_rad, 0.0, 0.0, 0.0,
                      0.0, 0.0, 0.0, x)
-    w = np.zeros(dy.W_N)
-    lim = p[dy.P_ACT_LIMIT]
+    return p, x, np.zeros(dy.W_N), p[dy.P_ACT_LIMIT]
+
+
+def trim_at(sc: Scenario, alpha_rad: float, beta_rad: float) -> TrimResult:
+    """Trim deflections at (alpha, beta) with the scenario's flight condition and vehicle."""
+    p, x, w, lim = _state_at(sc, alpha_rad, beta_rad)
 
     def moments(d):
         dy.aero_eval(x, d[0], d[1], d[2], p, w)
@@ -77,6 +81,22 @@ def trim_at(sc: Scenario, alpha_rad: float, beta_rad: float) -> TrimResult:
     trimmed = bool(np.all(np.abs(left / scale) < TRIM_TOL_COEF))
     at_limit = tuple(bool(abs(v) >= lim * (1 - 1e-6)) for v in d)
     return TrimResult(alpha_rad, beta_rad, d, left, m0, trimmed, at_limit)
+
+
+def yaw_moment_range(sc: Scenario, alpha_rad: float, beta_rad: float,
+                     n_per_surface: int = 9) -> tuple[float, float]:
+    """(smallest, largest) yaw moment about the c.g. (N m) that the three surfaces can give at
+    (alpha, beta) within their limits (rates zero, the scenario's flight condition), over a
+    grid of ``n_per_surface`` deflections per surface (the limits included): whether any
+    deflection at all can stop a sideslip from growing, whatever the roll and pitch need."""
+    p, x, w, lim = _state_at(sc, alpha_rad, beta_rad)
+    vals = np.linspace(-lim, lim, int(n_per_surface))
+    lo, hi = math.inf, -math.inf
+    for d in itertools.product(vals, vals, vals):
+        dy.aero_eval(x, d[0], d[1], d[2], p, w)
+        n = float(w[dy.W_AUX + dy.AX_N])
+        lo, hi = min(lo, n), max(hi, n)
+    return lo, hi
 
 
 _PATTERNS = tuple(itertools.product((0, -1, 1), repeat=3))   # free, at -limit, at +limit

@@ -1,4 +1,11 @@
-"""Plant truth log: full-rate rows of PlantSim.TRUTH_NAMES.
+"""Plant truth log: rows of PlantSim.TRUTH_NAMES, one per frame (full rate) or decimated.
+
+Sized for long runs (issue 24): a row is about 390 bytes, so every frame of an hour at 500 Hz
+is 0.7 GB. With ``full_rows`` set (``python -m plant_sim run``: the first ``--truth-full-s``
+seconds of frames, default 60 s) the first ``full_rows`` rows are kept, then one row in
+``every`` (``--truth-tail-hz``, default 50 Hz); ``--truth-full-rate`` keeps every row. The
+rows kept are the rows a full-rate log holds at the same frames, bit for bit (``t_s`` says when
+each was taken); a row the caller marks ``keep`` (the final state) is always kept.
 
 While running, rows go to ``truth.raw`` (little-endian float64, row-major, no header) in
 blocks of ``block_rows`` rows, flushed to the OS after each block, with the column names in
@@ -18,7 +25,13 @@ import numpy as np
 class TruthWriter:
     """Block-buffered, crash-safe writer. ``row()`` returns the next row buffer to fill."""
 
-    def __init__(self, out_dir: str | os.PathLike, names, block_rows: int = 500):
+    def __init__(self, out_dir: str | os.PathLike, names, block_rows: int = 500,
+                 full_rows: int | None = None, every: int = 1):
+        """``full_rows``: keep every row of the first ``full_rows`` frames, then one in
+        ``every`` (counted from the first tail frame); None: every row."""
+        if full_rows is not None and (full_rows < 0 or every < 1):
+            raise ValueError(f"truth log: {full_rows} full-rate rows then 1 in {every}: "
+                             "need >= 0 rows and every >= 1")
         self.dir = Path(out_dir)
         self.names = tuple(names)
         self.n = len(self.names)
@@ -31,9 +44,22 @@ class TruthWriter:
         self.block_rows = block_rows
         self.fill = 0
         self.rows = 0
+        self.full_rows = full_rows
+        self.every = int(every)
+        self.offered = 0            # rows asked for (frames), kept or not
+        self.decimated = 0          # rows not kept by choice (past full_rows, between tail rows)
+        self._discard = np.zeros(self.n)
 
-    def row(self) -> np.ndarray:
-        """The buffer for the next row (fill it completely); flushes full blocks."""
+    def row(self, keep: bool = False) -> np.ndarray:
+        """The buffer for the next row (fill it completely); flushes full blocks. A row that
+        the decimation does not keep gets a scratch buffer (filled and dropped); ``keep``:
+        kept whatever the decimation says (the run's final state)."""
+        k = self.offered
+        self.offered = k + 1
+        if (not keep and self.full_rows is not None and k >= self.full_rows
+                and (k - self.full_rows) % self.every):
+            self.decimated += 1
+            return self._discard
         if self.fill == self.block_rows:
             self.flush()
         r = self.block[self.fill]

@@ -23,6 +23,7 @@ within 30 s.
     python -m tools.blackout --mode realtime --durations 0.5 1 2 5 10 [--out DIR] [--seed 1]
     python -m tools.blackout --fault fc-stall --durations 3      # the fc's own stall instead
     python -m tools.blackout --analyse RUN_DIR ...               # figures of finished runs
+    ... --markdown                      # also the table of docs/reliability.md (tables A, B)
 """
 from __future__ import annotations
 
@@ -169,9 +170,9 @@ def cut_times_from_internals(internals: dict, t_cut_hint_s: float, mode: str) ->
 
 
 def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: float,
-            seed: int, fault: str = "link") -> dict:
+            seed: int, fault: str = "link", scenario: str = "cruise") -> dict:
     sim_s = settle_s + after_s + (blackout_s if mode == "realtime" else 0.0) + 1.0
-    cfg = RigConfig(out=out, duration_s=sim_s, seed=seed, mode=mode,
+    cfg = RigConfig(out=out, duration_s=sim_s, seed=seed, mode=mode, scenario=scenario,
                     arm="start" if mode == "lockstep" else "gcs")
     with Rig(cfg) as rig:
         rig.start()
@@ -184,6 +185,32 @@ def one_run(out: Path, mode: str, blackout_s: float, settle_s: float, after_s: f
            **blackout_figures(truth, internals, t_cut, t_restore),
            "texts": [t for t in texts if "FAILSAFE" in t or "plant" in t or "stall" in t]}
     return fig
+
+
+MODE_NAMES = {3: "FS", 4: "CRUISE", 5: "GUIDED"}
+TABLE_HEAD = ("| blackout (wall) | plant time cut, s | modes | max abs mu, deg | alpha, deg | "
+              "longest surface on limit, s | altitude from the target before the cut, max / "
+              "end, m | frames answered in FAILSAFE | back in the steady bounds after | ok |\n"
+              "|---|---|---|---|---|---|---|---|---|---|")
+
+
+def markdown_table(runs: list[dict]) -> str:
+    """The runs' figures as the table of docs/reliability.md (tables A and B), one row per
+    run (``blackout_wall_s`` from the run, or from its directory's name)."""
+    lines = [TABLE_HEAD]
+    for r in runs:
+        wall = r.get("blackout_wall_s")
+        if wall is None:
+            wall = float(Path(r["run"]).name.rsplit("-", 1)[-1].rstrip("s"))
+        modes = " ".join(MODE_NAMES.get(m, str(m)) for m in r["modes"])
+        a0, a1 = r["alpha_range_deg"]
+        alt = r["alt_from_target_before_cut_m"]
+        rec = "never" if r["recovery_s"] is None else f"{r['recovery_s']:.1f} s"
+        lines.append(f"| {wall:g} s | {r['sim_time_cut_s']:.2f} | {modes} | "
+                     f"{r['mu_abs_max_deg']:.1f} | {a0:.1f}..{a1:.1f} | "
+                     f"{r['surface_on_limit_longest_s']:.2f} | {alt['max']:.0f} / {alt['end']:.0f} | "
+                     f"{r['failsafe_frames']} | {rec} | {'yes' if r['ok'] else '**no**'} |")
+    return "\n".join(lines)
 
 
 def analyse(run_dir: Path, settle_s: float) -> dict:
@@ -216,21 +243,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fault", choices=("link", "fc-stall"), default="link",
                     help="link: the plant link cut both ways (default); fc-stall: the fc "
                          "process stopped (SIGSTOP) for the duration")
+    ap.add_argument("--scenario", default="cruise",
+                    help="plant scenario, a name or a TOML path (cruise; e.g. a copy with the "
+                         "servo table's backup_* gains at 0: the hold without its damper)")
     ap.add_argument("--out", help="run directory (default: a new temp directory)")
     ap.add_argument("--analyse", nargs="+", metavar="RUN_DIR",
                     help="no run: the figures of finished runs (their directories)")
+    ap.add_argument("--markdown", action="store_true",
+                    help="after the JSON, the runs as the table of docs/reliability.md")
     args = ap.parse_args(argv)
     if args.analyse:
-        print(json.dumps([analyse(Path(d), args.settle) for d in args.analyse], indent=2))
+        runs = [analyse(Path(d), args.settle) for d in args.analyse]
+        print(json.dumps(runs, indent=2))
+        if args.markdown:
+            print(markdown_table(runs))
         return 0
     out = Path(args.out or tempfile.mkdtemp(prefix="hyfc-blackout-"))
     results = []
     for d in args.durations:
         fig = one_run(out / f"{args.mode}-{args.fault}-{d:g}s", args.mode, d, args.settle,
-                      args.after, args.seed, args.fault)
+                      args.after, args.seed, args.fault, args.scenario)
         print(json.dumps(fig), file=sys.stderr, flush=True)
         results.append(fig)
     print(json.dumps({"out": str(out), "runs": results}, indent=2))
+    if args.markdown:
+        print(markdown_table(results))
     return 0 if all(r["exit_codes"]["plant"] == 0 and r["exit_codes"]["fc"] == 0
                     for r in results) else 1
 

@@ -2,7 +2,9 @@
 sent from a ground station mid-flight.
 
     # hold figures of a run (altitude, course, speed against the fc's targets, inner loop,
-    # surfaces, adaptive estimates, limits), after the transient
+    # surfaces, adaptive estimates, limits), after the transient; on the round Earth in CRUISE
+    # also the course error to the great circle held, measured without north
+    # (course_err_circle_max_deg, tools.sitl.metrics.circle_course_error_rad)
     python -m tools.guided_hil figures RUN_DIR/coordinated --from 300
 
     # a lockstep GUIDED flight of the cruise scenario (tools.hil, two processes over UDP) with
@@ -38,7 +40,8 @@ def load_run(vdir: Path) -> tuple[dict, dict]:
     from fc.internals_log import load
     z = np.load(Path(vdir) / "truth.npz")
     names = ("t_s", "h_m", "V_m_s", "chi_rad", "alpha_rad", "beta_rad", "mu_rad", "gamma_rad",
-             "qbar_pa", "delta_left_rad", "delta_right_rad", "delta_rudder_rad", "thrust_N")
+             "qbar_pa", "delta_left_rad", "delta_right_rad", "delta_rudder_rad", "thrust_N",
+             "pos_n_m", "pos_e_m")
     truth = {n: z[n] for n in names}
     fc = load(str(vdir))
     return truth, fc
@@ -148,6 +151,22 @@ def run_steps(out: Path, at_s: list[float], duration_s: float, seed: int, varian
     return {"rc": rc, "acks": acks, "steps": figs}
 
 
+def sphere_origin(vdir: Path) -> tuple[float, float] | None:
+    """(lat, lon) deg of the GNSS origin of a round-Earth run (the scenario copy tools.hil
+    keeps beside the variant directory), None on the flat earth or without the copy."""
+    from plant_sim.scenario import ScenarioError, load
+    for path in (Path(vdir) / "scenario.toml", Path(vdir).parent / "scenario.toml"):
+        if path.is_file():
+            try:
+                d = load(path).data
+            except ScenarioError:
+                return None
+            if d["earth"]["model"] != "sphere":
+                return None
+            return d["gnss"]["origin_lat_deg"], d["gnss"]["origin_lon_deg"]
+    return None
+
+
 def _print(d):
     print(json.dumps(d, indent=1))
 
@@ -171,7 +190,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.cmd == "figures":
         truth, fc = load_run(a.vdir)
-        _print(hold_figures(truth, fc, a.t_from))
+        _print(hold_figures(truth, fc, a.t_from, sphere_origin(a.vdir)))
         return 0
     _print(run_steps(a.out, a.at, a.duration, a.seed, a.variant))
     return 0

@@ -235,6 +235,70 @@ def margin_scenario(disturbance: bool = False, frame_hz: float = 1000.0, base: s
     return parse(edited.to_toml(), src=f"{sc.path} (margins)", name=edited.name)
 
 
+def trim_verdict(scenario, beta_tol_deg: float = 0.01) -> dict:
+    """Can the airframe hold the scenario's initial state? (issue 20: why a point has no margin)
+
+    Moment trim (plant_sim.trim.trim_at, the plant's own aerodynamics and uncertainty, the
+    surfaces within their limits) at the initial (alpha0, beta0) and at the first command's
+    (alpha_c, beta_c). Where the initial state cannot be trimmed, the largest initial sideslip
+    (same sign, alpha0 kept) that can, by bisection to ``beta_tol_deg``. Returns a dict:
+    ``ini_ok``, ``cmd_ok`` (bool), ``ini_defl_deg`` (left elevon, right elevon, rudder at the
+    best trim), ``ini_at_limit`` (surface names at their limit), ``ini_accel_left_deg_s2``
+    (roll, pitch, yaw angular acceleration the best trim leaves, deg/s^2), ``beta0_max_deg``
+    (None if the initial state trims) and ``text`` (one line for the reports).
+    """
+    from plant_sim.trim import trim_at, yaw_moment_range
+    ini = scenario.data["initial"]
+    a0, b0 = float(ini["alpha_deg"]), float(ini["beta_deg"])
+    _, a_c, b_c, _ = scenario.commands[0]
+    tr = trim_at(scenario, math.radians(a0), math.radians(b0))
+    tc = trim_at(scenario, math.radians(float(a_c)), math.radians(float(b_c)))
+    mp = scenario.data["vehicle"]
+    inertia = np.array([float(mp["Ixx_kg_m2"]), float(mp["Iyy_kg_m2"]), float(mp["Izz_kg_m2"])])
+    names = ("left elevon", "right elevon", "rudder")
+    at_lim = [n for n, f in zip(names, tr.at_limit) if f]
+    acc = np.degrees(tr.moment_left_N_m / inertia)
+    # the most restoring yaw acceleration any deflection gives (positive: it turns the nose
+    # into the wind, r of the sign that lowers |beta| through beta_dot = -r cos(alpha) + ...)
+    n_lo, n_hi = yaw_moment_range(scenario, math.radians(a0), math.radians(b0))
+    restoring = math.degrees((n_hi if b0 >= 0.0 else -n_lo) / inertia[2])
+    out = {"ini_ok": bool(tr.trimmed), "cmd_ok": bool(tc.trimmed),
+           "yaw_restoring_max_deg_s2": restoring,
+           "ini_defl_deg": [float(v) for v in np.degrees(tr.deflection_rad)],
+           "ini_at_limit": at_lim, "ini_accel_left_deg_s2": [float(v) for v in acc],
+           "beta0_max_deg": None}
+    if tr.trimmed:
+        out["text"] = (f"the initial state (alpha {a0:g}, beta {b0:g} deg) trims within the "
+                       f"surfaces' limits: the law, not the airframe, is the limit")
+        return out
+    lo, hi = 0.0, abs(b0)
+    sgn = 1.0 if b0 >= 0.0 else -1.0
+    while hi - lo > beta_tol_deg:
+        mid = 0.5 * (lo + hi)
+        if trim_at(scenario, math.radians(a0), math.radians(sgn * mid)).trimmed:
+            lo = mid
+        else:
+            hi = mid
+    out["beta0_max_deg"] = sgn * lo
+    d = out["ini_defl_deg"]
+    if restoring < 0.0:
+        verdict = (f"the airframe is the limit: at beta {b0:g} deg no deflection within the "
+                   f"limits stops the sideslip from growing (the most restoring yaw "
+                   f"acceleration the surfaces give is {restoring:+.2f} deg/s^2); ")
+    else:
+        verdict = (f"the surfaces can still turn the sideslip back (up to {restoring:+.2f} "
+                   f"deg/s^2 of yaw acceleration): not the airframe alone; ")
+    out["text"] = verdict + (
+                   f"the airframe cannot trim the initial state (alpha {a0:g}, beta {b0:g} deg) "
+                   f"within the surfaces' limits: best trim left elevon {d[0]:+.1f}, right "
+                   f"elevon {d[1]:+.1f}, rudder {d[2]:+.1f} deg ({', '.join(at_lim)} at the "
+                   f"limit), leaving {acc[0]:+.2f} / {acc[1]:+.2f} / {acc[2]:+.2f} deg/s^2 "
+                   f"roll / pitch / yaw; the largest initial sideslip it trims is "
+                   f"{sgn * lo:+.2f} deg" + ("" if tc.trimmed else
+                                            "; the commanded state cannot be trimmed either"))
+    return out
+
+
 def fly(scenario, inj: np.ndarray, *, coordinated: bool = True, law_overrides: dict | None = None,
         duration_s: float = 20.0, fast_hz: float = 500.0, slow_hz: float = 100.0) -> Flight:
     """Fly ``scenario`` (steps to its first command) with the injection ``inj``."""
@@ -517,8 +581,10 @@ def grid_table(dirs) -> str:
                 continue
             dm_s = dl[0] * fdt
             if var not in by_var:
+                why = (j.get("trim") or {}).get("text")
                 rows.append(f"| {label} | {q_kpa:.0f} | {var} | all | - | - | - | 0 | no: the "
-                            "unperturbed loop is not stable |")
+                            "unperturbed loop is not stable" + (f" ({why})" if why else "")
+                            + " |")
                 continue
             for r in by_var[var]:
                 pm = r["pm_allpass_deg"][0] if r["pm_allpass_deg"] else None
@@ -597,11 +663,14 @@ def main(argv=None) -> int:
         ap.error(f"--only: unknown margins {sorted(unknown)} (of {', '.join(MARGINS)})")
     t0 = time.perf_counter()
     results, delays = [], {}
+    trim = None                 # trim_verdict, computed where the unperturbed loop fails
     for var in a.variants.split(","):
         co = var == "co"
         if not stable(fly(sc, make_inj(), coordinated=co, law_overrides=ov)):
-            print(f"{var}: the unperturbed loop is not stable at this point: no margin",
-                  flush=True)
+            if trim is None:
+                trim = trim_verdict(sc)
+            print(f"{var}: the unperturbed loop is not stable at this point: no margin; "
+                  f"{trim['text']}", flush=True)
             delays[(var, "all")] = (0, 0)
             continue
         for ch in a.channels.split(","):
@@ -635,6 +704,7 @@ def main(argv=None) -> int:
         {"results": results, "delays": {f"{k[0]}/{k[1]}": v for k, v in delays.items()},
          "frame_dt_s": fdt, "overrides": ov, "disturbance": a.disturbance,
          "point": a.point, "only": list(which), "initial_beta_deg": a.initial_beta,
+         "trim": trim,
          "wall_s": time.perf_counter() - t0}, indent=1))
     print(text)
     print(f"wall {time.perf_counter() - t0:.0f} s")

@@ -63,10 +63,11 @@ TARGETS = {
     "fc/control/observer.py": ("dob_gain", "dob_estimate", "dob_update"),
     "fc/control/fast_loop.py": ("input_filters", "xi_theta", "observer_moment", "fast_kernel"),
     "fc/control/linalg3.py": ("matvec3",),
-    "fc/control/schedule.py": ("schedule_index", "schedule_value", "apply_schedule"),
+    "fc/control/schedule.py": ("node_index", "schedule_index", "mach_index", "schedule_value",
+                               "apply_schedule"),
 }
 #: functions where the "index" kind shifts the schedule's node index ``k`` inside a subscript
-INDEX_FUNCTIONS = ("schedule_index", "schedule_value")
+INDEX_FUNCTIONS = ("node_index", "schedule_value")
 #: every function of TARGETS (the default of find_mutants)
 FUNCTIONS = tuple(f for fns in TARGETS.values() for f in fns)
 KINDS = ("sign", "drop", "muldiv", "const", "named", "index")

@@ -73,8 +73,8 @@ from pathlib import Path
 import numpy as np
 
 from fc.control import layout as L
-from fc.control.params import P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, default_si_array
-from fc.control.schedule_data import SCHEDULE_PATH, SCHED_QUANTITIES
+from fc.control.params import P_ACT_MAX, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, default_si_array
+from fc.control.schedule_data import SCHEDULE_PATH, SCHED_MACH, SCHED_QUANTITIES
 
 DEG = math.pi / 180.0
 
@@ -126,6 +126,14 @@ ANCHOR_QBAR_KPA = 183.0
 PAPER_GAINS = {"kappa1": 5.0, "K": 4.0, "kappa2": 5.0, "c": 10.0, "cf_wn": 40.0,
                "flt_rate_hz": 20.0, "flt_ang_hz": 20.0}
 OMC_RANGE_DEG_S = (0.5, 10.0)
+#: The rate-command limit's Mach axis: nodes, and the sideslip the rudder must still hold with
+#: the airframe directionally unstable (the initial sideslip flown where the paper's 5 deg
+#: cannot be trimmed, docs/margins.md s. 6; at 5 deg no rudder is left at Mach >= 13.5)
+#: (the second node is where the nominal airframe turns directionally unstable,
+#: ``stability_edge_mach``: the factor is exactly 1 up to it)
+MACH_NODES_FIXED = (6.0, 10.0, 12.0, 14.0, 15.0)
+BETA_HOLD_RAD = 2.0 * DEG
+OMC_FACTOR_MIN = 0.1
 
 #: The candidate grid (one axis per designed quantity).
 GRID = {
@@ -275,29 +283,77 @@ def omega_c_peak_gain(g: dict, kp: float = 1.0) -> float:
     return float(np.max(np.abs(y)))
 
 
-def effectiveness(qbar_pa: float, mach_values=MACH_RANGE) -> np.ndarray:
-    """Smallest effectiveness (rad/s^2 per rad) of each virtual channel (roll: differential
-    elevons, pitch: symmetric elevons, yaw: rudder) over ``mach_values`` at ``qbar_pa``, from
-    the controller's nominal model at alpha = ALPHA_TRIM_RAD."""
+def model_at(mach: float, qbar_pa: float):
+    """(nm, par): the law's nominal model (NM_*) at ``mach`` and ``qbar_pa``, alpha =
+    ALPHA_TRIM_RAD, the default parameters."""
     from fc.control.nominal import eval_model, load_tables
     tab, atm, grid = load_tables()
     par = default_si_array()
     nm = np.zeros(L.NM_N)
+    h = altitude_for(mach, qbar_pa, atm, grid)
+    est = np.zeros(L.E_N)
+    est[L.E_ALPHA] = ALPHA_TRIM_RAD
+    est[L.E_V] = mach * atm_at(h, atm, grid)[L.ATM_SOUND]
+    est[L.E_H] = h
+    eval_model(est, par, tab, atm, grid, nm)
+    return nm, par
+
+
+def effectiveness(qbar_pa: float, mach_values=MACH_RANGE) -> np.ndarray:
+    """Smallest effectiveness (rad/s^2 per rad) of each virtual channel (roll: differential
+    elevons, pitch: symmetric elevons, yaw: rudder) over ``mach_values`` at ``qbar_pa``, from
+    the controller's nominal model at alpha = ALPHA_TRIM_RAD."""
     best = np.full(3, np.inf)
     for mach in mach_values:
-        h = altitude_for(mach, qbar_pa, atm, grid)
-        a = atm_at(h, atm, grid)
-        est = np.zeros(L.E_N)
-        est[L.E_ALPHA] = ALPHA_TRIM_RAD
-        est[L.E_V] = mach * a[L.ATM_SOUND]
-        est[L.E_H] = h
-        eval_model(est, par, tab, atm, grid, nm)
+        nm, par = model_at(mach, qbar_pa)
         gfd = nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3)
         b = np.array([abs(gfd[0, 0] - gfd[0, 1]) / par[P_MDL_IXX],
                       abs(gfd[1, 0] + gfd[1, 1]) / par[P_MDL_IYY],
                       abs(gfd[2, 2]) / par[P_MDL_IZZ]])
         best = np.minimum(best, b)
     return best
+
+
+def directional_instability(mach: float, qbar_pa: float = ANCHOR_QBAR_KPA * 1e3):
+    """(a_dir, b_rud) at ``mach`` from the nominal model at alpha = ALPHA_TRIM_RAD: a_dir =
+    -N_beta cos(alpha) (rad/s^2 per rad of sideslip; > 0: the airframe is directionally
+    unstable, Cn_beta < 0, and the sideslip's yaw moment grows it), b_rud = |N_delta_r| (rad/s^2
+    per rad of rudder). Both scale with the dynamic pressure: their ratio depends on Mach."""
+    from fc.control.nominal import B_REF_M, S_REF_M2
+    nm, par = model_at(mach, qbar_pa)
+    n_beta = (nm[L.NM_QBAR] * S_REF_M2 * B_REF_M * nm[L.NM_COEF + L.T_CYAW_B]
+              / par[P_MDL_IZZ])
+    return -n_beta * math.cos(ALPHA_TRIM_RAD), abs(nm[L.NM_GFD + 8]) / par[P_MDL_IZZ]
+
+
+def stability_edge_mach(lo: float = 6.0, hi: float = 10.0, tol: float = 1e-3) -> float:
+    """The highest Mach number (a multiple of ``tol``) below which the nominal airframe is
+    directionally stable (a_dir <= 0) between ``lo`` (stable) and ``hi`` (unstable), by
+    bisection: the factor is exactly 1 up to it."""
+    if not (directional_instability(lo)[0] <= 0.0 < directional_instability(hi)[0]):
+        raise RuntimeError("the nominal airframe does not turn directionally unstable there")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if directional_instability(mid)[0] <= 0.0 else (lo, mid)
+    edge = math.floor(lo / tol) * tol
+    assert directional_instability(edge)[0] <= 0.0
+    return edge
+
+
+def mach_nodes() -> tuple:
+    """The rate-command limit's Mach nodes: MACH_NODES_FIXED with the stability edge."""
+    return tuple(sorted((*MACH_NODES_FIXED, round(stability_edge_mach(), 6))))
+
+
+def omc_mach_factor(mach: float) -> float:
+    """The rate-command limit's factor at ``mach``: the share of the rudder's authority
+    (ACT_MAX of deflection) left once the airframe's directional instability is held at
+    BETA_HOLD_RAD of sideslip, 1 - max(a_dir, 0) beta_hold / (b_rud delta_max), in
+    [OMC_FACTOR_MIN, 1] (1 where the airframe is directionally stable)."""
+    a_dir, b_rud = directional_instability(mach)
+    delta_max = default_si_array()[P_ACT_MAX]
+    f = 1.0 - max(a_dir, 0.0) * BETA_HOLD_RAD / (b_rud * delta_max)
+    return float(min(max(f, OMC_FACTOR_MIN), 1.0))
 
 
 def atm_at(h_m, atm, grid):
@@ -409,7 +465,9 @@ def design(nodes_kpa=QBAR_NODES_KPA, verbose: bool = False) -> dict:
         rows.append(row)
         if verbose:
             print(_row_text(row), flush=True)
-    return {"rows": rows, "n_candidates": len(cands["kappa1"]), "n_margin_ok": int(idx_ok.size)}
+    return {"rows": rows, "n_candidates": len(cands["kappa1"]), "n_margin_ok": int(idx_ok.size),
+            "mach_nodes": (nodes := mach_nodes()),
+            "omc_mach_factor": tuple(omc_mach_factor(m) for m in nodes)}
 
 
 def table_arrays(result: dict) -> dict:
@@ -424,6 +482,8 @@ def table_arrays(result: dict) -> dict:
     for k in ("wc", "pm_deg", "dm_s", "gm_up_db", "gm_down_db", "bw_rad_s",
               "noise_rate3_deg_s", "dist_err_deg"):
         out[f"design_{k}"] = np.array([r[k] for r in rows])
+    out[SCHED_MACH[0]] = np.array(result["mach_nodes"], dtype=np.float64)
+    out[SCHED_MACH[1]] = np.array(result["omc_mach_factor"], dtype=np.float64)
     return out
 
 
@@ -476,6 +536,12 @@ def main(argv=None) -> int:
         res = write(a.out, verbose=True)
         print(f"wrote {a.out}")
     print(f"{res['n_margin_ok']} of {res['n_candidates']} candidates meet the margin targets")
+    print("\nRate-command limit's Mach factor (SLW_OMC_MAX x factor; beta held "
+          f"{math.degrees(BETA_HOLD_RAD):g} deg):\n\n| Mach | a_dir 1/s^2 at {ANCHOR_QBAR_KPA:g} "
+          "kPa | b_rud 1/s^2 per rad | factor |\n|---|---|---|---|")
+    for m, f in zip(res["mach_nodes"], res["omc_mach_factor"]):
+        a_dir, b_rud = directional_instability(m)
+        print(f"| {m:g} | {a_dir:+.2f} | {b_rud:.2f} | {f:.3f} |")
     return 0
 
 

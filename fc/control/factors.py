@@ -19,7 +19,8 @@ from fc.control.nominal import B_REF_M, C_REF_M, S_REF_M2
 from fc.control.options import (FAC_EQ19, MAP_PROSE, NORM_COEFFICIENT, NORM_RELATIVE, option,
                                 switch_on)
 from fc.control.params import (P_CO_DALPHA, P_CO_DET_MIN, P_CO_ENABLE, P_CO_FAC_EQ, P_CO_K1,
-                               P_CO_LAM_MAX, P_CO_MAP, P_CO_NORM, P_PAPER_LITERAL)
+                               P_CO_LAM_MAX, P_CO_LAMR_SCL, P_CO_MAP, P_CO_NORM,
+                               P_PAPER_LITERAL)
 
 
 ROW_PITCH = 3            # first entry of the pitch row in a flat 3x3 (roll 0, yaw 6)
@@ -59,8 +60,10 @@ def coordinated_factors(est, par, out, o):
         # Eq. 14 (the prose before it)
         lambda_e = par[k + 4] * alpha_rad + par[k + 5] * p_rad_s
         lambda_a = par[k + 6] * beta_rad + par[k + 7] * r_rad_s
-    # Eq. 13 + Eq. 19: lambda_r = lambda_r1 + lambda_r2 + lambda_r3
-    lambda_r = lambda_r1 + lambda_r2 + lambda_r3
+    # Eq. 13 + Eq. 19: lambda_r = lambda_r1 + lambda_r2 + lambda_r3, scaled by CO_LAMR_SCL
+    # (1, the paper's, unless the schedule shrinks it where the airframe is directionally
+    # unstable: docs/control_law.md s. 13)
+    lambda_r = (lambda_r1 + lambda_r2 + lambda_r3) * par[P_CO_LAMR_SCL]
     lambda_max = par[P_CO_LAM_MAX]
     if lambda_max > 0.0 and not switch_on(par, P_PAPER_LITERAL):
         lambda_e = clip(lambda_e, -lambda_max, lambda_max)

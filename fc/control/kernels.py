@@ -41,10 +41,11 @@ Conventions: Omega = [alpha, beta, mu] (rad), omega = [p, q, r] (rad/s), surface
 """
 from __future__ import annotations
 
-from numba import njit
+from numba import carray, njit
 
 import numpy as np
 
+from fc.control.carrays import f8p
 from fc.control.allocation import actuator_model_step, allocate, rate_limit_command
 from fc.control.factors import coordinated_factors, coordinated_matrix
 from fc.control.fast_loop import fast_kernel
@@ -174,6 +175,20 @@ def fast_entry(est, dt_s, mem):
     fast_kernel(est, dt_s, mem[MEM_PAR:MEM_PAR + P_N], mem[MEM_X:MEM_X + X_N],
                 mem[MEM_NM:MEM_NM + NM_N], mem[MEM_ST:MEM_ST + S_N], tab, atm, grid,
                 mem[MEM_DELTA:MEM_DELTA + 3])
+
+
+@njit(cache=True, error_model="numpy")
+def slow_entry_p(est, est_n, cmd_rad, dt_s, mem, mem_n):
+    """:func:`slow_entry` on the float64[est_n] estimate, the float64[3] command (rad) and the
+    float64[mem_n] buffer given by address (fc/control/carrays.py: no array record per call)."""
+    slow_entry(carray(f8p(est), (est_n,)), carray(f8p(cmd_rad), (3,)), dt_s,
+               carray(f8p(mem), (mem_n,)))
+
+
+@njit(cache=True, error_model="numpy")
+def fast_entry_p(est, est_n, dt_s, mem, mem_n):
+    """:func:`fast_entry` with its arrays given by address (as :func:`slow_entry_p`)."""
+    fast_entry(carray(f8p(est), (est_n,)), dt_s, carray(f8p(mem), (mem_n,)))
 
 
 @njit(cache=True, error_model="numpy")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from fc.control import kernels as K
+from fc.control.carrays import ArrayAddress, address_of
 from fc.control.layout import (ATM_N, E_N, G_N, G_NALPHA, G_NH, G_NMACH, NM_N, S_N,
                                STATUS_NAMES, T_N, X_N)
 from fc.control.nominal import load_tables
@@ -87,6 +88,11 @@ class AttitudeLaw:
         self.delta_cmd_rad = m[K.MEM_DELTA:K.MEM_DELTA + 3]
         self._cmd = m[K.MEM_CMD:K.MEM_CMD + 3]
         self._zero3 = np.zeros(3)
+        # the loops' arrays by address (fc/control/carrays.py), bound on first use
+        self._mem_p = address_of(m, np.float64, m.size)
+        self._mem_n = m.size
+        self._est_at = ArrayAddress(np.float64, E_N)
+        self._cmd_at = ArrayAddress(np.float64, 3)
         self.tab, self.atm, self.grid = _table_views(m, K.MEM_TABLES)
         self._values = {p.name: p.default for p in LAW_PARAMS}
         for name, value in (overrides or {}).items():
@@ -138,11 +144,24 @@ class AttitudeLaw:
         float (an int would compile a second specialization on its first call)."""
         if type(cmd_rad) is not _ndarray:
             cmd_rad = self._copy_cmd(cmd_rad)
-        _slow_entry(est, cmd_rad, dt_s, self.mem)
+        # by address (fc/control/carrays.py): no numba array record per call; an array that
+        # is not C-contiguous float64 goes through the array entry
+        try:
+            est_p = self._est_at.of(est)
+            cmd_p = self._cmd_at.of(cmd_rad)
+        except ValueError:
+            _slow_entry(est, cmd_rad, dt_s, self.mem)
+            return
+        _slow_entry_p(est_p, E_N, cmd_p, dt_s, self._mem_p, self._mem_n)
 
     def fast_step(self, est: np.ndarray, dt_s: float) -> None:
         """Fast loop (Eqs. 34-37, 44-47): writes ``delta_cmd_rad`` and ``status``."""
-        _fast_entry(est, dt_s, self.mem)
+        try:
+            est_p = self._est_at.of(est)
+        except ValueError:
+            _fast_entry(est, dt_s, self.mem)
+            return
+        _fast_entry_p(est_p, E_N, dt_s, self._mem_p, self._mem_n)
 
     def cycle(self, est: np.ndarray, cmd_rad, slow_dt_s: float, fast_dt_s: float) -> None:
         """``slow_step`` then ``fast_step`` in one compiled call (saves one numba dispatch):
@@ -177,6 +196,8 @@ class AttitudeLaw:
 _ndarray = np.ndarray
 _slow_entry = K.slow_entry
 _fast_entry = K.fast_entry
+_slow_entry_p = K.slow_entry_p
+_fast_entry_p = K.fast_entry_p
 _cycle_entry = K.cycle_entry
 
 

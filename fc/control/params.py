@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fc.control.schedule_data import SCHED_N, load_schedule
+from fc.control.schedule_data import SCHED_MACH, SCHED_N, load_schedule
 
 DEG = math.pi / 180.0
 
@@ -252,10 +252,26 @@ def _schedule_params() -> tuple[Param, ...]:
             out.append(_p(f"{prefix}{i + 1}", tab[key][i], lo, hi, unit, "SCH",
                           f"{target} at schedule node {i + 1} (SCH_Q_{i + 1}), CTL_SCHED 1.",
                           si_scale=scale))
+    # the Mach axis of the rate-command limit (after the qbar table: appended, order stable)
+    for i in range(SCHED_N):
+        out.append(_p(f"SCH_M_{i + 1}", tab[SCHED_MACH[0]][i], 0.0, 30.0, "-", "SCH",
+                      f"Mach number of the rate-command limit's Mach node {i + 1} (nodes "
+                      "increasing; below the first and above the last the end values hold)."))
+    for i in range(SCHED_N):
+        out.append(_p(f"SCH_OMCF_{i + 1}", tab[SCHED_MACH[1]][i], 0.01, 1.0, "-", "SCH",
+                      f"Factor on the scheduled SLW_OMC_MAX at Mach node {i + 1} (SCH_M_"
+                      f"{i + 1}), CTL_SCHED 1: the rudder authority the airframe's directional "
+                      "instability leaves (1 where the airframe is directionally stable)."))
     return tuple(out)
 
 
-LAW_PARAMS = LAW_PARAMS + _schedule_params()
+LAW_PARAMS = LAW_PARAMS + _schedule_params() + (
+    _p("CO_LAMR_SCL", 1, 0, 1, "-", "CO",
+       "Scale on the yaw-row factor lambda_r (Eq. 13 + lambda_r3) before its clamp; 1 = the "
+       "paper's. While CTL_SCHED 1 the schedule writes the Mach factor SCH_OMCF into it: the "
+       "rudder authority the airframe's directional instability leaves, so that the factor's "
+       "cut of the yaw loop's gain (1 / (1 + lambda_r)) shrinks with it."),
+)
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
 
@@ -315,12 +331,15 @@ P_SCH_CFWN = PARAM_INDEX["SCH_CFWN_1"]
 P_SCH_FLTR = PARAM_INDEX["SCH_FLTR_1"]
 P_SCH_FLTA = PARAM_INDEX["SCH_FLTA_1"]
 P_SCH_OMC = PARAM_INDEX["SCH_OMC_1"]
+P_SCH_M = PARAM_INDEX["SCH_M_1"]           # SCHED_N Mach nodes, then SCHED_N factors
+P_SCH_OMCF = PARAM_INDEX["SCH_OMCF_1"]
+P_CO_LAMR_SCL = PARAM_INDEX["CO_LAMR_SCL"]
 #: the fixed parameters the schedule replaces while it is on (restored when it goes off)
-SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3")
+SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3", "CO_LAMR_SCL")
 P_N = len(LAW_PARAMS)
 assert [PARAM_INDEX[f"CO_K{i}"] for i in range(1, 10)] == list(range(P_CO_K1, P_CO_K1 + 9))
 assert [PARAM_INDEX[f"SLW_K{i}"] for i in (1, 2, 3)] == list(range(P_SLW_K1, P_SLW_K1 + 3))
-for _f in ("SCH_Q_",) + tuple(f[0] for f in SCHED_FAMILIES):
+for _f in ("SCH_Q_",) + tuple(f[0] for f in SCHED_FAMILIES) + ("SCH_M_", "SCH_OMCF_"):
     assert [PARAM_INDEX[f"{_f}{i + 1}"] for i in range(SCHED_N)] == list(
         range(PARAM_INDEX[f"{_f}1"], PARAM_INDEX[f"{_f}1"] + SCHED_N)), _f
 for _prm in LAW_PARAMS:

@@ -7,7 +7,10 @@ array (fc/control/schedule.py), so a ground station sees and may change every va
 
 The table: ``qbar_kpa`` (float64[SCHED_N], increasing: the dynamic-pressure nodes, kPa) and
 one float64[SCHED_N] per entry of ``SCHED_QUANTITIES`` (the value at each node, in the unit
-given), plus the design's own figures (``design_*``) for the record.
+given), plus the design's own figures (``design_*``) for the record; and the Mach axis of
+the rate-command limit: ``mach_nodes`` (float64[SCHED_N], increasing) and ``omc_mach_factor``
+(the factor on SLW_OMC_MAX at each Mach node, in (0, 1]: the rudder authority the airframe's
+directional instability leaves, docs/control_law.md s. 13).
 """
 from __future__ import annotations
 
@@ -33,17 +36,26 @@ SCHED_QUANTITIES: tuple[tuple[str, str, str], ...] = (
 )
 
 
+#: The Mach axis: (npz name of the nodes, npz name of the values) of the rate-command limit's
+#: Mach factor (SCH_M_n, SCH_OMCF_n).
+SCHED_MACH = ("mach_nodes", "omc_mach_factor")
+
+
 def load_schedule(path: Path | str = SCHEDULE_PATH) -> dict[str, np.ndarray]:
-    """The committed table as name -> float64 array (qbar_kpa and SCHED_QUANTITIES).
+    """The committed table as name -> float64 array (qbar_kpa, SCHED_QUANTITIES, SCHED_MACH).
 
     Raises ValueError if the nodes are not SCHED_N increasing values or an entry is missing.
     """
     with np.load(path) as z:
         out = {k: np.asarray(z[k], dtype=np.float64)
-               for k in ("qbar_kpa", *(q[0] for q in SCHED_QUANTITIES))}
-    q = out["qbar_kpa"]
-    if q.shape != (SCHED_N,) or not np.all(np.diff(q) > 0):
-        raise ValueError(f"{path}: qbar_kpa must be {SCHED_N} increasing nodes, got {q}")
+               for k in ("qbar_kpa", *(q[0] for q in SCHED_QUANTITIES), *SCHED_MACH)}
+    for nodes in ("qbar_kpa", SCHED_MACH[0]):
+        q = out[nodes]
+        if q.shape != (SCHED_N,) or not np.all(np.diff(q) > 0):
+            raise ValueError(f"{path}: {nodes} must be {SCHED_N} increasing nodes, got {q}")
+    f = out[SCHED_MACH[1]]
+    if f.shape != (SCHED_N,) or not np.all((f > 0.0) & (f <= 1.0)):
+        raise ValueError(f"{path}: {SCHED_MACH[1]} must be {SCHED_N} values in (0, 1]")
     for name, _u, _t in SCHED_QUANTITIES:
         if out[name].shape != (SCHED_N,) or not np.all(np.isfinite(out[name])):
             raise ValueError(f"{path}: {name} must be {SCHED_N} finite values")

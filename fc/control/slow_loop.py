@@ -120,8 +120,9 @@ def slow_kernel(est, cmd, dt, par, x, nm, st, tab, atm, grid):
     eval_model(est, par, tab, atm, grid, nm)
     literal = switch_on(par, P_PAPER_LITERAL)
     # gain schedule (CTL_SCHED): the gains at the estimated flight condition's dynamic pressure
+    # (and the rate-command limit's Mach factor at its Mach number)
     if switch_on(par, P_CTL_SCHED) and not literal:
-        apply_schedule(nm[NM_QBAR], par, x)
+        apply_schedule(nm[NM_QBAR], nm[NM_MACH], par, x)
     alpha_rad = est[E_ALPHA]
     beta_rad = est[E_BETA]
     v_m_s = max(est[E_V], V_MIN_M_S)

@@ -17,12 +17,15 @@ import math
 
 import numpy as np
 
+from fc.control.carrays import ArrayAddress
+from fc.control.layout import E_N
 from fc.control.nominal import load_tables
 from fc.control.params import LAW_PARAMS, PARAM_INDEX as LAW_INDEX
 from fc.guidance import kernels as K
 from fc.guidance.layout import (GO_N, GS_LIMITS, GS_N, GUIDANCE_STATUS_NAMES, GX_N,
                                 LIMIT_NAMES, TG_CHI, TG_H, TG_MACH, TG_N, TG_V)
-from fc.guidance.params import GUIDANCE_PARAMS, PARAM_INDEX, default_si_array, to_si
+from fc.guidance.params import (GUIDANCE_PARAMS, P_N, PARAM_INDEX, default_si_array,
+                                to_si)
 
 _TABLES = None
 
@@ -57,6 +60,11 @@ class Guidance:
         self.status = np.zeros(GS_N)
         self.work = np.zeros(K.GW_N)
         self.tab, self.atm, self.grid = _tables()
+        # step()'s arrays by address, bound on first use (fc/control/carrays.py)
+        self._at = [ArrayAddress(np.float64, n) for n in (E_N, TG_N, P_N, GX_N, GO_N, GS_N,
+                                                           K.GW_N, self.tab.size,
+                                                           self.atm.size, self.grid.size)]
+        self._sizes = (E_N, TG_N, P_N, GX_N, GO_N, GS_N, K.GW_N) + self._table_dims()
         self.mass_kg = LAW_PARAMS[LAW_INDEX["MDL_MASS"]].default
         self.xcg_m = LAW_PARAMS[LAW_INDEX["MDL_XCG"]].default
         for k, v in (overrides or {}).items():
@@ -101,10 +109,26 @@ class Guidance:
                          self.work, self.tab, self.atm, self.grid)
 
     def step(self, est: np.ndarray, chi_rad: float, dt_s: float) -> int:
-        """One guidance step; writes ``out`` and ``status``; returns the limit bitfield."""
-        return K.guidance_step(est, float(chi_rad), self.tgt, float(dt_s), self.par,
-                               self.mass_kg, self.xcg_m, self.gx, self.out, self.status,
-                               self.work, self.tab, self.atm, self.grid)
+        """One guidance step; writes ``out`` and ``status``; returns the limit bitfield.
+        The arrays go by address (fc/control/carrays.py: no numba record per step), with the
+        shapes bound at construction (the tables are never rebound); an array that cannot be
+        viewed so (not C-contiguous float64) goes through the array entry."""
+        a = self._at
+        try:
+            est_p = a[0].of(est)
+            tgt_p, par_p, gx_p = a[1].of(self.tgt), a[2].of(self.par), a[3].of(self.gx)
+            out_p, st_p, gw_p = a[4].of(self.out), a[5].of(self.status), a[6].of(self.work)
+            tab_p, atm_p, grid_p = a[7].of(self.tab), a[8].of(self.atm), a[9].of(self.grid)
+        except ValueError:
+            return K.guidance_step(est, float(chi_rad), self.tgt, float(dt_s), self.par,
+                                   self.mass_kg, self.xcg_m, self.gx, self.out, self.status,
+                                   self.work, self.tab, self.atm, self.grid)
+        return K.guidance_step_p(est_p, float(chi_rad), tgt_p, float(dt_s), par_p,
+                                 self.mass_kg, self.xcg_m, gx_p, out_p, st_p, gw_p, tab_p,
+                                 atm_p, grid_p, self._sizes)
+
+    def _table_dims(self) -> tuple:
+        return self.tab.shape + self.atm.shape + self.grid.shape
 
     def status_dict(self) -> dict:
         return dict(zip(GUIDANCE_STATUS_NAMES, (float(v) for v in self.status)))

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from numba import carray, njit
 
 from fc.control.layout import (ATM_G, ATM_RHO, ATM_SOUND, C_DRAG, C_LIFT, C_PITCH, E_ALPHA,
                                E_BETA, E_GAMMA, E_H, E_MU, E_N, E_V, T_CD0, T_CL0, T_CPITCH0,
@@ -66,11 +66,13 @@ from fc.guidance.params import (
     P_GH_CHI_TAU, P_GH_CHIDOT_MAX, P_GH_K_CHI, P_GM_CT_MAX, P_GM_T_MAX, P_GS_ACC_MAX, P_GS_K_V, P_GS_K_VI,
     P_GS_VI_MAX, P_GE_ALPHA_MARGIN, P_GE_MU_MARGIN, P_GE_NZ_MARGIN,
 )
-from fc.control import layout as _claw, nominal as _nominal
+from fc.control import carrays as _carrays, layout as _claw, nominal as _nominal
+from fc.control.carrays import f8p
 from hyfc_wire.earth import EARTH_RADIUS_M
 from hyfc_wire.numba_cache import drop_stale
 
-drop_stale(__file__, [_layout.__file__, _params.__file__, _claw.__file__, _nominal.__file__])
+drop_stale(__file__, [_layout.__file__, _params.__file__, _claw.__file__, _nominal.__file__,
+                      _carrays.__file__])
 
 # --- work array (gw) -----------------------------------------------------------------------
 GW_COEF = 0              # T_N interpolated table columns
@@ -509,3 +511,17 @@ def guidance_step(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, 
     gs[GS_V_INT] = gx[GX_V_INT]
     gs[GS_G_INT] = gx[GX_G_INT]
     return lim
+
+
+@njit(cache=True, error_model="numpy")
+def guidance_step_p(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, tab, atm,
+                    grid, sizes):
+    """:func:`guidance_step` with every array given by address (fc/control/carrays.py: no
+    numba record per call). ``sizes``: (E_N, TG_N, P_N, GX_N, GO_N, GS_N, GW_N, tab rows,
+    tab columns, tab depth, atm rows, atm columns, grid length), the arrays' shapes."""
+    return guidance_step(
+        carray(f8p(est), (sizes[0],)), chi_rad, carray(f8p(tgt), (sizes[1],)), dt_s,
+        carray(f8p(gp), (sizes[2],)), mass_kg, xcg_m, carray(f8p(gx), (sizes[3],)),
+        carray(f8p(out), (sizes[4],)), carray(f8p(gs), (sizes[5],)),
+        carray(f8p(gw), (sizes[6],)), carray(f8p(tab), (sizes[7], sizes[8], sizes[9])),
+        carray(f8p(atm), (sizes[10], sizes[11])), carray(f8p(grid), (sizes[12],)))

@@ -198,7 +198,8 @@ def test_plant_reset_restarts_loops_and_timeline(tmp_path):
 
 
 def test_sigterm_keeps_the_decimated_internals_log(tmp_path):
-    # GIVEN an fc logging at full rate for 0.1 s of sensor time, then one row per slow tick
+    # GIVEN an fc logging at full rate for 0.1 s of sensor time, then one row per two slow
+    # ticks (the default tail, 50 Hz)
     with FcProcess(str(tmp_path), "--arm", "--flight-mode", "COORDINATED",
                    "--internals-full-s", "0.1") as fc:
         plant = ScriptedPlant(fc.plant_port)
@@ -211,10 +212,10 @@ def test_sigterm_keeps_the_decimated_internals_log(tmp_path):
         rc = fc.child.stop(first_signal=signal.SIGTERM, int_wait_s=20.0, term_wait_s=None)
         fc.returncode = rc
     assert rc == 0
-    # THEN the npz holds the first 0.1 s at 500 Hz and then 100 Hz: 50 + 30 rows
+    # THEN the npz holds the first 0.1 s at 500 Hz and then 50 Hz: 50 + 15 rows
     assert sorted(os.listdir(tmp_path)).count("fc_internals.npz") == 1
     t = load(str(tmp_path))["t_s"]
     assert np.allclose(t[:50], 0.002 * np.arange(50))
-    assert np.allclose(t[50:], 0.1 + 0.01 * np.arange(30))
+    assert np.allclose(t[50:], 0.1 + 0.02 * np.arange(15))
     with open(tmp_path / "fc.log") as f:
-        assert "80 rows, 0 dropped, 120 decimated" in f.read()
+        assert "65 rows, 0 dropped, 135 decimated" in f.read()

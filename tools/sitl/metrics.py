@@ -350,11 +350,70 @@ def wrap_rad(a):
     return np.angle(np.exp(1j * a))
 
 
-def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
+def _sphere_axes(u):
+    """Unit east and north (n, 3) at the unit positions ``u`` (n, 3), Earth-centred axes (z
+    through the north pole; at a pole east is taken along y, as the plant does)."""
+    rho = np.hypot(u[:, 0], u[:, 1])
+    ok = rho > 1e-12
+    east = np.zeros_like(u)
+    east[:, 1] = 1.0
+    east[ok, 0] = -u[ok, 1] / rho[ok]
+    east[ok, 1] = u[ok, 0] / rho[ok]
+    return east, np.cross(u, east)
+
+
+def circle_course_error_rad(truth: dict, fc: dict, origin_deg: tuple[float, float],
+                            r_m: float = 6371008.7714, far_m: float = 50e3) -> np.ndarray:
+    """Course error (rad, per truth row) to the great circle the fc holds in CRUISE on the round
+    Earth, defined without north: the angle, about the local vertical u, from the circle's
+    direction n x u to the true velocity's horizontal direction (+ to the right).
+
+    u: the true position, from the truth's azimuthal-equidistant map (pos_n_m, pos_e_m: the
+    great-circle distance from the scenario's GNSS origin ``origin_deg`` (lat, lon) along its
+    initial azimuth, on the sphere of radius ``r_m``); the velocity's direction from the true
+    course chi_rad at u (north and east at u itself, so exact wherever the plant's own course
+    is). n: the pole of the circle at the fc's course target, n = u x d(chi_t), taken at the fc's
+    rows more than ``far_m`` from a pole (there the target's north and the truth's agree to the
+    GNSS position error over R) and carried on through the rows nearer a pole. Unlike
+    wrap(chi - chi_t), it does not depend on the target's and the truth's sample times agreeing
+    where the circle's course turns at V / d (43 deg/s 3 km from a pole)."""
+    la, lo = math.radians(origin_deg[0]), math.radians(origin_deg[1])
+    u0 = np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
+    n0 = np.array([-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)])
+    e0 = np.array([-math.sin(lo), math.cos(lo), 0.0])
+    pn, pe = np.asarray(truth["pos_n_m"]), np.asarray(truth["pos_e_m"])
+    c = np.hypot(pn, pe) / r_m
+    az = np.arctan2(pe, pn)
+    u = (np.cos(c)[:, None] * u0
+         + np.sin(c)[:, None] * (np.cos(az)[:, None] * n0 + np.sin(az)[:, None] * e0))
+    east, north = _sphere_axes(u)
+    chi = np.asarray(truth["chi_rad"])
+    d = np.cos(chi)[:, None] * north + np.sin(chi)[:, None] * east
+    # the circle's pole at the fc's rows far from a pole, carried forward to every truth row
+    ti = np.clip(np.searchsorted(truth["t_s"], fc["t_s"]), 0, len(chi) - 1)
+    uf = u[ti]
+    far = r_m * np.arctan2(np.hypot(uf[:, 0], uf[:, 1]), np.abs(uf[:, 2])) > far_m
+    if not np.any(far):
+        raise ValueError(f"no fc row more than {far_m:.0f} m from a pole: no circle to measure")
+    fe, fnorth = _sphere_axes(uf)
+    ct = np.asarray(fc["guid_tgt_chi_rad"])
+    nf = np.cross(uf, np.cos(ct)[:, None] * fnorth + np.sin(ct)[:, None] * fe)
+    k = np.nonzero(far)[0]
+    j = np.searchsorted(fc["t_s"][k], truth["t_s"], side="right") - 1
+    n = nf[k[np.clip(j, 0, len(k) - 1)]]
+    t = np.cross(n, u)
+    return np.arctan2(np.einsum("ij,ij->i", np.cross(d, t), u), np.einsum("ij,ij->i", t, d))
+
+
+def hold_figures(truth: dict, fc: dict, t_from_s: float,
+                 origin_deg: tuple[float, float] | None = None) -> dict:
     """Max abs errors after ``t_from_s``: altitude (m), course (deg), speed (m/s) to the fc's
     targets; the inner loop (truth alpha/beta/mu to the fc's command, deg) and the law's own
     tracking error e1 (deg); time with a surface within 0.05 deg of its limit (s); the range of
-    the adaptive estimates in the first and second half; limits seen."""
+    the adaptive estimates in the first and second half; limits seen. ``origin_deg`` (the GNSS
+    origin of a round-Earth run, lat/lon deg) adds ``course_err_circle_max_deg``, the course
+    error to the great circle CRUISE holds (:func:`circle_course_error_rad`), for the rows
+    flown in CRUISE."""
     sel = truth["t_s"] >= t_from_s
     if np.count_nonzero(sel) < 2 or np.count_nonzero(fc["t_s"] >= t_from_s) < 2:
         raise ValueError(f"no samples after t = {t_from_s} s (the run ends at "
@@ -366,6 +425,15 @@ def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
                                                                        - tg[:, 1])))))
     out["speed_err_max_m_s"] = float(np.max(np.abs(truth["V_m_s"][sel] - tg[:, 2])))
     fsel = fc["t_s"] >= t_from_s
+    if origin_deg is not None:
+        from fc.modes import FlightMode
+        cruise = fc["mode"] == int(FlightMode.CRUISE)
+        if np.any(cruise & fsel):
+            sub = {k: v[cruise] for k, v in fc.items() if getattr(v, "shape", ()) == cruise.shape}
+            e = circle_course_error_rad(truth, sub, origin_deg)
+            t0 = max(t_from_s, float(sub["t_s"][0]))
+            out["course_err_circle_max_deg"] = float(np.degrees(
+                np.max(np.abs(e[(truth["t_s"] >= t0) & (truth["t_s"] <= sub["t_s"][-1])]))))
     ti = np.clip(np.searchsorted(truth["t_s"], fc["t_s"][fsel]), 0, len(truth["t_s"]) - 1)
     inner = []
     for name, c in (("alpha_rad", "cmd_alpha_rad"), ("beta_rad", "cmd_beta_rad"),
@@ -377,9 +445,13 @@ def hold_figures(truth: dict, fc: dict, t_from_s: float) -> dict:
         out["inner_e1_max_deg"] = [float(np.degrees(np.max(np.abs(fc[k][fsel])))) for k in e1]
     d = np.stack([truth[k][sel] for k in ("delta_left_rad", "delta_right_rad",
                                           "delta_rudder_rad")], 1)
+    at_limit = np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG, 1)
     dt = float(np.median(np.diff(truth["t_s"])))
-    out["surface_at_limit_s"] = float(np.sum(np.any(np.abs(d) >= (SURFACE_LIMIT_DEG - 0.05) * DEG,
-                                                    1)) * dt)
+    gaps = np.diff(truth["t_s"][sel])
+    if np.all(np.abs(gaps - dt) <= 1e-9):
+        out["surface_at_limit_s"] = float(np.sum(at_limit)) * dt
+    else:   # a decimated truth log (plant_sim/truthlog.py): each row's own interval
+        out["surface_at_limit_s"] = float(np.sum(gaps[at_limit[:-1]]))
     out["surface_peak_deg"] = [float(v) for v in np.degrees(np.max(np.abs(d), 0))]
     rho = [k for k in fc if k.startswith("law_rho")]
     if rho:

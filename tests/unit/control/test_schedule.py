@@ -11,15 +11,20 @@ from fc.control import layout as L
 from fc.control.law import AttitudeLaw
 from fc.control.params import (
     LAW_PARAMS, PARAM_INDEX, P_DOB_C, P_FLT_ANG_HZ, P_FLT_RATE_HZ, P_FST_CF_WN, P_FST_KAPPA,
-    P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
+    P_SCH_M, P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
     default_si_array,
 )
-from fc.control.schedule import apply_schedule, schedule_index
-from fc.control.schedule_data import SCHED_N, SCHED_QUANTITIES, load_schedule
+from fc.control.schedule import apply_schedule, mach_index, schedule_index
+from fc.control.schedule_data import SCHED_MACH, SCHED_N, SCHED_QUANTITIES, load_schedule
 
 DEG = math.pi / 180.0
 TAB = load_schedule()
 NODES_PA = TAB["qbar_kpa"] * 1e3
+MACH_NODES = TAB[SCHED_MACH[0]]
+MACH_FACTOR = TAB[SCHED_MACH[1]]
+#: a Mach number where the airframe is directionally stable: the rate-command limit's Mach
+#: factor is 1 there, so the dynamic-pressure table alone decides
+MACH_STABLE = 7.0
 # (SI slot the schedule writes, npz name, SI scale)
 TARGETS = ((P_SLW_KAPPA, "kappa1", 1.0), (P_SLW_K1, "K", 1.0), (P_SLW_K1 + 1, "K", 1.0),
            (P_SLW_K1 + 2, "K", 1.0), (P_FST_KAPPA, "kappa2", 1.0), (P_DOB_C, "dob_c", 1.0),
@@ -27,10 +32,10 @@ TARGETS = ((P_SLW_KAPPA, "kappa1", 1.0), (P_SLW_K1, "K", 1.0), (P_SLW_K1 + 1, "K
            (P_FLT_ANG_HZ, "flt_ang_hz", 1.0), (P_SLW_OMC_MAX, "omc_max_deg_s", DEG))
 
 
-def scheduled_par(qbar_pa: float) -> np.ndarray:
-    """A default parameter array after the schedule was applied at ``qbar_pa``."""
+def scheduled_par(qbar_pa: float, mach: float = MACH_STABLE) -> np.ndarray:
+    """A default parameter array after the schedule was applied at ``qbar_pa`` and ``mach``."""
     par = default_si_array()
-    apply_schedule(qbar_pa, par, np.zeros(L.X_N))
+    apply_schedule(qbar_pa, mach, par, np.zeros(L.X_N))
     return par
 
 
@@ -119,13 +124,71 @@ def test_application_is_bumpless_for_the_integral_and_the_observer():
     d_hat = x[L.X_Z:L.X_Z + 3] + par[P_DOB_C] * x[L.X_EF + L.E_P:L.X_EF + L.E_P + 3]
     node = next(i for i in range(SCHED_N)
                 if TAB["K"][i] != par[P_SLW_K1] and TAB["dob_c"][i] != par[P_DOB_C])
-    apply_schedule(NODES_PA[node], par, x)
+    apply_schedule(NODES_PA[node], MACH_STABLE, par, x)
     assert par[P_SLW_K1] == TAB["K"][node] and par[P_DOB_C] == TAB["dob_c"][node]
     np.testing.assert_allclose(par[P_SLW_K1:P_SLW_K1 + 3] * x[L.X_INT_E1:L.X_INT_E1 + 3],
                                k_int, rtol=1e-12)
     np.testing.assert_allclose(
         x[L.X_Z:L.X_Z + 3] + par[P_DOB_C] * x[L.X_EF + L.E_P:L.X_EF + L.E_P + 3], d_hat,
         rtol=1e-12)
+
+
+def test_the_mach_axis_defaults_are_the_committed_table():
+    for i in range(SCHED_N):
+        assert LAW_PARAMS[PARAM_INDEX[f"SCH_M_{i + 1}"]].default == MACH_NODES[i]
+        assert LAW_PARAMS[PARAM_INDEX[f"SCH_OMCF_{i + 1}"]].default == pytest.approx(
+            MACH_FACTOR[i], rel=1e-12)
+    # appended after the dynamic-pressure table: the earlier parameters keep their slots
+    assert PARAM_INDEX["SCH_M_1"] > PARAM_INDEX[f"SCH_OMC_{SCHED_N}"]
+
+
+@pytest.mark.parametrize("mach", [0.0, 4.0, 6.0, 7.4, 8.0, 8.04, math.nan])
+def test_up_to_mach_8_the_rate_limit_is_the_dynamic_pressure_tables(mach):
+    """The airframe is directionally stable up to Mach 8.044 (Cn_beta >= 0 in the nominal
+    model; the second Mach node): the Mach factor is exactly 1 there, so every point whose
+    estimated Mach stays below it flies the values it flew before the Mach axis (docs/margins.md
+    s. 6b; the Mach 8 / 30 km flights reach Mach 8.002)."""
+    for q in (*NODES_PA, 0.5 * (NODES_PA[2] + NODES_PA[3])):
+        par = scheduled_par(q, mach)
+        assert par[P_SLW_OMC_MAX] == expected("omc_max_deg_s", q) * DEG
+        for slot, name, scale in TARGETS:
+            assert par[slot] == pytest.approx(expected(name, q) * scale, rel=1e-12)
+
+
+@pytest.mark.parametrize("mach", [8.5, 9.0, 10.0, 11.3, 12.0, 13.0, 14.0, 14.6, 15.0, 17.0, 25.0])
+def test_above_mach_8_the_rate_limit_takes_the_mach_factor(mach):
+    """GIVEN a Mach number THEN SLW_OMC_MAX = the dynamic-pressure value x the Mach factor
+    interpolated linearly between the Mach nodes (clamped above the last); the other
+    scheduled values do not depend on Mach. A Mach index one node off fails here."""
+    fac = float(np.interp(mach, MACH_NODES, MACH_FACTOR))
+    assert fac < 1.0
+    for q in (NODES_PA[1], NODES_PA[4], 2.2e5):
+        par = scheduled_par(q, mach)
+        assert par[P_SLW_OMC_MAX] == pytest.approx(expected("omc_max_deg_s", q) * DEG * fac,
+                                                   rel=1e-12)
+        for slot, name, scale in TARGETS[:-1]:
+            assert par[slot] == pytest.approx(expected(name, q) * scale, rel=1e-12)
+    k, f = mach_index(mach, default_si_array())
+    assert 0 <= k <= SCHED_N - 2 and MACH_NODES[k] <= min(mach, MACH_NODES[-1]) <= MACH_NODES[k + 1]
+
+
+def test_the_mach_factor_falls_with_the_directional_instability():
+    """The committed factors: 1 where the nominal airframe is directionally stable, then
+    falling with Mach as Cn_beta goes negative (tools.schedule_design.omc_mach_factor)."""
+    from tools.schedule_design import directional_instability, omc_mach_factor
+    for m, f in zip(MACH_NODES, MACH_FACTOR):
+        a_dir, _ = directional_instability(m)
+        assert f == pytest.approx(omc_mach_factor(m), rel=1e-12)
+        assert (f == 1.0) == (a_dir <= 0.0)
+    assert np.all(np.diff(MACH_FACTOR) <= 0.0) and MACH_FACTOR[-1] < 0.6
+
+
+def test_nodes_written_out_of_order_leave_the_mach_axis_finite():
+    par = default_si_array()
+    par[P_SCH_M:P_SCH_M + SCHED_N] = par[P_SCH_M:P_SCH_M + SCHED_N][::-1]
+    for m in (0.0, 7.0, 12.0, 30.0):
+        k, f = mach_index(m, par)
+        assert 0 <= k <= SCHED_N - 2 and 0.0 <= f <= 1.0
 
 
 def _est_at(qbar_pa: float, law: AttitudeLaw) -> np.ndarray:

@@ -97,13 +97,19 @@ def test_atomic_write_on_a_full_disk_keeps_the_old_file_and_no_temp(tmp_path, di
     assert path.read_bytes() == b"A 1\n" and os.listdir(tmp_path) == ["params.parm"]
 
 
-def test_a_parameter_that_cannot_be_saved_is_reported_not_silently_accepted(tmp_path, disk):
-    table = build_table()
-    health = DiskHealth()
-    svc = ParamService.__new__(ParamService)      # only its save: no law, no guidance
-    svc.table, svc.path, svc.log, svc.disk, svc.dirty = (table, str(tmp_path / "p.parm"),
-                                                         logging.getLogger("test"), health,
+def _save_only_service(tmp_path) -> ParamService:
+    """A ParamService for its save only (no law, no guidance): a fresh table, the file
+    ``p.parm`` in ``tmp_path``, its own DiskHealth."""
+    svc = ParamService.__new__(ParamService)
+    svc.table, svc.path, svc.log, svc.disk, svc.dirty = (build_table(), str(tmp_path / "p.parm"),
+                                                         logging.getLogger("test"), DiskHealth(),
                                                          False)
+    return svc
+
+
+def test_a_parameter_that_cannot_be_saved_is_reported_not_silently_accepted(tmp_path, disk):
+    svc = _save_only_service(tmp_path)
+    table, health = svc.table, svc.disk
     disk.full = True
     svc.save()
     # THEN the fault is known, said, and the next change is reported as not saved
@@ -137,3 +143,70 @@ def test_disk_faults_are_said_at_once_then_once_per_minute():
     assert health.report(202.0) == ("DISK: parameters not written (Input/output error); "
                                     "tlog not written (No space left on device)")
     assert health.report(203.0) is None
+
+
+class _SavingVehicle(_Vehicle):
+    """The stub vehicle with a parameter file: ``save_params`` as the flight controller's
+    (fc/app.py: ParamService.save on the I/O thread)."""
+
+    def __init__(self, svc: ParamService, io) -> None:
+        super().__init__()
+        self.params = svc.table
+        self.svc, self.io = svc, io
+
+    def save_params(self, done):
+        values = self.svc.snapshot(force=True)
+        self.io.submit(lambda: done(self.svc.save(values)))
+        return True
+
+
+def _param_set(link: GcsLink, name: bytes, value: float) -> None:
+    gcs = new_codec(255, 190)
+    m = gcs.param_set_encode(1, 1, name, value, ML.MAV_PARAM_TYPE_REAL32)
+    m.pack(gcs)
+    link._param_set(m)
+
+
+@pytest.mark.parametrize("full", [True, False])
+def test_the_first_param_set_on_a_full_disk_is_not_echoed_as_simply_accepted(tmp_path, disk,
+                                                                             full):
+    """GIVEN a disk that is full but has not failed a write yet (the health knows nothing),
+    WHEN a ground station sets a parameter, THEN its answer waits for the save: an ERROR
+    STATUSTEXT `NOT saved` before the PARAM_VALUE; on a good disk the PARAM_VALUE alone, after
+    the file holds the value. (Before: the echo at once, the failure only in fc.log.)"""
+    from fc.iothread import IoThread
+    svc = _save_only_service(tmp_path)
+    table, health = svc.table, svc.disk
+    io = IoThread()
+    v = _SavingVehicle(svc, io)
+    link = GcsLink(v, ("127.0.0.1", free_udp_port()), [], disk=health)
+    sent, texts = [], []
+    link.send = lambda msg, log=True: sent.append(("send", msg.get_type(), getattr(
+        msg, "param_id", "")))
+    link.statustext = lambda sev, text: (texts.append((sev, text)),
+                                         sent.append(("text", "STATUSTEXT", text)))
+    try:
+        disk.full = full
+        assert not health.failing
+        _param_set(link, b"TRIM_RUD_DEG", 2.0)
+        assert [s for s in sent if s[1] == "PARAM_VALUE"] == []    # not before the save
+        io.close()                                                 # the save has run
+        link.service(1e9)
+        echoes = [s for s in sent if s[1] == "PARAM_VALUE"]
+        assert len(echoes) == 1 and echoes[0][2] == "TRIM_RUD_DEG"
+        assert table.get("TRIM_RUD_DEG") == 2.0                    # set in memory either way
+        if full:
+            assert (ML.MAV_SEVERITY_ERROR,
+                    "TRIM_RUD_DEG set, NOT saved (disk: No space left on device)") in texts
+            assert health.error_of("parameters") is not None
+            kinds = [s[1] for s in sent if s[1] in ("STATUSTEXT", "PARAM_VALUE")]
+            assert kinds == ["STATUSTEXT", "PARAM_VALUE"]                 # said first
+        else:
+            assert not any("NOT saved" in t for _, t in texts)
+            assert "TRIM_RUD_DEG" in (tmp_path / "p.parm").read_text()
+        # a command (not kept on file) is answered at once
+        sent.clear()
+        _param_set(link, b"CMD_MU_DEG", 1.0)
+        assert [s[1] for s in sent] == ["PARAM_VALUE"]
+    finally:
+        link.close()

@@ -41,6 +41,9 @@ class _Vehicle:
     def set_param(self, name, value):
         return self.params.set(name, value)
 
+    def save_params(self, done):
+        return False                       # no parameter file: answered at once
+
     def request_mode(self, mode):
         return self.modes.request_mode(mode)
 

@@ -41,3 +41,27 @@ def test_partial_trailing_row_is_dropped_and_bad_paths_fail(tmp_path):
         load(tmp_path / "x")
     with pytest.raises(ValueError):
         load(tmp_path / "truth.raw.json")
+
+
+def test_decimated_log_keeps_the_full_rate_rows_bit_for_bit(tmp_path):
+    # GIVEN the same rows written at full rate and decimated (5 full rows, then 1 in 3)
+    rng = np.random.default_rng(2)
+    names = ("t_s", "x", "y")
+    rows = [(k * 1e-3, *rng.normal(size=2)) for k in range(40)]
+    (tmp_path / "full").mkdir()
+    (tmp_path / "dec").mkdir()
+    full = TruthWriter(tmp_path / "full", names, block_rows=4)
+    dec = TruthWriter(tmp_path / "dec", names, block_rows=4, full_rows=5, every=3)
+    for k, r in enumerate(rows):
+        keep = k == len(rows) - 1          # the final state: kept whatever the decimation
+        full.row(keep=keep)[:] = r
+        dec.row(keep=keep)[:] = r
+    a, b = load(full.close()), load(dec.close())
+    # THEN the decimated log holds rows 0..4, then 5, 8, 11, ..., and the last, each exactly the
+    # full-rate row at that index
+    kept = list(range(5)) + list(range(5, 39, 3)) + [39]
+    assert dec.rows == len(kept) and dec.decimated == 40 - len(kept) and full.decimated == 0
+    for n in names:
+        assert a[n][kept].tobytes() == b[n].tobytes()
+    with pytest.raises(ValueError):
+        TruthWriter(tmp_path, names, full_rows=0, every=0)

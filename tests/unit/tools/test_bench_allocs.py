@@ -14,7 +14,8 @@ from tools.bench.profile import record
 SPAN_FRAMES = 1500
 #: blocks the controller may keep over those frames, whatever their number (a stream's
 #: counter crossing into a new int, a dict resized once): a leak of one block per 15 frames
-#: exceeds it
+#: exceeds it. Not tightened by issue 24: 16-51 in 12 replays of both modes alone, 72 once
+#: after other tests in the same process (a 64 allowance failed there)
 ALLOWANCE_BLOCKS = 100
 
 
@@ -32,6 +33,17 @@ def test_allocated_blocks_do_not_grow_with_the_frames(flights, mode):
     before, after = allocs.block_growth(flights[mode], mode, [500, 500 + SPAN_FRAMES])
     # THEN it kept no more than the fixed allowance, not a block per frame
     assert after - before <= ALLOWANCE_BLOCKS, (mode, after - before)
+
+
+@pytest.mark.parametrize("mode", ["COORDINATED", "CRUISE"])
+def test_frames_create_no_numba_array_record(flights, mode):
+    # GIVEN the counted replay of a flight in each mode (decode, estimator, guidance, law,
+    # PWM, framing, internals row, housekeeping)
+    r = allocs.count_allocations(flights[mode][:allocs.WARM_FRAMES + 300], mode)
+    # THEN no compiled call of the frame path wraps or creates an array (fc/frame_calls.py:
+    # the arrays go by address)
+    assert r["frames"] == 300
+    assert r["nrt_allocs_per_frame"] == 0.0 and r["nrt_data_allocs_per_frame"] == 0.0, r
 
 
 def test_a_per_frame_leak_is_seen(flights, monkeypatch):

@@ -167,3 +167,23 @@ def test_grid_table_checks_the_issue_20_targets(tmp_path):
     assert [r.rstrip(" |").split("|")[-1].strip()[:3] for r in rows] == [
         "yes", "no", "no", "no:"]
     assert "| 98 |" in rows[0]                                   # Mach 8 / 26 km, US76
+
+
+def test_trim_verdict_says_where_the_airframe_cannot_hold_the_initial_state(tmp_path):
+    """Issue 20 item 2: at Mach 14 / 30 km the paper's initial sideslip (5 deg) cannot be
+    trimmed within the surfaces' +-20 deg (the rudder at its limit; the largest trimmable
+    initial sideslip is about 3.4 deg), at the paper's point it can; the margins table gives
+    the reason on the row of a variant whose unperturbed loop failed."""
+    import json
+    v = M.trim_verdict(M.margin_scenario(point=(14.0, 30e3)))
+    assert not v["ini_ok"] and v["cmd_ok"]
+    assert "rudder" in v["ini_at_limit"]
+    assert 3.0 < v["beta0_max_deg"] < 4.0
+    assert "cannot trim the initial state" in v["text"]
+    paper = M.trim_verdict(M.margin_scenario())
+    assert paper["ini_ok"] and paper["beta0_max_deg"] is None
+    j = {"point": "14,30", "frame_dt_s": 0.001, "overrides": {}, "initial_beta_deg": None,
+         "results": [], "delays": {"co/all": [0, 0]}, "trim": v}
+    (tmp_path / "margins.json").write_text(json.dumps(j))
+    row = M.grid_table([tmp_path]).splitlines()[2]
+    assert "not stable" in row and "largest initial sideslip it trims is +3.4" in row

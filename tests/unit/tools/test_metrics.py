@@ -227,3 +227,35 @@ def test_undershoot_is_the_wrong_way_move_as_percent_of_step():
     m2 = M.channel_metrics(t, 4.0 * D2R * (1.0 - np.exp(-t)), [0.0], [4.0 * D2R])
     assert m2.undershoot_pct == 0.0
     assert M.channel_metrics(t, np.zeros_like(t), [0.0], [0.0]).undershoot_pct is None
+
+
+def test_circle_course_error_is_measured_without_north_over_the_pole():
+    # GIVEN a truth flown along pymap3d's great circle straight over the north pole from
+    # (89 N, 20 E), 100 Hz, its course 0.2 deg to the right of the circle from 48 s to 50 s
+    # (the pole at 49.4 s), and an fc whose course target (the circle's course where the
+    # vehicle is) is logged at 20 Hz, each row 20 ms late, as a decimated internals log can be
+    import pymap3d
+    from pymap3d import vincenty
+    sphere = pymap3d.Ellipsoid.from_name("wgs84_mean")
+    origin = (89.0, 20.0)
+    t = np.arange(0.0, 60.0, 0.01)
+
+    def course_at(t_s):
+        dist = 2250.0 * np.asarray(t_s)
+        lat, lon = vincenty.vreckon(*origin, dist, 0.0, sphere)
+        _, az = vincenty.vdist(lat, lon, *vincenty.vreckon(*origin, dist + 1.0, 0.0, sphere), sphere)
+        return np.radians(np.asarray(az, dtype=float))
+    inject = np.where((t >= 48.0) & (t < 50.0), 0.2 * D2R, 0.0)
+    # the truth's map about the origin: the distance along the initial azimuth (north)
+    truth = {"t_s": t, "pos_n_m": 2250.0 * t, "pos_e_m": np.zeros_like(t),
+             "chi_rad": course_at(t) + inject}
+    tf = t[::5] + 0.02
+    fc = {"t_s": tf, "guid_tgt_chi_rad": course_at(tf)}
+    # WHEN measured
+    e = M.circle_course_error_rad(truth, fc, origin)
+    # THEN the injected error and nothing else, over the pole too
+    assert abs(truth["chi_rad"][0]) < 1e-9 and abs(truth["chi_rad"][-1] - math.pi) < 1e-6
+    assert np.max(np.abs(e - inject)) < 1e-6
+    # while the north-referenced difference to the target in force reads degrees at the pole
+    tg = M.targets_at(truth, {**fc, "guid_tgt_h_m": tf * 0, "guid_tgt_V_m_s": tf * 0})[:, 1]
+    assert np.max(np.abs(np.degrees(M.wrap_rad(truth["chi_rad"] - tg)))) > 5.0
