@@ -10,7 +10,7 @@ Inputs (docs/guidance.md section 2, "In the fc"):
 
 - the law's estimate ``est`` (fc/estimator.py: alpha, beta, mu, p, q, r, V, h, gamma) with
   gamma replaced by asin(climb / airspeed) from the frame (10x less noisy than the estimator's
-  theta - alpha, as tools/guided_loop.py);
+  theta - alpha, as tools/sitl/closed_loop/guided.py);
 - the course chi of the air-relative velocity from the frame's roll, pitch, yaw and the
   estimate's alpha, beta (``course_from_air_data``). Not the GNSS course: the plant has no
   wind, so the two agree, and the air-data course comes with every frame, without the GNSS

@@ -7,7 +7,7 @@ Three targets, each a UDP port a peer may write to:
 - ``plant``: the plant's socket (``--bind``), normally fed SERVO_OUTPUT_RAW by the fc.
 
 ``datagram(target, rng)`` draws one hostile datagram: random bytes, a valid frame mutated
-(tools.linkimpair.mutate: bit flips, truncation, garbage), a valid frame with a bad CRC, a
+(tools.sitl.linkimpair.mutate: bit flips, truncation, garbage), a valid frame with a bad CRC, a
 frame of the wrong message type, a valid frame whose fields are NaN/Inf/huge, a MAVLink 1
 frame, a burst of frames glued together. ``corpus()`` is the recorded, deterministic set
 (tests/fuzz_corpus/, replayed by tests/hil/test_reliability_fuzz.py).
@@ -45,7 +45,7 @@ from pathlib import Path
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as ml  # noqa: E402
 
-from tools.linkimpair import Impairment, mutate  # noqa: E402
+from tools.sitl.linkimpair import Impairment, mutate  # noqa: E402
 
 TARGETS = ("fc-plant", "fc-gcs", "plant")
 #: Commands that arm, change the mode or steer the vehicle (COMMAND_LONG and COMMAND_INT share

@@ -105,7 +105,7 @@ def plot(vdir: Path, mission_file: Path, home: tuple[float, float], path: Path,
          title: str) -> Path:
     """altitude, course, speed against the guidance's targets; the ground track with the
     waypoints; alpha, beta, mu against the law's commands; the surfaces."""
-    from tools.plots import CMD_STYLE, R2D, SURFACE_LABELS, _finish_axis, _save, plt
+    from tools.sitl.plots import CMD_STYLE, R2D, SURFACE_LABELS, _finish_axis, _save, plt
     items = read_wpl(mission_file)
     tr = np.load(vdir / "truth.npz")
     il = np.load(vdir / "fc_internals.npz")

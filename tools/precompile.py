@@ -13,7 +13,7 @@ The cache lands where numba puts it: ``__pycache__`` next to the sources (an edi
 a writable site-packages), or NUMBA_CACHE_DIR when that is set. It stays valid until a kernel's
 source changes (hyfc_wire/numba_cache.py drops stale entries), so the README's set-up and
 ``.ci/run`` run it once after ``pip install``. The in-process tools' own loops
-(tools.sitl, tools.guided_loop) are not compiled here: they compile on their first use.
+(tools.sitl, tools.sitl.closed_loop.guided) are not compiled here: they compile on their first use.
 """
 from __future__ import annotations
 

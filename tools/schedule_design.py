@@ -6,7 +6,7 @@ structure from the controller's nominal model and the margin targets, and writes
 committed table the law loads (its values are the defaults of the ``SCH_*`` parameters,
 fc/control/params.py).
 
-**Design model** (one channel, the loop broken at the actuator input as tools.margins breaks
+**Design model** (one channel, the loop broken at the actuator input as tools.evidence.margins breaks
 it; u = the law's angular-acceleration command, rad/s^2; s the Laplace variable):
 
     plant        omega = k_p A_p(s) e^(-s T_in) u / s,   Omega = omega / s
@@ -25,7 +25,7 @@ which gives L(jw) = C(jw) k_p A_p e^(-jw T_in) / (jw) with
 C = [(kappa2 + Q s) F_r + ((kappa2 + s) CF G1 e^(-s T_slow) + 1 + K/s) F_a / s] / (1 - Q F_r A_m),
 Q = c/(s + c), G1 = kappa1 + K + kappa1 K / s. With the paper's gains it predicts crossover
 11.4 rad/s, phase margin 13 deg, delay margin 20 ms, downward gain margin -4.2 dB: what
-tools.margins measured on the nonlinear law (10.5-11.7 rad/s, 12-20 deg, 20 ms, -3.3..-6 dB).
+tools.evidence.margins measured on the nonlinear law (10.5-11.7 rad/s, 12-20 deg, 20 ms, -3.3..-6 dB).
 
 **Targets** (issue 20): phase margin >= 45 deg, gain margin about trim >= 6 dB up and down,
 delay margin >= 50 ms, each with a design buffer (``BUFFER_*``) and at k_p = 0.8 and 1.0.
@@ -55,7 +55,7 @@ at 1.5 and 2 rad/s) is chosen, ties (within 1 %) to the wider attitude bandwidth
 candidate meets the noise budget (the lowest nodes), the quietest margin-feasible one is
 taken and the table says "(over)". The
 table is then checked with the project's margins tool on the nonlinear law
-(``python -m tools.margins --only pm_allpass,gain_ac,delay_all --point M,H_KM``;
+(``python -m tools.evidence.margins --only pm_allpass,gain_ac,delay_all --point M,H_KM``;
 docs/margins.md).
 
     python -m tools.schedule_design              # (re)write fc/control/data/schedule.npz

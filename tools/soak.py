@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tools.linkimpair import Impairment
+from tools.sitl.linkimpair import Impairment
 from tools.sitl.rig import (Flood, PlantStaller, Rig, RigConfig, late_ticks, proc_usage,
                             steady_figures, steady_violations, tracking_error_deg)
 
@@ -260,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
                        help="a progress line on stderr every S wall seconds, 0 = none (5)")
     args = ap.parse_args(argv)
     if args.cmd == "flood":
-        from tools.linkimpair import parse_hostport
+        from tools.sitl.linkimpair import parse_hostport
         if args.rate <= 0 or args.rate > 100000 or args.duration < 0 or args.duration > 3600:
             ap.error("--rate must be in (0, 100000] and --duration in [0, 3600]")
         return flood_main(parse_hostport(args.target), args.rate, args.duration, args.seed,

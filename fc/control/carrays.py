@@ -38,7 +38,7 @@ def _ctypes_cast(ctype):
 
 
 if numba_config.DISABLE_JIT:
-    # NUMBA_DISABLE_JIT=1 (tools.mutate's stage 1, debugging): the kernels run as plain
+    # NUMBA_DISABLE_JIT=1 (tools.evidence.mutate's stage 1, debugging): the kernels run as plain
     # Python, where ``numba.carray`` takes a ctypes pointer; an intrinsic is not callable there.
     f8p = _ctypes_cast(ctypes.c_double)
     i8p = _ctypes_cast(ctypes.c_int64)

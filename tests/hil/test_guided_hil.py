@@ -3,7 +3,7 @@ pymavlink ground station (COMMAND_LONG), the cruise scenario's plant in the loop
 (tests/fc_harness.py ClosedLoop: the in-process PlantSim, throttle from servo4).
 
 Sim times are short (CI): each check is that the vehicle moves toward the target at the
-rate the guidance's limits allow, not that it settles (tools/guided_loop.py and the 1-hour
+rate the guidance's limits allow, not that it settles (tools/sitl/closed_loop/guided.py and the 1-hour
 runs in docs/guidance.md measure settling)."""
 from __future__ import annotations
 

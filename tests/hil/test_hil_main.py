@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tools.hil import rundata
+from tools.sitl import rundata
 from tools.hil.cli import format_table
-from tools.hil.rundata import strip_wall_clock
-from tools.hil.runner import gains_params, parse_progress, shaping_params
+from tools.sitl.rundata import strip_wall_clock
+from tools.sitl.runner import gains_params, parse_progress, shaping_params
 from tools.sitl.gcs import ScriptedGcs
 from tools.sitl.procs import repo_env as _env
 

@@ -9,8 +9,8 @@ the fc's estimator; the in-process law reads the true state), hence the toleranc
 import numpy as np
 import pytest
 
-from tools.montecarlo import dispersions as dsp
-from tools.montecarlo.case import CampaignConfig, fly_case
+from tools.evidence.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo.case import CampaignConfig, fly_case
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 

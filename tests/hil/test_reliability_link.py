@@ -4,7 +4,7 @@ The rig flies the cruise scenario in CRUISE (tools/sitl/rig.py): a steady flight
 and 28 km, the guidance holding the altitude, course and speed at arming.
 
 1. With 5 % loss, 0-5 ms jitter, 1 % duplicates and 1 % reordering on the plant link (both
-   directions, tools/linkimpair.py), the cruise still holds: after 3 s, altitude, course and
+   directions, tools/sitl/linkimpair.py), the cruise still holds: after 3 s, altitude, course and
    speed against the fc's targets and alpha/beta/mu against the guidance's command stay within
    the rig's STEADY_BOUNDS, no surface at its limit, and no failsafe.
 2. Plant data cut for longer than FS_TIMEOUT_S -> FAILSAFE, STATUSTEXT, HEARTBEAT custom mode 3,
@@ -26,7 +26,7 @@ import time
 import numpy as np
 import pytest
 
-from tools.linkimpair import Impairment
+from tools.sitl.linkimpair import Impairment
 from tools.sitl.rig import (PROMISE1_IMPAIRMENT, STEADY_BOUNDS, Rig, RigConfig, late_ticks,
                             steady_figures, steady_violations)
 

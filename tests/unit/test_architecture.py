@@ -28,7 +28,7 @@ PURE: tuple[str, ...] = ("fc.control",)
 
 #: packages whose modules may not import each other in a circle even through deferred imports
 #: (a cycle hidden in a function body is still two modules that need each other: the shared
-#: piece goes into a third module both import, e.g. fc/mission_params.py, tools/margins_flight.py)
+#: piece goes into a third module both import, e.g. fc/mission_params.py, tools/evidence/margins/flight.py)
 NO_CYCLES: tuple[str, ...] = ("fc", "plant_sim", "hyfc_wire", "tools")
 
 #: package -> packages of ours it may import (itself always; SHARED always)
@@ -37,10 +37,17 @@ ALLOWED: dict[str, tuple[str, ...]] = {
     "fc.guidance": ("fc.control",),        # the pure outer loop: itself and the law's layout
     "fc": (),                              # never plant_sim, tools or tests
     "plant_sim": (),                       # never fc, tools or tests
-    "tools.sitl": ("fc", "plant_sim", "tools.linkimpair"),   # the harness: no command line
-    "tools": ("fc", "plant_sim"),          # never tests
+    "tools.sitl": ("fc", "plant_sim"),     # the harness: libraries, no command, no evidence
+    "tools.evidence": ("fc", "plant_sim", "tools.sitl"),   # the evidence tools: never a command
+    "tools": ("fc", "plant_sim"),          # the commands: never tests (see COMMANDS below)
     "tests": ("fc", "plant_sim", "tools"),
 }
+
+#: the commands live under this package; everything below it except LIBRARIES is a command
+#: unit (``tools.hil``, ``tools.bench``, ``tools.soak``, ...), which may import the LIBRARIES and
+#: its own modules, never another command unit (docs/architecture.md section 1)
+COMMANDS = "tools"
+LIBRARIES: tuple[str, ...] = ("tools.sitl", "tools.evidence")
 
 
 def our_packages() -> list[str]:
@@ -108,6 +115,61 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> list[tuple[st
     return found
 
 
+def _defines(path: Path, name: str) -> bool:
+    """Whether the module at ``path`` binds ``name`` at module level (def, class, assignment,
+    import; also inside a module-level ``try``/``if``/``with``), or star-imports anything."""
+    def stmts(body):
+        for node in body:
+            yield node
+            if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                for field in ("body", "orelse", "finalbody", "handlers"):
+                    yield from stmts(getattr(node, field, []) or [])
+
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in stmts(tree.body):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) \
+                and node.name == name:
+            return True
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            if any(a.name == "*" or (a.asname or a.name.split(".")[0]) == name
+                   for a in node.names):
+                return True
+        targets = node.targets if isinstance(node, ast.Assign) else \
+            [node.target] if isinstance(node, (ast.AnnAssign, ast.AugAssign)) else []
+        for t in targets:
+            for n in ast.walk(t):
+                if isinstance(n, ast.Name) and n.id == name:
+                    return True
+    return False
+
+
+def unresolved_imports(modules: dict[str, Path]) -> list[str]:
+    """Imports of our packages that name a module (or a package's member) that is not in this
+    tree. With the project installed in editable mode elsewhere, such an import would quietly
+    load the other tree's file (a module moved here, still present there), so it is reported."""
+    tops = set(our_packages())
+    bad = []
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] in tops and a.name not in modules:
+                        bad.append(f"{where}:{node.lineno}: import {a.name}")
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module \
+                    and node.module.split(".")[0] in tops:
+                if node.module not in modules:
+                    bad.append(f"{where}:{node.lineno}: from {node.module} import ...")
+                    continue
+                for a in node.names:
+                    if a.name == "*" or f"{node.module}.{a.name}" in modules:
+                        continue
+                    if not _defines(modules[node.module], a.name):
+                        bad.append(f"{where}:{node.lineno}: from {node.module} import {a.name}")
+    return bad
+
+
 def rule_for(name: str) -> tuple[str, tuple[str, ...]] | None:
     """(package, allowed packages) of the longest matching ``ALLOWED``/``SHARED`` key."""
     for pkg in SHARED:
@@ -132,6 +194,31 @@ def violations(modules: dict[str, Path]) -> list[str]:
         for target, line, _top in imports_of(name, path, modules):
             if not any(_within(target, ok) for ok in (pkg,) + allowed):
                 bad.append(f"{where}:{line}: {pkg} must not import {target}")
+    return bad
+
+
+def command_unit(name: str) -> str | None:
+    """``tools.X`` for a module of a command (``tools.hil.cli`` -> ``tools.hil``), None for a
+    library module or a module outside COMMANDS."""
+    if not _within(name, COMMANDS) or name == COMMANDS:
+        return None
+    if any(_within(name, lib) for lib in LIBRARIES):
+        return None
+    return ".".join(name.split(".")[:2])
+
+
+def command_violations(modules: dict[str, Path]) -> list[str]:
+    """Imports from one command unit into another (deferred imports included)."""
+    bad = []
+    for name, path in modules.items():
+        unit = command_unit(name)
+        if unit is None:
+            continue
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        for target, line, _top in imports_of(name, path, modules):
+            other = command_unit(target)
+            if other is not None and other != unit:
+                bad.append(f"{where}:{line}: command {unit} must not import command {target}")
     return bad
 
 
@@ -189,9 +276,51 @@ def test_walk_sees_our_packages(modules):
     assert any(t.startswith("fc.control.") for t, _, _ in law)
 
 
+def test_every_import_of_ours_resolves_in_this_tree(modules, tmp_path):
+    """Every ``import``/``from ... import`` of our packages names a module of this tree (or a
+    name its module defines): a path left behind by a move fails here, instead of loading the
+    old file from another checkout through the editable install. The check itself sees a
+    stale path."""
+    bad = unresolved_imports(modules)
+    assert not bad, "imports that do not resolve in this tree:\n" + "\n".join(bad)
+    stale = tmp_path / "stale.py"
+    stale.write_text("from tools import no_such_tool\nimport tools.no_such_module\n"
+                     "from tools.sitl.closed_loop import simulate, no_such_name\n")
+    found = unresolved_imports({"tools.stale": stale, **modules})
+    assert [b.split(": ", 1)[1] for b in found] == [
+        "from tools import no_such_tool", "import tools.no_such_module",
+        "from tools.sitl.closed_loop import no_such_name"], found
+
+
 def test_import_direction(modules):
     bad = violations(modules)
     assert not bad, "imports against docs/architecture.md's direction:\n" + "\n".join(bad)
+
+
+def test_commands_import_libraries_not_commands(modules):
+    bad = command_violations(modules)
+    assert not bad, "a command imports another command:\n" + "\n".join(bad)
+
+
+def test_layer_walk_sees_wrong_way_imports(modules, tmp_path):
+    """The walk reports a harness module importing an evidence tool or a command, an evidence
+    tool importing a command, and a command importing another command (deferred or not)."""
+    sitl = tmp_path / "sitl_fake.py"
+    sitl.write_text("from tools.evidence.mutate import ROOT\n\n\ndef f():\n"
+                    "    from tools.hil import cli\n")
+    ev = tmp_path / "ev_fake.py"
+    ev.write_text("def f():\n    from tools.hil.cli import main\n")
+    cmd = tmp_path / "cmd_fake.py"
+    cmd.write_text("from tools.sitl.procs import Child\nfrom tools.evidence import mutate\n"
+                   "from tools.soak import main\n")
+    more = {**modules, "tools.sitl.sitl_fake": sitl, "tools.evidence.ev_fake": ev,
+            "tools.cmd_fake": cmd}
+    bad = violations(more)
+    assert any("tools.sitl must not import tools.evidence.mutate" in b for b in bad), bad
+    assert any("tools.sitl must not import tools.hil.cli" in b for b in bad), bad
+    assert any("tools.evidence must not import tools.hil.cli" in b for b in bad), bad
+    cbad = command_violations(more)
+    assert cbad == [f"{cmd}:3: command tools.cmd_fake must not import command tools.soak"], cbad
 
 
 def test_no_import_cycles(modules):
@@ -202,7 +331,7 @@ def test_no_import_cycles(modules):
 def test_no_import_cycles_deferred_imports_included(modules):
     """No cycle in fc/, plant_sim/, hyfc_wire/ or tools/ even counting the imports inside
     functions (issue 23: fc.params -> fc.mission_mode -> fc.params through MISSION_PARAMS,
-    tools.margins <-> tools.margins_wire)."""
+    tools.evidence.margins <-> tools.evidence.margins.wire)."""
     ours = {n: p for n, p in modules.items() if n.split(".")[0] in NO_CYCLES}
     found = cycles(ours, deferred=True)
     assert not found, "import cycles (deferred imports included):\n" + "\n".join(

@@ -24,16 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.montecarlo import dispersions as dsp
-from tools.montecarlo import results
-from tools.montecarlo.campaign import run_campaign
-from tools.montecarlo.case import CampaignConfig
+from tools.evidence.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo import results
+from tools.evidence.montecarlo.campaign import run_campaign
+from tools.evidence.montecarlo.case import CampaignConfig
 
 
 def _inproc_rate(scenario: str, duration_s: float | None) -> float:
     """Simulated seconds per wall second of the in-process loop on the nominal scenario as
     the campaign's cases fly it (the sensor model and the fc's estimator in the loop,
-    tools.montecarlo.apply.fly_closed_loop), the loop alone as ``simulate`` times it (set-up
+    tools.evidence.montecarlo.apply.fly_closed_loop), the loop alone as ``simulate`` times it (set-up
     excluded), median of 5 flights."""
     from tools.sitl.closed_loop import simulate
     simulate(scenario, duration_s=0.1, estimate="sensors")     # loads (or compiles) the code

@@ -4,8 +4,8 @@
 a run directory; ``python -m tools.hil report RUN_DIR`` rebuilds its summary and plots from the
 logs. See docs/hil.md.
 
-Modules: ``cli`` (command line, summary table), ``runner`` (one variant: start, drive, watch,
-stop), ``rundata`` (logs -> summary and plot data). The child processes and the scripted ground
-station (the only MAVLink import of this process) are the SITL harness's: ``tools.sitl.procs``,
-``tools.sitl.gcs``.
+Modules: ``cli`` (command line, summary table). The machinery is the SITL harness's:
+``tools.sitl.runner`` (one variant: start, drive, watch, stop), ``tools.sitl.rundata`` (logs ->
+summary and plot data), ``tools.sitl.procs`` (the child processes), ``tools.sitl.gcs`` (the
+scripted ground station, the only MAVLink import of this process), ``tools.sitl.plots``.
 """

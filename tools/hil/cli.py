@@ -13,8 +13,8 @@ import sys
 import threading
 from pathlib import Path
 
-from tools.hil import rundata
-from tools.hil.runner import RunConfig, controller_params, run_variant
+from tools.sitl import rundata
+from tools.sitl.runner import RunConfig, controller_params, run_variant
 
 VARIANTS = ("coordinated", "uncoordinated")
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -184,7 +184,7 @@ def build_summary(run_dir: Path, meta: dict, plots: bool = True) -> tuple[dict, 
     (run_dir / "summary.txt").write_text(format_table(summary) + "\n")
     written = []
     if plots and plot_runs:
-        from tools import plots as plotmod
+        from tools.sitl import plots as plotmod
         written = plotmod.write_all(plot_runs, meta, run_dir)
     return summary, written
 

@@ -2,7 +2,7 @@
 
 Pure functions: arrays in, numbers out. No files, no plotting. The definitions are in
 ``docs/metrics.md``; this module is their one implementation, used by ``tools.hil`` (the
-``summary.json`` of a run) and ``tools.montecarlo``.
+``summary.json`` of a run) and ``tools.evidence.montecarlo``.
 
 Inputs are SI (s, rad); outputs carry their unit in the name (``*_deg``, ``*_s``, ``*_pct``),
 degrees being the edge unit of reports.

@@ -2,7 +2,7 @@
 the soak (``python -m tools.soak``) and the fuzz campaign.
 
 ``Rig`` starts the controller and the plant as real processes on loopback UDP (free ports), the
-seeded impairment relay of tools/linkimpair.py on the plant link, and a pymavlink ground
+seeded impairment relay of tools/sitl/linkimpair.py on the plant link, and a pymavlink ground
 station that records everything the controller sends (STATUSTEXT, HEARTBEAT modes,
 NAMED_VALUE_FLOAT counters, SYS_STATUS). Every wait is bounded and every process is stopped by
 ``Rig.close`` (SIGINT, then SIGKILL). ``Flood`` runs ``python -m tools.soak flood`` as a child.
@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.linkimpair import Impairment, LinkImpair
+from tools.sitl.linkimpair import Impairment, LinkImpair
 from tools.sitl.gcs import ScriptedGcs
 from tools.sitl.procs import Child, free_udp_port, repo_env
 

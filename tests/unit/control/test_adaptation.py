@@ -5,7 +5,7 @@ equation written out again. These tests check what the adaptation is for, in a s
 closed loop in process: under a known constant error of the force or moment coefficients,
 the estimate moves the way that error implies, fast enough, and tracking is better with the
 adaptation on than off. The sign-flip and gain-halving mutants of Eqs. 30 and 36
-(tools.mutate.NAMED) fail them.
+(tools.evidence.mutate.NAMED) fail them.
 
 The plant is the law's own model (Eqs. 20-26: Omega_dot = f1 + Psi^T theta_Omega + g_s omega,
 omega_dot = Xi^T theta_omega + g_f g_f_delta delta) with the true parameters off the nominal
@@ -17,7 +17,7 @@ disturbance observer is off (it would absorb the model error before the adaptati
 and the vehicle starts at the command (alpha 5 deg, beta 0, mu 0, V 2200 m/s, 21 km), so
 what the loop has to correct is the model error alone. Explicit Euler at the fast rate
 (500 Hz), slow loop at 100 Hz, 3 s: about a second per flight without numba (NUMBA_DISABLE_JIT,
-as tools.mutate runs them).
+as tools.evidence.mutate runs them).
 """
 from __future__ import annotations
 

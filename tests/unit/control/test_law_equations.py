@@ -6,7 +6,7 @@ kernel, and compares with Eqs. 26-30 (slow loop), 35-37 (fast loop), 44-46 (allo
 and the deviations V1-V3 written out independently in this file. A sign flip or a dropped
 term in any equation changes the result by far more than the 1e-9 relative tolerance.
 The kernels are called directly, so these tests also run with NUMBA_DISABLE_JIT=1, which
-is how ``python -m tools.mutate`` runs them against each mutant (docs/mutation_report.md).
+is how ``python -m tools.evidence.mutate`` runs them against each mutant (docs/mutation_report.md).
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ The entry points are found, not listed: every ``python -m`` module of fc/, plant
 tools/ (a package's ``__main__.py`` or a module with ``if __name__ == "__main__"``). Each is run
 as ``__main__`` with ``ArgumentParser.parse_args`` replaced by a stand-in that hands back the
 parser instead of parsing, so nothing else runs; the walk then follows every subcommand.
-Commands a module dispatches by hand before its parser (``tools.montecarlo rerun`` ...) are
+Commands a module dispatches by hand before its parser (``tools.evidence.montecarlo rerun`` ...) are
 named in ``DISPATCHED``.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("fc", "plant_sim", "tools")
 #: subcommands chosen by argv[0] before any parser is built: module -> argv prefixes
-DISPATCHED = {"tools.montecarlo": [[], ["rerun"], ["summary"], ["compare"]],
+DISPATCHED = {"tools.evidence.montecarlo": [[], ["rerun"], ["summary"], ["compare"]],
               "tools.bench": [[], ["law"], ["plant"], ["pingpong"], ["fc-timing"], ["campaign"]]}
 
 
@@ -87,8 +87,8 @@ def undocumented(parser: argparse.ArgumentParser, where: str) -> list[str]:
 
 def test_entry_points_are_found():
     mods = set(entry_points())
-    assert {"fc", "plant_sim", "tools.hil", "tools.montecarlo", "tools.soak", "tools.fuzz",
-            "tools.linkimpair", "tools.bench", "tools.closed_loop"} <= mods, sorted(mods)
+    assert {"fc", "plant_sim", "tools.hil", "tools.evidence.montecarlo", "tools.soak", "tools.fuzz",
+            "tools.relay", "tools.bench", "tools.fly", "tools.evidence.margins"} <= mods, sorted(mods)
 
 
 @pytest.mark.parametrize("module", entry_points())

@@ -187,7 +187,7 @@ def test_slower_loops_still_fly(fast_hz, slow_hz):
 # The documented figures (docs/control_law.md section 9 and D3/V3), pinned
 # ---------------------------------------------------------------------------------------------
 #: (scenario, variant, shaping, estimate, overrides) -> ((overshoot %, settling s) for alpha,
-#: beta, mu), measured with `python -m tools.closed_loop SCENARIO --table [--estimate sensors]
+#: beta, mu), measured with `python -m tools.fly attitude SCENARIO --table [--estimate sensors]
 #: [--set NAME=VALUE]` (20 s; these 8 s runs give the same overshoot and settling).
 DOCUMENTED = {
     ("paper", "co", "steps", "truth", ()): ((3.40, 2.29), (2.26, 2.08), (4.94, 2.26)),

@@ -1,4 +1,4 @@
-"""tools/coordination.py: the study's switches reach the law (issue 15, point 2)."""
+"""tools/evidence/coordination.py: the study's switches reach the law (issue 15, point 2)."""
 from __future__ import annotations
 
 import math
@@ -8,7 +8,7 @@ import pytest
 
 from fc.control.law import AttitudeLaw
 from fc.control.layout import E_N
-from tools import coordination as C
+from tools.evidence import coordination as C
 
 # a state with every term of the factors non-zero: alpha, beta, mu, p, q, r, V, h, gamma
 EST = np.array([math.radians(4.0), math.radians(3.0), 0.0, 0.05, -0.04, 0.03, 2200.0,

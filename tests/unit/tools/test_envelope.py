@@ -1,4 +1,4 @@
-"""tools/envelope.py: the grid, its trim and its verdicts (issue 15, point 5)."""
+"""tools/evidence/envelope.py: the grid, its trim and its verdicts (issue 15, point 5)."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from tools import envelope as E
+from tools.evidence import envelope as E
 
 
 def test_paper_point_has_the_papers_speed_and_dynamic_pressure():

@@ -1,4 +1,4 @@
-"""Guidance + the paper's law + the plant in process (tools.guided_loop): short seeded flights
+"""Guidance + the paper's law + the plant in process (tools.sitl.closed_loop.guided): short seeded flights
 from the cruise point, one per target. Sensors and the fc's estimator in the loop."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fc.guidance import layout as G
-from tools.guided_loop import fly, hold_then_step
+from tools.sitl.closed_loop.guided import fly, hold_then_step
 
 DEG = math.pi / 180.0
 H0, V0 = 28000.0, 2250.0

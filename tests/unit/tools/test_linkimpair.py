@@ -1,4 +1,4 @@
-"""tools/linkimpair.py: the seeded UDP impairment relay does what it is configured to do.
+"""tools/sitl/linkimpair.py: the seeded UDP impairment relay does what it is configured to do.
 
 Loopback only, free ports, every wait bounded. The relay's own counters are checked against
 what an echo server actually receives, and the rates against the configured probabilities
@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from tools.linkimpair import Impairment, LinkImpair, RelayProcess
+from tools.sitl.linkimpair import Impairment, LinkImpair, RelayProcess
 
 HDR = struct.Struct("<Id")   # sequence number, send time [s, monotonic]
 
@@ -228,7 +228,7 @@ def test_corruption_rate_and_every_corrupted_datagram_differs():
 
 def test_mutate_always_changes_the_datagram():
     import random
-    from tools.linkimpair import mutate
+    from tools.sitl.linkimpair import mutate
     rng = random.Random(1)
     data = bytes(range(60))
     assert all(mutate(data, rng) != data for _ in range(2000))

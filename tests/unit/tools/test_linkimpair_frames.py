@@ -1,4 +1,4 @@
-"""tools/linkimpair.py frame delay: SERVO_OUTPUT_RAW held N frames and re-stamped (lockstep)."""
+"""tools/sitl/linkimpair.py frame delay: SERVO_OUTPUT_RAW held N frames and re-stamped (lockstep)."""
 from __future__ import annotations
 
 import os
@@ -8,7 +8,7 @@ import pytest
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
-from tools.linkimpair import FrameDelay, Impairment  # noqa: E402
+from tools.sitl.linkimpair import FrameDelay, Impairment  # noqa: E402
 
 
 def _servo(mav, stamp, base):

@@ -1,4 +1,4 @@
-"""tools/margins.py: the injection block and the margin finders (issue 15, point 4).
+"""tools/evidence/margins/inproc.py: the injection block and the margin finders (issue 15, point 4).
 
 The finders are checked on a loop whose margins are known in closed form,
 L(s) = K / (s (s + 1) (s + 2)): phase -180 deg at w = sqrt(2) rad/s where |G| = 1/6, so the
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from tools import margins as M
+from tools.evidence.margins import inproc as M
 
 K_LOOP = 2.0
 DT = 0.01
@@ -149,7 +149,7 @@ def test_margin_scenario_options():
 
 
 def test_grid_table_checks_the_issue_20_targets(tmp_path):
-    """`python -m tools.margins table DIR...`: one row per variant and channel, 'yes' only when
+    """`python -m tools.evidence.margins table DIR...`: one row per variant and channel, 'yes' only when
     all-pass PM >= 45 deg, gain about trim >= 6 dB up and down and the all-channel delay
     >= 50 ms; a variant without results (unperturbed loop unstable) reads 0 ms, 'no'."""
     import json

@@ -1,4 +1,4 @@
-"""A 20-case campaign on a 2-worker LocalCluster (tools.montecarlo): complete results, a summary
+"""A 20-case campaign on a 2-worker LocalCluster (tools.evidence.montecarlo): complete results, a summary
 consistent with the rows, a re-run of one case identical to its row, and an interrupted campaign
 that resumes without repeating finished cases.
 
@@ -14,11 +14,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from tools.sitl import metrics as mt
-from tools.montecarlo import dispersions as dsp
-from tools.montecarlo import results, summary
-from tools.montecarlo.campaign import CampaignError, run_campaign
-from tools.montecarlo.case import CHANNELS, CampaignConfig, run_case
-from tools.montecarlo.rerun import rerun
+from tools.evidence.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo import results, summary
+from tools.evidence.montecarlo.campaign import CampaignError, run_campaign
+from tools.evidence.montecarlo.case import CHANNELS, CampaignConfig, run_case
+from tools.evidence.montecarlo.rerun import rerun
 
 distributed = pytest.importorskip("distributed")
 
@@ -204,7 +204,7 @@ def test_metrics_are_the_main_jobs(campaign):
     t = results.read_rows(out, traces=True).to_pylist()
     r = next(x for x in t if x["case"] == 3 and x["variant"] == "coordinated")
     tt = np.arange(len(r["trace.alpha_deg"])) * cfg.trace_dt_s
-    from tools.montecarlo.case import command_timeline_deg
+    from tools.evidence.montecarlo.case import command_timeline_deg
     ct, cd = command_timeline_deg(cfg)
     m = mt.channel_metrics(tt, np.radians(r["trace.alpha_deg"]), ct, np.radians(cd[:, 0]))
     assert m.final_error_deg == pytest.approx(r["alpha.final_error_deg"], abs=0.05)
@@ -222,7 +222,7 @@ def test_existing_cluster_by_scheduler_address(client, tmp_path):
 
 
 def test_compare_a_campaign_with_itself_finds_no_difference(campaign):
-    from tools.montecarlo.compare import compare
+    from tools.evidence.montecarlo.compare import compare
     cfg, out, _ = campaign
     c = compare(out, out)
     assert c["pairs"] == 2 * RUNS and c["warnings"] == [] and c["diverged_mismatch"] == []
@@ -232,7 +232,7 @@ def test_compare_a_campaign_with_itself_finds_no_difference(campaign):
 
 def test_summary_command_writes_strict_json_table_and_plots(campaign, capsys):
     import json
-    from tools.montecarlo import __main__ as cli
+    from tools.evidence.montecarlo import __main__ as cli
     cfg, out, _ = campaign
     assert cli.main(["summary", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -251,7 +251,7 @@ def test_command_line_campaign_then_resume_runs_nothing(tmp_path):
     import subprocess
     import sys
     out = tmp_path / "cli"
-    cmd = [sys.executable, "-m", "tools.montecarlo", "--scenario", "paper", "--runs", "3",
+    cmd = [sys.executable, "-m", "tools.evidence.montecarlo", "--scenario", "paper", "--runs", "3",
            "--workers", "1", "--duration", "2", "--seed", "4", "--out", str(out), "--no-plots"]
     for attempt in range(2):
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=240)

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from tools.montecarlo import __main__ as cli
-from tools.montecarlo import dispersions as dsp
-from tools.montecarlo.campaign import (CampaignError, cluster_client, prepare_dir, run_campaign,
+from tools.evidence.montecarlo import __main__ as cli
+from tools.evidence.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo.campaign import (CampaignError, cluster_client, prepare_dir, run_campaign,
                                        scheduler_address)
-from tools.montecarlo.case import CampaignConfig
+from tools.evidence.montecarlo.case import CampaignConfig
 
 pytest.importorskip("distributed")
 ROOT = Path(__file__).resolve().parents[3]
@@ -36,7 +36,7 @@ def _dead_tcp_port() -> int:
 
 
 def _campaign_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "tools.montecarlo", "--runs", "2",
+    return subprocess.run([sys.executable, "-m", "tools.evidence.montecarlo", "--runs", "2",
                            "--backend", "standin", "--no-plots", *args], cwd=ROOT,
                           capture_output=True, text=True, timeout=120)
 

@@ -1,4 +1,4 @@
-"""Dispersion files (tools.montecarlo.dispersions): validation, sampling, seeds.
+"""Dispersion files (tools.evidence.montecarlo.dispersions): validation, sampling, seeds.
 
 Tier 1: no cluster, no simulation.
 """
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from tools.montecarlo import __main__ as cli
-from tools.montecarlo import dispersions as dsp
+from tools.evidence.montecarlo import __main__ as cli
+from tools.evidence.montecarlo import dispersions as dsp
 
 
 # GIVEN a malformed dispersion file WHEN parsed THEN DispersionError names the key at fault.
@@ -84,7 +84,7 @@ def test_paper_dispersions_as_documented():
 
 def test_every_variable_maps_to_a_key_of_the_plant_scenario_or_says_which_is_missing():
     from plant_sim.scenario import load
-    from tools.montecarlo import apply
+    from tools.evidence.montecarlo import apply
     base = load("paper")
     for key, var in dsp.VARIABLES.items():
         # GIVEN one variable at a value inside its range and the plant's
@@ -110,7 +110,7 @@ def test_every_variable_maps_to_a_key_of_the_plant_scenario_or_says_which_is_mis
 
 def test_applied_values_reach_the_plant_scenario():
     from plant_sim.scenario import load
-    from tools.montecarlo import apply
+    from tools.evidence.montecarlo import apply
     base = load("paper")
     sc = apply.apply(base, {"aero.Cm": 0.85, "mass.iyy_factor": 1.1, "initial.beta_deg": 3.0,
                             "sensors.noise": 0.0, "actuators.rate_max_deg_s": 45.0,
@@ -167,7 +167,7 @@ def test_spec_scalar_and_per_channel():
 
 
 def test_campaign_identity_ignores_comments_and_spec_but_not_distributions():
-    from tools.montecarlo.case import CampaignConfig
+    from tools.evidence.montecarlo.case import CampaignConfig
     text = dsp.load("paper").source_text
 
     def ident(t):

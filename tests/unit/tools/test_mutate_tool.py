@@ -1,11 +1,11 @@
-"""tools.mutate finds and applies the mutations it documents (the tool, not a mutation run)."""
+"""tools.evidence.mutate finds and applies the mutations it documents (the tool, not a mutation run)."""
 from __future__ import annotations
 
 import ast
 
 import pytest
 
-from tools.mutate import find_mutants
+from tools.evidence.mutate import find_mutants
 
 SOURCE = '''\
 def law(x, a, b):
@@ -53,7 +53,7 @@ def test_exec_into_rebinds_names_imported_elsewhere(tmp_path, monkeypatch):
     import importlib
     import sys
 
-    from tools.mutate import exec_into
+    from tools.evidence.mutate import exec_into
 
     # GIVEN module a with f, and module b that did `from a import f` and calls it
     (tmp_path / "test_mut_a.py").write_text("def f(x):\n    return x + 1.0\n")
@@ -77,9 +77,9 @@ def test_exec_into_rebinds_names_imported_elsewhere(tmp_path, monkeypatch):
 
 
 def test_default_tests_are_found_in_the_tree(tmp_path):
-    """tools.mutate looks its test files up under tests/ (a moved file is still found; a
+    """tools.evidence.mutate looks its test files up under tests/ (a moved file is still found; a
     missing or duplicated one is an error, not a silently shorter run)."""
-    from tools.mutate import DEFAULT_TESTS, ROOT, find_tests
+    from tools.evidence.mutate import DEFAULT_TESTS, ROOT, find_tests
 
     found = find_tests(DEFAULT_TESTS)
     assert len(found) == len(DEFAULT_TESTS)
@@ -98,7 +98,7 @@ def test_default_tests_are_found_in_the_tree(tmp_path):
 
 def test_named_mutants_apply_exactly_once():
     """Each hand-made mutant's text is in its file exactly once, and changes only that."""
-    from tools.mutate import NAMED, ROOT, named_mutants
+    from tools.evidence.mutate import NAMED, ROOT, named_mutants
 
     found = named_mutants()
     assert [m.equation for m, _ in found] == [n.what for n in NAMED]
@@ -112,16 +112,16 @@ def test_named_mutants_apply_exactly_once():
 
 @pytest.mark.slow
 def test_quick_mutation_run_kills_every_mutant():
-    """`python -m tools.mutate --quick`: the hand-made mutants (Eqs. 30 and 36 signs and gains)
+    """`python -m tools.evidence.mutate --quick`: the hand-made mutants (Eqs. 30 and 36 signs and gains)
     and a sign flip per main kernel, against the law's unit tests found in the tree: every one
     is killed (a moved test file, a weakened test or a surviving sign flip fails here).
     About 12 s of CPU."""
     import subprocess
     import sys
 
-    from tools.mutate import NAMED, QUICK_SIGN_FUNCTIONS, ROOT
+    from tools.evidence.mutate import NAMED, QUICK_SIGN_FUNCTIONS, ROOT
 
-    r = subprocess.run([sys.executable, "-m", "tools.mutate", "--quick"], cwd=ROOT,
+    r = subprocess.run([sys.executable, "-m", "tools.evidence.mutate", "--quick"], cwd=ROOT,
                        capture_output=True, text=True, timeout=280)
     n = len(NAMED) + len(QUICK_SIGN_FUNCTIONS)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]

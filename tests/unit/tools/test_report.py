@@ -1,4 +1,4 @@
-"""tools.report: the README's and the docs' generated tables agree with their committed data."""
+"""tools.evidence.report: the README's and the docs' generated tables agree with their committed data."""
 from __future__ import annotations
 
 import json
@@ -6,19 +6,20 @@ import shutil
 
 import pytest
 
-from tools import report
+from tools.evidence import report
 
 
 def test_committed_tables_match_their_data():
     """Every ``<!-- report:NAME -->`` block of the documents is what its docs/data/*.json
-    renders today (run ``python -m tools.report write`` after importing a new run)."""
+    renders today (run ``python -m tools.evidence.report write`` after importing a new run)."""
     blocks = []
     for doc in report.DOCUMENTS:
         path = report.ROOT / doc
         if path.exists():
             blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
     assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_paper_gains", "mc_cruise",
-            "mc_cruise_b", "mc_surfaces", "beta0_dip"} <= set(blocks), blocks
+            "mc_cruise_b", "mc_surfaces", "beta0_dip", "hil_prefilter",
+            "eq14_mirror_claim"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -36,7 +37,10 @@ def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
     for name, variant, channel, metric, table in (
             ("hil_paper", "coordinated", "alpha", "overshoot_pct", "hil_steps"),
             ("hil_paper_gains", "uncoordinated", "mu", "settling_time_s",
-             "hil_steps_paper_gains")):
+             "hil_steps_paper_gains"),
+            ("hil_prefilter", "coordinated", "beta", "overshoot_pct", "hil_prefilter"),
+            ("hil_paper_gains_eq14_mirror", "coordinated", "mu", "overshoot_pct",
+             "eq14_mirror_claim")):
         data = tmp_path / report.DATA_DIR / f"{name}.json"
         d = json.loads(data.read_text())
         d["summary"]["runs"][variant][channel][metric] += 1.0

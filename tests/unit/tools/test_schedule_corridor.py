@@ -1,6 +1,6 @@
 """The gain-scheduled law (the default since issue 20) flies the paper's case across the
 corridor: in process, the fc's estimator on the scenario's seeded sensor noise, the paper's
-d(t) as a moment coefficient (tools.envelope map b: it scales with dynamic pressure).
+d(t) as a moment coefficient (tools.evidence.envelope map b: it scales with dynamic pressure).
 
 Measured (seed 3, 20 s; overshoot % / final error deg, worst channel), scheduled vs the
 paper's fixed gains (CTL_SCHED 0):
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from tools.envelope import point_scenario
+from tools.evidence.envelope import point_scenario
 from tools.sitl.closed_loop import simulate
 
 POINTS = [(8.0, 26e3), (7.5, 28e3), (8.0, 30e3)]
@@ -61,11 +61,11 @@ def test_the_papers_gains_fail_these_bounds_at_54_kpa():
 
 def test_the_mach_factor_keeps_the_yaw_downward_gain_margin_at_mach_15():
     """Issue 20 item 1: at Mach 15 / 28 km (255 kPa, the airframe directionally unstable,
-    Cn_beta -0.064) the yaw loop with its gain about trim cut to 0.5 (-6 dB; tools.margins's
+    Cn_beta -0.064) the yaw loop with its gain about trim cut to 0.5 (-6 dB; tools.evidence.margins's
     gain_ac, the paper's case from a 2 deg initial sideslip) stays stable with the rate-command
     limit's Mach factor, and diverges without it (SCH_OMCF_n = 1, the schedule before: the
     rudder command runs to its limit and the sideslip grows; measured -5.1 dB there)."""
-    from tools import margins as M
+    from tools.evidence.margins import inproc as M
     sc = M.margin_scenario(point=(15.0, 28e3), initial_beta_deg=2.0)
     cut = M.make_inj("gain_ac", "yaw", gain=0.5)
     assert M.stable(M.fly(sc, cut, coordinated=False))
@@ -76,14 +76,14 @@ def test_the_mach_factor_keeps_the_yaw_downward_gain_margin_at_mach_15():
 @pytest.mark.parametrize("point", [(15.0, 28e3), (15.0, 32e3)], ids=["M15-28km", "M15-32km"])
 def test_coordination_keeps_flying_at_mach_15(point):
     """Issue 20 item 3: the coordinated law (Eq. 19 factors, k1..k9 = 1) flies the paper's case
-    at Mach 15 / 28 and 32 km (map b's disturbance, the law fed the truth as tools.envelope).
+    at Mach 15 / 28 and 32 km (map b's disturbance, the law fed the truth as tools.evidence.envelope).
     With the rate-command limit's Mach factor but the yaw-row factor lambda_r unscaled it
     diverged at 4.0 and 4.4 s (the factor's 1 / (1 + lambda_r) cut of the yaw loop's gain,
     lambda_r ~ 0.2 from the 5 deg sideslip, on a directionally unstable airframe with the rudder
     on its limit); the schedule scales lambda_r by the same rudder share (CO_LAMR_SCL). The
     bound: settled within the 0.2 deg band by 12 s (measured alpha settles in 7.3 s at 32 km,
     after a 66 % overshoot: flown, not yet within the paper's spec there)."""
-    from tools.coordination import READINGS
+    from tools.evidence.coordination import READINGS
     sc = point_scenario(*point, disturbance="coefficient")
     res = simulate(sc, coordinated=True, duration_s=12.0, law_overrides=dict(READINGS["eq19"]),
                    command_shaping="steps", estimate="truth")
