@@ -217,10 +217,13 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f} %"
 
 
-def table_mc(root: Path = ROOT) -> str:
-    """The campaign's headline table (README): spec, divergence, overshoot and settling
-    percentiles, and the case-by-case shares."""
-    d = load_data("mc_paper", root)
+def table_mc(root: Path = ROOT, source: str = "mc_paper") -> str:
+    """A campaign's headline table (README, docs/montecarlo.md): spec, divergence, overshoot
+    and settling percentiles, and the case-by-case shares. ``source``: the paper's campaign
+    with the default law (``mc_paper``), with the paper's fixed gains (``mc_paper_gains``), or
+    the paper's case at the cruise point with its d(t) as an angular acceleration
+    (``mc_cruise``) or as a moment coefficient (``mc_cruise_b``)."""
+    d = load_data(source, root)
     s = d["summary"]
     vs = s["variants"]
     co, un = vs["coordinated"], vs["uncoordinated"]
@@ -247,12 +250,30 @@ def table_mc(root: Path = ROOT) -> str:
             lines.append(f"| {label} | " + " | ".join(
                 _pct(p.get(f"{ch}.{m}", {}).get("coordinated_smaller_share")) for ch in CHANNELS)
                 + " |")
-    return "\n".join(lines) + "\n\n" + _caption(d, "mc_paper")
+    return "\n".join(lines) + "\n\n" + _caption(d, source)
+
+
+def table_mc_paper_gains(root: Path = ROOT) -> str:
+    """The paper's campaign flown with the paper's fixed gains (before issue 20's default)."""
+    return table_mc(root, "mc_paper_gains")
+
+
+def table_mc_cruise(root: Path = ROOT) -> str:
+    """The paper's case dispersed at the cruise point (scenario ``paper_cruise``)."""
+    return table_mc(root, "mc_cruise")
+
+
+def table_mc_cruise_b(root: Path = ROOT) -> str:
+    """The paper's case dispersed at the cruise point, d(t) as a moment coefficient (scenario
+    ``paper_cruise_b``)."""
+    return table_mc(root, "mc_cruise_b")
 
 
 def table_mc_surfaces(root: Path = ROOT) -> str:
-    """The surfaces over the campaign, coordinated against uncoordinated (docs/coordination.md)."""
-    d = load_data("mc_paper", root)
+    """The surfaces over the campaign, coordinated against uncoordinated (docs/coordination.md).
+    From the 1,000-case campaign flown with the paper's fixed gains (``mc_paper_gains``), the
+    one docs/coordination.md analyses."""
+    d = load_data("mc_paper_gains", root)
     s = d["summary"]
     vs = s["variants"]
     p = s.get("paired", {})
@@ -277,13 +298,14 @@ def table_mc_surfaces(root: Path = ROOT) -> str:
         share = " / ".join(_pct(e.get(x)) for x in ("coordinated_smaller_share", "equal_share",
                                                      "coordinated_larger_share"))
         lines.append(f"| {label} | {cells[0]} | {cells[1]} | {share} |")
-    return "\n".join(lines) + "\n\n" + _caption(d, "mc_paper")
+    return "\n".join(lines) + "\n\n" + _caption(d, "mc_paper_gains")
 
 
 def claim_mc_surfaces(root: Path = ROOT) -> str:
     """The campaign's surface shares in one sentence (docs/coordination.md s. 4,
-    docs/control_law.md s. 9), so the prose quotes the data too."""
-    d = load_data("mc_paper", root)
+    docs/control_law.md s. 9), so the prose quotes the data too (``mc_paper_gains``, as
+    ``table_mc_surfaces``)."""
+    d = load_data("mc_paper_gains", root)
     p = d["summary"].get("paired", {})
 
     def sh(key, which):
@@ -305,6 +327,8 @@ def claim_mc_surfaces(root: Path = ROOT) -> str:
 TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
           "hil_prefilter": table_hil_prefilter, "eq14_mirror_claim": claim_eq14_mirror,
           "beta0_dip": table_beta0, "mc_paper": table_mc,
+          "mc_paper_gains": table_mc_paper_gains, "mc_cruise": table_mc_cruise,
+          "mc_cruise_b": table_mc_cruise_b,
           "mc_surfaces": table_mc_surfaces, "mc_surfaces_claim": claim_mc_surfaces}
 
 _BLOCK = re.compile(r"(<!-- report:(?P<name>[a-z0-9_]+) -->\n)(?P<body>(?:.*?\n)??)"

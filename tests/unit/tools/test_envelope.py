@@ -73,3 +73,19 @@ def test_summary_counts_unsettled_and_the_target_corridor():
     assert [E.in_target_corridor(r) for r in rows] == [True, True, False]
     text = E.summary(rows)
     assert "unsettled at 20 s 1" in text and "Mach <= 15: 1 of 2 (50 %)" in text
+
+
+@pytest.mark.parametrize("name, disturbance", [("paper_cruise", "accel"),
+                                                ("paper_cruise_b", "coefficient")])
+def test_paper_cruise_scenario_is_the_envelope_point_at_the_cruise(name, disturbance):
+    """plant_sim/scenarios/paper_cruise[_b].toml (the Monte Carlo campaigns at the cruise point,
+    docs/montecarlo.md) are the envelope's point Mach 7.5 / 28 km of map (a) and map (b): every
+    section equal but the name and description."""
+    from plant_sim.scenario import load
+    f = load(name)
+    p = E.point_scenario(7.5, 28e3, disturbance=disturbance)
+    assert f.commands == p.commands
+    for key in p.data:
+        if key in ("name", "description"):
+            continue
+        assert f.data[key] == p.data[key], key

@@ -17,8 +17,9 @@ def test_committed_tables_match_their_data():
         path = report.ROOT / doc
         if path.exists():
             blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
-    assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_surfaces",
-            "beta0_dip", "hil_prefilter", "eq14_mirror_claim"} <= set(blocks), blocks
+    assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_paper_gains", "mc_cruise",
+            "mc_cruise_b", "mc_surfaces", "beta0_dip", "hil_prefilter",
+            "eq14_mirror_claim"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -45,6 +46,19 @@ def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
         d["summary"]["runs"][variant][channel][metric] += 1.0
         data.write_text(json.dumps(d))
         assert report.check(tmp_path) == [f"README.md: {table}"]
+        report.write(tmp_path)
+        assert report.check(tmp_path) == []
+    # each campaign's data renders its own table: the default law's, the fixed gains' (and the
+    # surfaces' table drawn from it) and the cruise point's two
+    for name, tables in (("mc_paper", {"mc_paper"}),
+                         ("mc_paper_gains", {"mc_paper_gains", "mc_surfaces"}),
+                         ("mc_cruise", {"mc_cruise"}), ("mc_cruise_b", {"mc_cruise_b"})):
+        data = tmp_path / report.DATA_DIR / f"{name}.json"
+        d = json.loads(data.read_text())
+        d["summary"]["variants"]["uncoordinated"]["meets_spec"] += 1
+        d["summary"]["variants"]["uncoordinated"]["surfaces"]["peak_rudder_deg"]["p50"] += 1.0
+        data.write_text(json.dumps(d))
+        assert {c.split(": ")[1] for c in report.check(tmp_path)} == tables, name
         report.write(tmp_path)
         assert report.check(tmp_path) == []
     readme = tmp_path / "README.md"
