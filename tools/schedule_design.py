@@ -51,7 +51,11 @@ if it meets the margin targets with their buffers at k_p = 0.8 and 1.0, a closed
 attitude peak |Omega / Omega_c| <= ``PEAK_MAX``, an attitude bandwidth >= ``BW_MIN_RAD_S``,
 and (per node) the noise budget. At each node the feasible candidate that leaves the
 smallest attitude error under the paper's disturbance (an angular acceleration of 5 deg/s^2
-at 1.5 and 2 rad/s) is chosen, ties (within 1 %) to the wider attitude bandwidth. Where no
+at 1.5 and 2 rad/s) is chosen, ties (within 1 %) to the wider attitude bandwidth.
+**Disturbance-rejection target**: where no candidate within the noise budget leaves less than
+``DIST_ERR_MAX_RAD`` (0.06 deg, the campaigns' 0.1 deg final-error spec with a buffer), the
+budget rises to ``NOISE_RATE_CAP_SHARE`` of the actuator rate for that node: rejection is
+bought with surface activity, never with margin (the margin targets stay hard). Where no
 candidate meets the noise budget (the lowest nodes), the quietest margin-feasible one is
 taken and the table says "(over)". The
 table is then checked with the project's margins tool on the nonlinear law
@@ -118,6 +122,14 @@ NOISE_RATE_RAD_S = 0.05 * DEG
 NOISE_ANGLE_RAD = 0.05 * DEG
 #: 3-sigma noise-driven surface rate allowed, as a share of the actuator's rate limit
 NOISE_RATE_SHARE = 0.5
+#: Disturbance-rejection target (rad): the attitude error the paper's d(t) may leave in the
+#: design model (k_p 0.8), the campaigns' 0.1 deg final-error spec (docs/montecarlo.md) with a
+#: 40 % buffer for the dispersions. Where the noise budget above cannot meet it, the budget is
+#: raised up to NOISE_RATE_CAP_SHARE of the actuator rate (the rejection is bought with noise,
+#: never with margin): without it the schedule left 0.10-0.13 deg at 100-180 kPa, where the
+#: paper's case flies its last seconds (docs/control_law.md s. 13, "Disturbance rejection").
+DIST_ERR_MAX_RAD = 0.06 * DEG
+NOISE_RATE_CAP_SHARE = 0.9
 #: The rate-command limit's anchor: SLW_OMC_MAX = 3 deg/s with the paper's gains at the paper's
 #: point (Mach 7.4 / 21 km, 183 kPa), found by a sweep (docs/control_law.md s. 8). Each node
 #: keeps the same ratio of the inner loop's peak acceleration demand to the authority.
@@ -444,6 +456,11 @@ def design(nodes_kpa=QBAR_NODES_KPA, verbose: bool = False) -> dict:
         # the noise rate scales as 1 / b: the least effective channel decides
         rate3 = 3.0 * unit_rate / float(b.min())
         feas = rate3 <= NOISE_RATE_SHARE * ACT_RATE_RAD_S
+        share = NOISE_RATE_SHARE
+        if not np.any(feas & (dist_err <= DIST_ERR_MAX_RAD)):
+            # the rejection target is not met within the budget: spend up to the cap on it
+            feas = rate3 <= NOISE_RATE_CAP_SHARE * ACT_RATE_RAD_S
+            share = NOISE_RATE_CAP_SHARE
         if not np.any(feas):
             feas = rate3 <= rate3.min() * 1.0001        # the quietest candidate: report it
         # the smallest disturbance error; ties (within 1 %) to the wider attitude bandwidth
@@ -459,7 +476,8 @@ def design(nodes_kpa=QBAR_NODES_KPA, verbose: bool = False) -> dict:
                "b_roll": b[0], "b_pitch": b[1], "b_yaw": b[2],
                "noise_rate3_deg_s": math.degrees(rate3[j]),
                "dist_err_deg": math.degrees(dist_err[j]),
-               "noise_ok": bool(rate3[j] <= NOISE_RATE_SHARE * ACT_RATE_RAD_S),
+               "noise_ok": bool(rate3[j] <= share * ACT_RATE_RAD_S),
+               "noise_share": share,
                **{k: float(ev[k][i]) for k in ("wc", "pm_deg", "dm_s", "gm_up_db",
                                                 "gm_down_db", "peak", "bw_rad_s")}}
         rows.append(row)
