@@ -22,10 +22,130 @@ from numba import njit
 from fc.control.layout import (NM_GCO, S_ALLOC_RATE, S_ALLOC_SCALE, S_M_UNALLOC, S_SAT,
                                S_SAT_ANY, X_DCMD, X_DM)
 from fc.control.linalg3 import clip, matvec3, solve3
-from fc.control.options import (ALLOC_SCALE, SURF_INTERCONNECT, SURF_LITERAL, option,
-                                switch_on)
+from fc.control.options import (ALLOC_PRIO, ALLOC_SCALE, SURF_INTERCONNECT, SURF_LITERAL,
+                                option, switch_on)
 from fc.control.params import (P_ACT_MAX, P_ACT_RATE, P_ACT_TAU, P_ALLOC_MODE, P_ALLOC_RATE,
-                               P_CO_ENABLE, P_CO_SURF, P_PAPER_LITERAL)
+                               P_ALLOC_W, P_CO_ENABLE, P_CO_SURF, P_MDL_IXX, P_MDL_IYY,
+                               P_MDL_IZZ, P_PAPER_LITERAL)
+
+
+@njit(cache=True, error_model="numpy")
+def prioritised(a, o, e_coup, m0, m1, m2, w0, w1, w2, lim, d0, d1, d2):
+    """Prioritised allocation under saturation (ALLOC_MODE 2), in the surfaces d (rad).
+
+    a[o:o+9]: the allocation matrix G (row-major, N m/rad) of the variables u, with u = d
+    except u1 = d1 - e_coup d2 (the interconnect of Eq. 47; e_coup 0 when it is off), so the
+    columns acting on d are G0, G1, G2 - e_coup G1. m0..m2: the moment to deliver (N m);
+    w0..w2: the weights of the axes' shortfalls (per (N m)^2; the caller divides by the
+    inertias squared, so that a shortfall is weighed as angular acceleration); d0..d2: the
+    unconstrained solution. While a free surface is beyond +-lim, the one furthest beyond is
+    held at its limit and the free ones re-solved: min sum_i w_i (sum_j G_ij d_j - m_i)^2
+    (a redistributed weighted pseudo-inverse). Returns the surfaces, each within +-lim.
+    Scalars only (no array is created).
+    """
+    c00 = a[o]
+    c10 = a[o + 3]
+    c20 = a[o + 6]
+    c01 = a[o + 1]
+    c11 = a[o + 4]
+    c21 = a[o + 7]
+    c02 = a[o + 2] - e_coup * c01
+    c12 = a[o + 5] - e_coup * c11
+    c22 = a[o + 8] - e_coup * c21
+    f0 = False
+    f1 = False
+    f2 = False
+    for _ in range(3):
+        # the free surface furthest beyond its limit
+        worst = -1
+        big = lim
+        if not f0 and abs(d0) > big:
+            worst = 0
+            big = abs(d0)
+        if not f1 and abs(d1) > big:
+            worst = 1
+            big = abs(d1)
+        if not f2 and abs(d2) > big:
+            worst = 2
+            big = abs(d2)
+        if worst < 0:
+            break
+        if worst == 0:
+            d0 = math.copysign(lim, d0)
+            f0 = True
+        elif worst == 1:
+            d1 = math.copysign(lim, d1)
+            f1 = True
+        else:
+            d2 = math.copysign(lim, d2)
+            f2 = True
+        n_free = (0 if f0 else 1) + (0 if f1 else 1) + (0 if f2 else 1)
+        if n_free == 0:
+            break
+        # the moment left to the free surfaces
+        r0 = m0
+        r1 = m1
+        r2 = m2
+        if f0:
+            r0 -= c00 * d0
+            r1 -= c10 * d0
+            r2 -= c20 * d0
+        if f1:
+            r0 -= c01 * d1
+            r1 -= c11 * d1
+            r2 -= c21 * d1
+        if f2:
+            r0 -= c02 * d2
+            r1 -= c12 * d2
+            r2 -= c22 * d2
+        if n_free == 1:
+            if not f0:
+                x0, x1, x2 = c00, c10, c20
+            elif not f1:
+                x0, x1, x2 = c01, c11, c21
+            else:
+                x0, x1, x2 = c02, c12, c22
+            den = w0 * x0 * x0 + w1 * x1 * x1 + w2 * x2 * x2
+            v = (w0 * x0 * r0 + w1 * x1 * r1 + w2 * x2 * r2) / den if den > 0.0 else 0.0
+            if not f0:
+                d0 = v
+            elif not f1:
+                d1 = v
+            else:
+                d2 = v
+            continue
+        # two free columns x, y: the 2x2 weighted normal equations
+        if f0:
+            x0, x1, x2 = c01, c11, c21
+            y0, y1, y2 = c02, c12, c22
+        elif f1:
+            x0, x1, x2 = c00, c10, c20
+            y0, y1, y2 = c02, c12, c22
+        else:
+            x0, x1, x2 = c00, c10, c20
+            y0, y1, y2 = c01, c11, c21
+        axx = w0 * x0 * x0 + w1 * x1 * x1 + w2 * x2 * x2
+        axy = w0 * x0 * y0 + w1 * x1 * y1 + w2 * x2 * y2
+        ayy = w0 * y0 * y0 + w1 * y1 * y1 + w2 * y2 * y2
+        bx = w0 * x0 * r0 + w1 * x1 * r1 + w2 * x2 * r2
+        by = w0 * y0 * r0 + w1 * y1 * r1 + w2 * y2 * r2
+        det = axx * ayy - axy * axy
+        if abs(det) > 0.0:
+            vx = (ayy * bx - axy * by) / det
+            vy = (axx * by - axy * bx) / det
+        else:
+            vx = 0.0
+            vy = 0.0
+        if f0:
+            d1 = vx
+            d2 = vy
+        elif f1:
+            d0 = vx
+            d2 = vy
+        else:
+            d0 = vx
+            d1 = vy
+    return clip(d0, -lim, lim), clip(d1, -lim, lim), clip(d2, -lim, lim)
 
 
 @njit(cache=True, error_model="numpy")
@@ -70,9 +190,29 @@ def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
     st[S_SAT + 1] = 1.0 if abs(d1) > limit_rad else 0.0
     st[S_SAT + 2] = 1.0 if abs(d2) > limit_rad else 0.0
     scale = 1.0
+    mode = option(par, P_ALLOC_MODE)
+    literal = switch_on(par, P_PAPER_LITERAL)
     if big > limit_rad:
         sat_any = 1.0
-        if option(par, P_ALLOC_MODE) == ALLOC_SCALE and not switch_on(par, P_PAPER_LITERAL):
+        e_int = 0.0
+        if switch_on(par, P_CO_ENABLE) and option(par, P_CO_SURF) == SURF_INTERCONNECT:
+            e_int = e_coup
+        prio = (mode == ALLOC_PRIO and not literal
+                and not (switch_on(par, P_CO_ENABLE) and option(par, P_CO_SURF) == SURF_LITERAL))
+        if prio:
+            # prioritised: hold the worst surface at its limit, re-solve the others
+            ixx = par[P_MDL_IXX]
+            iyy = par[P_MDL_IYY]
+            izz = par[P_MDL_IZZ]
+            d0, d1, d2 = prioritised(nm, NM_GCO, e_int, mc0, mc1, mc2,
+                                     par[P_ALLOC_W] / (ixx * ixx),
+                                     par[P_ALLOC_W + 1] / (iyy * iyy),
+                                     par[P_ALLOC_W + 2] / (izz * izz), limit_rad, d0, d1, d2)
+            u0 = d0
+            u1 = d1 - e_int * d2
+            u2 = d2
+            scale = 1.0             # (as clipping: no common scale)
+        elif mode == ALLOC_SCALE and not literal:
             # direction-preserving: scale the whole vector (the moment keeps its direction)
             scale = limit_rad / big
             d0 *= scale

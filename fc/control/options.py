@@ -31,6 +31,8 @@ SURF_LITERAL = 2         # delta_a = E delta_r
 # ALLOC_MODE: saturation of the allocation (Eq. 46)
 ALLOC_CLIP = 0           # clip each surface (the printed paper)
 ALLOC_SCALE = 1          # scale the whole vector (the moment keeps its direction)
+ALLOC_PRIO = 2           # fix the worst surface at its limit, re-solve the rest by weighted
+                         # least squares on the axes' angular accelerations (ALLOC_W_*)
 
 # DOB_ACHIEVED: the moment fed to the observer (Eq. 37)
 DOB_MOMENT_MC = 0        # M_c as printed

@@ -175,9 +175,13 @@ LAW_PARAMS: tuple[Param, ...] = (
        si_scale=DEG),
     _p("ACT_TAU", 0.02, 0, 1, "s", "ACT",
        "First-order lag of the controller's actuator model (0 = none)."),
-    _p("ALLOC_MODE", 1, 0, 1, "-", "ACT",
+    _p("ALLOC_MODE", 2, 0, 2, "-", "ACT",
        "Saturation of the allocation (Eq. 46): 0 = clip each surface (printed paper); "
-       "1 = scale the whole deflection vector so the moment keeps its direction.", integer=True),
+       "1 = scale the whole deflection vector so the moment keeps its direction; 2 = "
+       "prioritised: the surface furthest beyond its limit is held at the limit and the "
+       "others re-solved by weighted least squares on the axes' angular accelerations "
+       "(weights ALLOC_W_ROLL/PITCH/YAW), repeated while a surface is beyond its limit.",
+       integer=True),
     _p("REF_PF_EN", 1, 0, 1, "-", "REF",
        "1 = 2nd-order reference prefilter on Omega_c (gives Omega_c_dot); 0 = the paper's steps "
        "(Omega_c_dot = 0).", integer=True),
@@ -271,6 +275,12 @@ LAW_PARAMS = LAW_PARAMS + _schedule_params() + (
        "paper's. While CTL_SCHED 1 the schedule writes the Mach factor SCH_OMCF into it: the "
        "rudder authority the airframe's directional instability leaves, so that the factor's "
        "cut of the yaw loop's gain (1 / (1 + lambda_r)) shrinks with it."),
+    _p("ALLOC_W_ROLL", 1, 0.001, 1000, "-", "ACT",
+       "ALLOC_MODE 2: weight of the roll axis's angular-acceleration shortfall (relative)."),
+    _p("ALLOC_W_PITCH", 10, 0.001, 1000, "-", "ACT",
+       "ALLOC_MODE 2: weight of the pitch axis's angular-acceleration shortfall (relative)."),
+    _p("ALLOC_W_YAW", 300, 0.001, 1000, "-", "ACT",
+       "ALLOC_MODE 2: weight of the yaw axis's angular-acceleration shortfall (relative)."),
 )
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
@@ -307,6 +317,7 @@ P_ACT_MAX = PARAM_INDEX["ACT_MAX"]
 P_ACT_RATE = PARAM_INDEX["ACT_RATE"]
 P_ACT_TAU = PARAM_INDEX["ACT_TAU"]
 P_ALLOC_MODE = PARAM_INDEX["ALLOC_MODE"]
+P_ALLOC_W = PARAM_INDEX["ALLOC_W_ROLL"]   # roll, pitch, yaw consecutive
 P_REF_PF_EN = PARAM_INDEX["REF_PF_EN"]
 P_REF_PF_WN = PARAM_INDEX["REF_PF_WN"]
 P_REF_PF_ZETA = PARAM_INDEX["REF_PF_ZETA"]

@@ -191,6 +191,7 @@ def test_allocator_exact_when_unsaturated(co_map):
 
 def test_allocator_reports_shortfall_and_keeps_direction():
     law, _ = _alloc_setup(coordinated=True, surf=0)
+    law.set_param("ALLOC_MODE", 1)
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
     mc = np.array([2.0e7, -1.0e7, 8.0e6])         # far beyond +-20 deg
     raw = np.linalg.solve(G, mc)
@@ -215,6 +216,84 @@ def test_allocator_reports_shortfall_and_keeps_direction():
     np.testing.assert_allclose(delta, np.clip(raw, -20 * DEG, 20 * DEG), rtol=1e-12)
     np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ delta,
                                rtol=1e-9)
+
+
+def _weighted_shortfall(law, G, mc, delta):
+    """sum_i w_i (G delta - M_c)_i^2 with the prioritised mode's weights (per angular
+    acceleration: w_i = ALLOC_W_i / I_i^2)."""
+    w = np.array([law.get_param("ALLOC_W_ROLL") / law.get_param("MDL_IXX") ** 2,
+                  law.get_param("ALLOC_W_PITCH") / law.get_param("MDL_IYY") ** 2,
+                  law.get_param("ALLOC_W_YAW") / law.get_param("MDL_IZZ") ** 2])
+    r = G @ delta - mc
+    return float(np.sum(w * r * r)), w
+
+
+@pytest.mark.parametrize("mc", [(2.0e7, -1.0e7, 8.0e6), (-3.0e6, 4.0e7, -2.0e7),
+                                (1.0e6, -2.0e6, 3.0e7)], ids=["roll", "pitch", "yaw"])
+def test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest(mc):
+    """ALLOC_MODE 2 (the default): the surface furthest beyond its limit is held at the limit,
+    the free ones solve the weighted least squares of the shortfall (their gradient is 0),
+    and the weighted shortfall is no larger than scaling's or clipping's."""
+    law, _ = _alloc_setup(coordinated=True, surf=0)
+    assert law.get_param("ALLOC_MODE") == 2
+    G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
+    mc = np.array(mc)
+    raw = np.linalg.solve(G, mc)
+    assert np.max(np.abs(raw)) > 20 * DEG
+    delta = np.zeros(3)
+    sat = K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, delta, law.status)
+    assert sat == 1.0
+    lim = 20 * DEG
+    assert np.all(np.abs(delta) <= lim * (1 + 1e-12))
+    held = np.isclose(np.abs(delta), lim, rtol=1e-12)
+    assert held[np.argmax(np.abs(raw))], "the worst surface is held at its limit"
+    j, w = _weighted_shortfall(law, G, mc, delta)
+    free = ~held
+    grad = G.T @ (w * (G @ delta - mc))
+    ref = np.abs(G.T) @ (w * (np.abs(G) @ np.abs(delta) + np.abs(mc)))
+    assert np.all(np.abs(grad[free]) <= 1e-9 * ref[free])
+    np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ delta,
+                               rtol=1e-9, atol=1e-3)
+    for mode in (0, 1):
+        law.set_param("ALLOC_MODE", mode)
+        other = np.zeros(3)
+        K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, other, law.status)
+        assert j <= _weighted_shortfall(law, G, mc, other)[0] * (1 + 1e-9), mode
+
+
+def test_prioritised_allocation_serves_the_yaw_axis_first():
+    """With the default weights (yaw 300, pitch 10, roll 1 per angular acceleration) the yaw
+    shortfall is smaller than with equal weights, and than with scaling."""
+    law, _ = _alloc_setup(coordinated=True, surf=0)
+    G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
+    mc = np.array([2.0e7, -1.0e7, 8.0e6])
+    out = {}
+    for tag, sets in (("prio", {}), ("equal", {"ALLOC_W_YAW": 1.0, "ALLOC_W_PITCH": 1.0}),
+                      ("scale", {"ALLOC_MODE": 1})):
+        for k, v in sets.items():
+            law.set_param(k, v)
+        d = np.zeros(3)
+        K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, d, law.status)
+        out[tag] = abs((G @ d - mc)[2])
+        law.set_param("ALLOC_MODE", 2)
+        law.set_param("ALLOC_W_YAW", 300.0)
+        law.set_param("ALLOC_W_PITCH", 10.0)
+    assert out["prio"] < out["equal"] and out["prio"] < out["scale"], out
+
+
+def test_prioritised_allocation_with_the_interconnect_stays_within_limits():
+    """CO_SURF 1 (Eq. 47 interconnect): the limits hold on the surfaces after Eq. 47 and the
+    unallocated moment is reported in the allocation's variables."""
+    law, _ = _alloc_setup(coordinated=True, surf=1)
+    G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
+    mc = np.array([2.0e7, -1.0e7, 8.0e6])
+    delta = np.zeros(3)
+    e = 0.7
+    K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], e, delta, law.status)
+    assert np.all(np.abs(delta) <= 20 * DEG * (1 + 1e-12))
+    u = np.array([delta[0], delta[1] - e * delta[2], delta[2]])
+    np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ u,
+                               rtol=1e-9, atol=1e-3)
 
 
 def test_surface_coordination_eq47():
@@ -447,7 +526,7 @@ def test_every_law_module_cache_depends_on_every_law_module(monkeypatch):
     ("CO_NORM", ("NORM_RELATIVE", "NORM_COEFFICIENT", "NORM_LITERAL")),
     ("CO_MAP", ("MAP_DIAGONAL", "MAP_PROSE")),
     ("CO_SURF", ("SURF_OFF", "SURF_INTERCONNECT", "SURF_LITERAL")),
-    ("ALLOC_MODE", ("ALLOC_CLIP", "ALLOC_SCALE")),
+    ("ALLOC_MODE", ("ALLOC_CLIP", "ALLOC_SCALE", "ALLOC_PRIO")),
     ("DOB_ACHIEVED", ("DOB_MOMENT_MC", "DOB_MOMENT_GFD", "DOB_MOMENT_GCO")),
 ])
 def test_named_options_are_the_values_the_table_accepts(name, values):
@@ -495,6 +574,7 @@ def test_allocator_properties_hypothesis():
     from hypothesis import given, settings, strategies as st_
 
     law, _ = _alloc_setup(coordinated=True, surf=0)
+    law.set_param("ALLOC_MODE", 1)
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3).copy()
     lim = 20 * DEG
     delta = np.zeros(3)
@@ -510,6 +590,42 @@ def test_allocator_properties_hypothesis():
         assert 0.0 < s <= 1.0 or not np.any(mc)
         np.testing.assert_allclose(G @ delta, s * mc, rtol=1e-8, atol=1e-3)
         assert (sat == 1.0) == (s < 1.0)
+
+    check()
+
+
+def test_prioritised_allocator_properties_hypothesis():
+    """ALLOC_MODE 2, any moment demand: |delta| <= limit; exact where within the limits; the
+    surfaces not at a limit leave no weighted shortfall to gain (gradient 0); the weighted
+    shortfall is no larger than scaling's."""
+    from hypothesis import given, settings, strategies as st_
+
+    law, _ = _alloc_setup(coordinated=True, surf=0)
+    G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3).copy()
+    lim = 20 * DEG
+    delta = np.zeros(3)
+    other = np.zeros(3)
+    moment = st_.floats(min_value=-5e7, max_value=5e7, allow_nan=False)
+
+    @settings(max_examples=200, deadline=None)
+    @given(moment, moment, moment)
+    def check(m0, m1, m2):
+        law.set_param("ALLOC_MODE", 2)
+        sat = K.allocate(law.par, law.nm, m0, m1, m2, 0.7, delta, law.status)
+        assert np.all(np.abs(delta) <= lim * (1 + 1e-12))
+        mc = np.array([m0, m1, m2])
+        raw = np.linalg.solve(G, mc)
+        if sat == 0.0:
+            np.testing.assert_allclose(delta, raw, rtol=1e-9, atol=1e-12)
+            return
+        j, w = _weighted_shortfall(law, G, mc, delta)
+        free = ~np.isclose(np.abs(delta), lim, rtol=1e-12)
+        grad = G.T @ (w * (G @ delta - mc))
+        ref = np.abs(G.T) @ (w * (np.abs(G) @ np.abs(delta) + np.abs(mc)))
+        assert np.all(np.abs(grad[free]) <= 1e-8 * ref[free])
+        law.set_param("ALLOC_MODE", 1)
+        K.allocate(law.par, law.nm, m0, m1, m2, 0.7, other, law.status)
+        assert j <= _weighted_shortfall(law, G, mc, other)[0] * (1 + 1e-9) + 1e-30
 
     check()
 

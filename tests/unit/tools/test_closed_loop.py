@@ -8,8 +8,9 @@ Bounds are justified next to each assertion; ``test_documented_figures`` pins th
 that docs/control_law.md section 9 reports, with stated tolerances.
 
 Every run here flies the paper's law as section 9 documents it: the paper's fixed gains
-(CTL_SCHED 0) without the complementary attitude filter (FLT_ANG_CF 0), the law these figures
-were measured on before issue 20; the default law since issue 20 (the gain schedule and the
+(CTL_SCHED 0) without the complementary attitude filter (FLT_ANG_CF 0), with the allocation
+scaling the deflection vector (ALLOC_MODE 1), the law these figures were measured on before
+issue 20; the default law since issue 20 (the gain schedule and the
 1 Hz complementary filter) is flown in tests/unit/tools/test_schedule_corridor.py.
 """
 from __future__ import annotations
@@ -21,9 +22,10 @@ import pytest
 
 from tools.sitl.closed_loop import simulate as _simulate
 
-#: the paper's law (docs/control_law.md section 9): its fixed gains ("Scheduling": CTL_SCHED 0)
-#: and no complementary attitude filter (FLT_ANG_CF 0, the only law before issue 20)
-PAPER_GAINS = {"CTL_SCHED": 0, "FLT_ANG_CF": 0}
+#: the paper's law (docs/control_law.md section 9): its fixed gains ("Scheduling": CTL_SCHED 0),
+#: no complementary attitude filter (FLT_ANG_CF 0) and the vector-scaling allocation
+#: (ALLOC_MODE 1): the law before issue 20
+PAPER_GAINS = {"CTL_SCHED": 0, "FLT_ANG_CF": 0, "ALLOC_MODE": 1}
 
 
 def simulate(scenario, *, law_overrides=None, **kw):
