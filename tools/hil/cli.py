@@ -144,7 +144,10 @@ def _versions() -> dict:
                              text=True, timeout=5, cwd=Path(__file__).resolve().parents[2])
         if rev.returncode == 0:
             out["git"] = rev.stdout.strip()
-            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+            # the code that ran (a regenerated document under docs/ does not make it dirty)
+            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no",
+                                    "--", "fc", "plant_sim", "hyfc_wire", "tools",
+                                    "pyproject.toml"],
                                    capture_output=True, text=True, timeout=5,
                                    cwd=Path(__file__).resolve().parents[2])
             out["git_dirty"] = bool(dirty.stdout.strip())
