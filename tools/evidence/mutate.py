@@ -85,6 +85,7 @@ DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_an
                  "test_law_units.py::test_prioritised_allocation_serves_the_yaw_axis_first",
                  "test_law_units.py::test_prioritised_allocation_with_the_interconnect_stays_within_limits",
                  "test_law_units.py::test_prioritised_allocator_properties_hypothesis",
+                 "test_law_units.py::test_prioritised_on_small_hand_made_matrices",
                  "test_law_units.py::test_coordinated_matrix_guard_rejects_sign_flip",
                  "test_law_units.py::test_observer_converges_to_constant_disturbance",
                  "test_law_units.py::test_projection_identity_inside_and_bounded_outside",
@@ -677,7 +678,13 @@ def main(argv=None) -> int:
 #: are read through options.option / switch_on (not mutated), and the observer's moment
 #: shares linalg3.matvec3 with the allocator's unallocated moment, whose tests use a dense
 #: matrix (docs/mutation_report.md: no survivor).
-EQUIVALENT: dict = {}
+EQUIVALENT: dict = {
+    ("v = (w0 * x0 * r0 + w1 * x1 * r1 + w2 * x2 * r2) / den if den > 0.0 else 0.0",
+     "0.0 -> 1.0 (col 85)"):
+        "unreachable: one free column with den = 0 is a zero column, which made the 2x2 step "
+        "before it singular (free surfaces set to 0, none beyond its limit), so the loop ends "
+        "before a single column is left",
+}
 
 if __name__ == "__main__":
     raise SystemExit(main())

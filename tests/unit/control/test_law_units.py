@@ -281,19 +281,64 @@ def test_prioritised_allocation_serves_the_yaw_axis_first():
     assert out["prio"] < out["equal"] and out["prio"] < out["scale"], out
 
 
-def test_prioritised_allocation_with_the_interconnect_stays_within_limits():
-    """CO_SURF 1 (Eq. 47 interconnect): the limits hold on the surfaces after Eq. 47 and the
-    unallocated moment is reported in the allocation's variables."""
+@pytest.mark.parametrize("mc", [(2.0e7, -1.0e7, 8.0e6), (1.0e6, -2.0e6, 3.0e7)],
+                         ids=["roll", "yaw"])
+def test_prioritised_allocation_with_the_interconnect_stays_within_limits(mc):
+    """CO_SURF 1 (Eq. 47 interconnect, u1 = d1 - E d2): the limits hold on the surfaces after
+    Eq. 47, the unallocated moment is reported in the allocation's variables, and the free
+    surfaces are optimal for the matrix acting on the surfaces, G_d = G T^-1."""
     law, _ = _alloc_setup(coordinated=True, surf=1)
+    assert law.get_param("ALLOC_MODE") == 2
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
-    mc = np.array([2.0e7, -1.0e7, 8.0e6])
+    mc = np.array(mc)
     delta = np.zeros(3)
     e = 0.7
-    K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], e, delta, law.status)
-    assert np.all(np.abs(delta) <= 20 * DEG * (1 + 1e-12))
+    sat = K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], e, delta, law.status)
+    assert sat == 1.0
+    lim = 20 * DEG
+    assert np.all(np.abs(delta) <= lim * (1 + 1e-12))
     u = np.array([delta[0], delta[1] - e * delta[2], delta[2]])
     np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ u,
                                rtol=1e-9, atol=1e-3)
+    t_inv = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -e], [0.0, 0.0, 1.0]])
+    gd = G @ t_inv
+    _, w = _weighted_shortfall(law, G, mc, delta)
+    free = ~np.isclose(np.abs(delta), lim, rtol=1e-12)
+    assert free.any()
+    grad = gd.T @ (w * (gd @ delta - mc))
+    ref = np.abs(gd.T) @ (w * (np.abs(gd) @ np.abs(delta) + np.abs(mc)))
+    assert np.all(np.abs(grad[free]) <= 1e-9 * ref[free])
+
+
+def test_prioritised_on_small_hand_made_matrices():
+    """allocation.prioritised by hand, at unit scale (weights 1, limit 1): the worst surface
+    held, the next re-solved, and the degenerate cases (two identical free columns) leave the
+    free surfaces at 0 instead of dividing by zero."""
+    from fc.control.allocation import prioritised
+    half = np.diag([0.5, 0.5, 0.5]).ravel()
+    # diagonal: d0 held at +1, d1 and d2 re-solved exactly
+    m = 0.5 * np.array([3.0, 0.5, 0.2])
+    d = prioritised(half, 0, 0.0, *m, 1.0, 1.0, 1.0, 1.0, 3.0, 0.5, 0.2)
+    np.testing.assert_allclose(d, (1.0, 0.5, 0.2), rtol=1e-12)
+    # two surfaces beyond: d0 held, then d2 held, d1 alone (one free column)
+    m = 0.5 * np.array([3.0, 0.5, 2.5])
+    d = prioritised(half, 0, 0.0, *m, 1.0, 1.0, 1.0, 1.0, 3.0, 0.5, 2.5)
+    np.testing.assert_allclose(d, (1.0, 0.5, 1.0), rtol=1e-12)
+    # identical free columns: the 2x2 normal equations are singular, the free surfaces 0
+    a = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).ravel()
+    d = prioritised(a, 0, 0.0, 0.2, 0.2, 3.0, 1.0, 1.0, 1.0, 1.0, 0.1, 0.1, 3.0)
+    assert d == (0.0, 0.0, 1.0)
+    # the interconnect's third column G2 - e G1 (e = 0.5): with d1 held the rudder solves
+    # its own column
+    a = np.eye(3).ravel()
+    d = prioritised(a, 0, 0.5, 0.0, 3.0, 0.2, 1.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.2)
+    # columns: c0 = (1,0,0), c1 = (0,1,0), c2 = (0,-0.5,1); d1 held at 1, then
+    # min (d0)^2 + (1 - 0.5 d2 - 3)^2 + (d2 - 0.2)^2: d0 = 0, d2 = (0.2 - 1) / 1.25
+    np.testing.assert_allclose(d, (0.0, 1.0, (0.2 - 1.0) / 1.25), rtol=1e-12)
+    # a rudder with pitch effectiveness (G12 = 0.5) that the interconnect cancels exactly
+    a = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]]).ravel()
+    d = prioritised(a, 0, 0.5, 0.0, 3.0, 0.2, 1.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.2)
+    np.testing.assert_allclose(d, (0.0, 1.0, 0.2), rtol=1e-12)
 
 
 def test_surface_coordination_eq47():
