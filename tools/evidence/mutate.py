@@ -86,6 +86,9 @@ DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_an
                  "test_law_units.py::test_prioritised_allocation_with_the_interconnect_stays_within_limits",
                  "test_law_units.py::test_prioritised_allocator_properties_hypothesis",
                  "test_law_units.py::test_prioritised_on_small_hand_made_matrices",
+                 "test_law_units.py::test_slow_step_writes_the_complementary_filter_model_term",
+                 "test_law_units.py::test_tracking_error_reads_the_attitude_filter_when_either_is_on",
+                 "test_law_units.py::test_the_printed_law_runs_no_attitude_filter",
                  "test_law_units.py::test_coordinated_matrix_guard_rejects_sign_flip",
                  "test_law_units.py::test_observer_converges_to_constant_disturbance",
                  "test_law_units.py::test_projection_identity_inside_and_bounded_outside",
@@ -684,6 +687,18 @@ EQUIVALENT: dict = {
         "unreachable: one free column with den = 0 is a zero column, which made the 2x2 step "
         "before it singular (free surfaces set to 0, none beyond its limit), so the loop ends "
         "before a single column is left",
+    ("while k < SCHED_N - 2 and v >= par[base + k + 1]:", "'-' -> '+'"):
+        "the bound is redundant: v at or above the last node returned before the loop, so "
+        "v >= par[base + k + 1] fails at k = SCHED_N - 2 at the latest",
+    ("while k < SCHED_N - 2 and v >= par[base + k + 1]:", "drop right term of '-'"):
+        "the bound is redundant: v at or above the last node returned before the loop, so "
+        "v >= par[base + k + 1] fails at k = SCHED_N - 2 at the latest",
+    ("f = (v - lo) / span if span > 0.0 else 0.0", "0.0 -> 1.0 (col 43)"):
+        "unreachable: at the loop's exit v >= par[base + k] (k > 0) or v > par[base] (k = 0) "
+        "and v < par[base + k + 1], so span > 0",
+    ("return k, min(max(f, 0.0), 1.0)", "1.0 -> 2.0 (col 31)"):
+        "f < 1 already: v < par[base + k + 1] at the loop's exit (v at or above the last "
+        "node returned before it)",
 }
 
 if __name__ == "__main__":

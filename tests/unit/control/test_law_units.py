@@ -136,6 +136,10 @@ def test_factors_hand_computed(eq):
     else:
         le, la = k4 * a + k5 * q, k6 * b + k7 * p
     np.testing.assert_allclose(out, [le, la, lr], rtol=1e-13, atol=1e-16)
+    # CO_LAMR_SCL (issue 20: the schedule's rudder share) scales lambda_r only
+    par[PARAM_INDEX["CO_LAMR_SCL"]] = 0.4
+    K.coordinated_factors(est, par, out, 0)
+    np.testing.assert_allclose(out, [le, la, 0.4 * lr], rtol=1e-13, atol=1e-16)
 
 
 def test_factors_zero_when_uncoordinated_and_clamped():
@@ -254,6 +258,7 @@ def test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest
     assert np.all(np.abs(grad[free]) <= 1e-9 * ref[free])
     np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ delta,
                                rtol=1e-9, atol=1e-3)
+    assert law.status[L.S_ALLOC_SCALE] == 1.0           # no common scale (as clipping)
     for mode in (0, 1):
         law.set_param("ALLOC_MODE", mode)
         other = np.zeros(3)
@@ -673,6 +678,67 @@ def test_prioritised_allocator_properties_hypothesis():
         assert j <= _weighted_shortfall(law, G, mc, other)[0] * (1 + 1e-9) + 1e-30
 
     check()
+
+
+def test_slow_step_writes_the_complementary_filter_model_term():
+    """Issue 20 V8: the slow step leaves f1 + Psi^T theta_hat (Eqs. 26, 23) in x[X_FKIN:] for
+    the fast rate's complementary attitude filter; written out here from Eq. 26 by hand
+    (adaptation off, so theta_hat = theta_nom)."""
+    law = AttitudeLaw({"SLW_GAMMA": 0.0})
+    est = paper_est(alpha_deg=3, beta_deg=2, mu_deg=10, p=0.01, q=0.02, r=-0.01)
+    est[L.E_GAMMA] = 2 * DEG
+    law.reset(est)
+    law.slow_step(est, (5 * DEG, 0.0, 4 * DEG), 0.01)
+    g = law.nm[L.NM_G]
+    b, m, v, gam = est[L.E_BETA], est[L.E_MU], est[L.E_V], est[L.E_GAMMA]
+    f1 = np.array([g * math.cos(gam) * math.cos(m) / (v * math.cos(b)),
+                   g * math.cos(gam) * math.sin(m) / v,
+                   -g * math.cos(gam) * math.cos(m) * math.sin(b) / (math.cos(b) * v)])
+    psi = law.nm[L.NM_PSI:L.NM_PSI + 4]
+    want = f1 + np.array([psi[0], psi[1], psi[2] + psi[3]])
+    assert np.all(psi[:3] != 0.0)
+    np.testing.assert_allclose(law.x[L.X_FKIN:L.X_FKIN + 3], want, rtol=1e-12)
+
+
+@pytest.mark.parametrize("ang_hz, cf_hz, filtered", [(0.0, 1.0, True), (0.5, 0.0, True),
+                                                     (0.0, 0.0, False)])
+def test_tracking_error_reads_the_attitude_filter_when_either_is_on(ang_hz, cf_hz, filtered):
+    """e1 (Eq. 27) takes Omega from the attitude filter's output x[X_AF2:] when the low-pass
+    (FLT_ANG_HZ) or the complementary filter (FLT_ANG_CF) is on, however slow, and from the
+    estimate when both are off."""
+    from fc.control.slow_loop import tracking_error
+    par = default_si_array()
+    par[PARAM_INDEX["FLT_ANG_HZ"]] = ang_hz
+    par[PARAM_INDEX["FLT_ANG_CF"]] = cf_hz
+    x = AttitudeLaw().x.copy()
+    x[L.X_AF2:L.X_AF2 + 3] = (0.3, 0.2, 0.1)
+    x[L.X_PF:L.X_PF + 3] = 0.0
+    est = paper_est(alpha_deg=1, beta_deg=2, mu_deg=3)
+    e = tracking_error(est, par, x, False)
+    src = (0.3, 0.2, 0.1) if filtered else est[:3]
+    np.testing.assert_allclose(e, src, rtol=1e-12)
+
+
+def test_the_printed_law_runs_no_attitude_filter():
+    """PAPER_LITERAL: the fast loop's input filters pass alpha, beta, mu through (no
+    complementary filter at its default 1 Hz, no low-pass)."""
+    from fc.control.fast_loop import input_filters
+    par = default_si_array()
+    assert par[PARAM_INDEX["FLT_ANG_CF"]] > 0.0
+    x = AttitudeLaw().x.copy()
+    x[L.X_AF2:L.X_AF2 + 3] = (0.3, 0.2, 0.1)
+    est = paper_est(alpha_deg=1, beta_deg=2, mu_deg=3, p=0.1, q=0.1, r=0.1)
+    x0 = x.copy()
+    input_filters(est, 0.002, par, x, True)
+    np.testing.assert_array_equal(x[L.X_AF2:L.X_AF2 + 3], est[:3])
+    # and the default law runs the complementary filter at its default 1 Hz
+    from fc.control.fast_loop import complementary_attitude_step
+    x1 = x0.copy()
+    x2 = x0.copy()
+    input_filters(est, 0.002, par, x1, False)
+    complementary_attitude_step(est, 0.002, par[PARAM_INDEX["FLT_ANG_CF"]], x2)
+    np.testing.assert_array_equal(x1[L.X_AF2:L.X_AF2 + 3], x2[L.X_AF2:L.X_AF2 + 3])
+    assert not np.allclose(x1[L.X_AF2:L.X_AF2 + 3], est[:3])
 
 
 def test_cycle_equals_slow_then_fast():
