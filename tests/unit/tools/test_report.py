@@ -19,7 +19,7 @@ def test_committed_tables_match_their_data():
             blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
     assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_paper_gains", "mc_cruise",
             "mc_cruise_b", "mc_surfaces", "beta0_dip", "hil_prefilter",
-            "eq14_mirror_claim"} <= set(blocks), blocks
+            "eq14_mirror_claim", "hil_compare_claim", "hil_alpha_claim"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -34,18 +34,19 @@ def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
     shutil.copytree(report.ROOT / report.DATA_DIR, tmp_path / report.DATA_DIR)
     assert report.check(tmp_path) == []
     # each run's data renders its own table (the paper's fixed gains' run included)
-    for name, variant, channel, metric, table in (
-            ("hil_paper", "coordinated", "alpha", "overshoot_pct", "hil_steps"),
+    for name, variant, channel, metric, tables in (
+            ("hil_paper", "coordinated", "alpha", "overshoot_pct",
+             {"hil_steps", "hil_compare_claim", "hil_alpha_claim"}),
             ("hil_paper_gains", "uncoordinated", "mu", "settling_time_s",
-             "hil_steps_paper_gains"),
-            ("hil_prefilter", "coordinated", "beta", "overshoot_pct", "hil_prefilter"),
+             {"hil_steps_paper_gains", "hil_compare_claim"}),
+            ("hil_prefilter", "coordinated", "beta", "overshoot_pct", {"hil_prefilter"}),
             ("hil_paper_gains_eq14_mirror", "coordinated", "mu", "overshoot_pct",
-             "eq14_mirror_claim")):
+             {"eq14_mirror_claim"})):
         data = tmp_path / report.DATA_DIR / f"{name}.json"
         d = json.loads(data.read_text())
         d["summary"]["runs"][variant][channel][metric] += 1.0
         data.write_text(json.dumps(d))
-        assert report.check(tmp_path) == [f"README.md: {table}"]
+        assert set(report.check(tmp_path)) == {f"README.md: {x}" for x in tables}
         report.write(tmp_path)
         assert report.check(tmp_path) == []
     # each campaign's data renders its own table: the default law's, the fixed gains' (and the
@@ -69,3 +70,21 @@ def test_a_table_that_disagrees_with_its_data_is_reported(tmp_path):
 def test_unknown_block_is_an_error():
     with pytest.raises(KeyError):
         report.render("<!-- report:nope -->\nx\n<!-- /report:nope -->\n")
+
+
+def test_the_comparison_claim_reads_its_directions_from_the_data(tmp_path):
+    """GIVEN the main job's data with coordination made worse in alpha; THEN the README's
+    reading says it does not lower the overshoot, and a later settling becomes "sooner" when
+    the data say so (no direction is typed by hand)."""
+    shutil.copytree(report.ROOT / report.DATA_DIR, tmp_path / report.DATA_DIR)
+    before = report.claim_hil_compare(tmp_path)
+    assert "coordination lowers alpha and mu overshoot" in before
+    data = tmp_path / report.DATA_DIR / "hil_paper_gains.json"
+    d = json.loads(data.read_text())
+    runs = d["summary"]["runs"]
+    runs["coordinated"]["alpha"]["overshoot_pct"] = runs["uncoordinated"]["alpha"]["overshoot_pct"] + 1
+    runs["coordinated"]["alpha"]["settling_time_s"] = runs["uncoordinated"]["alpha"]["settling_time_s"] - 0.5
+    data.write_text(json.dumps(d))
+    after = report.claim_hil_compare(tmp_path)
+    assert "does not lower both of alpha and mu overshoot" in after
+    assert "settles alpha 0.50 s sooner" in after
