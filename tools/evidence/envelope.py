@@ -319,6 +319,26 @@ def in_target_corridor(r: dict) -> bool:
     return TARGET_Q_KPA[0] <= r["qbar_kPa"] <= TARGET_Q_KPA[1] and r["mach"] <= 15.0 + 1e-9
 
 
+def counts(rows: list[dict]) -> dict:
+    """Per variant: points flown, diverged (or not set up), unsettled at the end, meeting the
+    spec, and the same over the 24-300 kPa, Mach <= 15 corridor (``summary.json``, which
+    ``python -m tools.evidence.report import-env`` copies into docs/data)."""
+    by: dict = {}
+    for r in rows:
+        by.setdefault(r["variant"], {})[(r["mach"], r["h_km"])] = r
+    out = {}
+    for var, pts in by.items():
+        cor = [r for r in pts.values() if in_target_corridor(r)]
+        out[var] = {"points": len(pts),
+                    "diverged": sum(bool(r.get("diverged")) or bool(r.get("error"))
+                                    for r in pts.values()),
+                    "unsettled": sum(unsettled(r) for r in pts.values()),
+                    "meets_spec": sum(meets_spec(r) for r in pts.values()),
+                    "corridor_points": len(cor),
+                    "corridor_meets_spec": sum(meets_spec(r) for r in cor)}
+    return out
+
+
 def summary(rows: list[dict]) -> str:
     """Text: per variant, points flown, diverged, unsettled at the end, meeting the spec
     (everywhere and in the 24-300 kPa corridor), and where coordination helps or hurts
@@ -394,6 +414,11 @@ def main(argv=None) -> int:
     paths = plot(rows, machs, hs, a.img or a.out, MAP_PREFIX[dist], a.suffix, dist)
     text = summary(rows)
     (a.out / "summary.txt").write_text(text + "\n")
+    meta = (json.loads((a.out / "envelope.json").read_text())
+            if (a.out / "envelope.json").exists() else {})
+    (a.out / "summary.json").write_text(json.dumps(
+        {"disturbance": dist, "duration_s": meta.get("duration_s"),
+         "wall_s": meta.get("wall_s"), "variants": counts(rows)}, indent=1) + "\n")
     print(text)
     print("pictures: " + ", ".join(str(p) for p in paths))
     return 0

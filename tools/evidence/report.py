@@ -2,6 +2,7 @@
 
     python -m tools.evidence.report import-hil runs/<run> --as hil_paper --command "python -m tools.hil run"
     python -m tools.evidence.report import-mc runs/mc-paper --as mc_paper --command "python -m tools.evidence.montecarlo ..."
+    python -m tools.evidence.report import-env runs/env_b --as env_b --command "python -m tools.evidence.envelope ..."
     python -m tools.evidence.report write          # rewrite every generated table from docs/data/*.json
     python -m tools.evidence.report check          # exit 1 if a committed table differs from its data
 
@@ -73,8 +74,11 @@ def import_summary(summary_path: Path, name: str, command: str, kind: str,
             vs.pop("worst", None)
         commit = _commit_now()
         created = _mtime_utc(summary_path)
+    elif kind == "env":
+        commit = _commit_now()
+        created = _mtime_utc(summary_path)
     else:
-        raise ValueError(f"kind must be 'hil' or 'mc', got {kind!r}")
+        raise ValueError(f"kind must be 'hil', 'mc' or 'env', got {kind!r}")
     commit = commit_override or commit
     created = created_override or created
     out = Path(root) / DATA_DIR / f"{name}.json"
@@ -264,6 +268,30 @@ def claim_hil_alpha(root: Path = ROOT) -> str:
             f"{a(df, 'uncoordinated')} and {a(df, 'coordinated')}).")
 
 
+def claim_envelope(root: Path = ROOT) -> str:
+    """The default law's envelope maps (README): the corridor shares and the divergences of
+    map (b) and map (a), from docs/data/env_b.json and env_a.json."""
+    b = load_data("env_b", root)
+    a = load_data("env_a", root)
+
+    def share(v):
+        return f"{v['corridor_meets_spec']} of {v['corridor_points']}"
+
+    def pct(v):
+        return f"{100.0 * v['corridor_meets_spec'] / max(v['corridor_points'], 1):.0f} %"
+
+    bu, bc = b["summary"]["variants"]["unco"], b["summary"]["variants"]["co_eq19"]
+    au, ac = a["summary"]["variants"]["unco"], a["summary"]["variants"]["co_eq19"]
+    return (f"Map (b) (`{b['command']}`): the spec holds at **{share(bu)} points of 24-300 kPa, "
+            f"Mach <= 15, uncoordinated ({pct(bu)}) and {share(bc)} coordinated ({pct(bc)})**; "
+            f"the target is 90 % in both. Diverged: {bu['diverged']} / {bc['diverged']} points; "
+            f"unsettled at 20 s: {bu['unsettled']} / {bc['unsettled']}. Map (a) (`{a['command']}`): "
+            f"{share(au)} ({pct(au)}) and {share(ac)} ({pct(ac)}); diverged {au['diverged']} / "
+            f"{ac['diverged']}, unsettled {au['unsettled']} / {ac['unsettled']}. (Commit "
+            f"{b['commit']}, {b['created_utc'][:10]}, written by "
+            f"`python -m tools.evidence.report`.)")
+
+
 def table_beta0(root: Path = ROOT) -> str:
     """The mu wrong-way dip with and without the paper's untrimmed 5 deg initial sideslip."""
     a = load_data("hil_paper", root)
@@ -392,6 +420,7 @@ def claim_mc_surfaces(root: Path = ROOT) -> str:
 TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
           "hil_prefilter": table_hil_prefilter, "eq14_mirror_claim": claim_eq14_mirror,
           "hil_compare_claim": claim_hil_compare, "hil_alpha_claim": claim_hil_alpha,
+          "envelope_claim": claim_envelope,
           "beta0_dip": table_beta0, "mc_paper": table_mc,
           "mc_paper_gains": table_mc_paper_gains, "mc_cruise": table_mc_cruise,
           "mc_cruise_b": table_mc_cruise_b,
@@ -450,8 +479,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.evidence.report",
                                  description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
-    for kind in ("hil", "mc"):
-        p = sub.add_parser(f"import-{kind}", help=f"copy a {'run' if kind == 'hil' else 'campaign'}"
+    for kind in ("hil", "mc", "env"):
+        what = {"hil": "run", "mc": "campaign", "env": "envelope map"}[kind]
+        p = sub.add_parser(f"import-{kind}", help=f"copy a {what}"
                            "'s summary.json into docs/data/NAME.json")
         p.add_argument("dir", type=Path, help="the run (or campaign) directory")
         p.add_argument("--as", dest="name", required=True, help="NAME of docs/data/NAME.json")

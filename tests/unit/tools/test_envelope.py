@@ -89,3 +89,23 @@ def test_paper_cruise_scenario_is_the_envelope_point_at_the_cruise(name, disturb
         if key in ("name", "description"):
             continue
         assert f.data[key] == p.data[key], key
+
+
+def test_counts_per_variant_and_over_the_corridor():
+    """summary.json's counts: diverged (or not set up), unsettled, meeting the spec, and the
+    same inside 24-300 kPa, Mach <= 15."""
+    base = {"alpha_os_pct": 1.0, "beta_os_pct": 1.0, "mu_os_pct": 1.0, "alpha_ts_s": 1.0,
+            "beta_ts_s": 1.0, "mu_ts_s": 1.0, "error": "", "diverged": False}
+    rows = [
+        {**base, "variant": "unco", "mach": 8.0, "h_km": 26.0, "qbar_kPa": 98.0},
+        {**base, "variant": "unco", "mach": 8.0, "h_km": 40.0, "qbar_kPa": 12.0},
+        {**base, "variant": "unco", "mach": 15.0, "h_km": 36.0, "qbar_kPa": 79.0,
+         "diverged": True},
+        {**base, "variant": "unco", "mach": 6.0, "h_km": 38.0, "qbar_kPa": 30.0,
+         "mu_ts_s": float("nan")},
+        {**base, "variant": "unco", "mach": 7.0, "h_km": 30.0, "qbar_kPa": 50.0,
+         "alpha_os_pct": 12.0},
+    ]
+    c = E.counts(rows)["unco"]
+    assert c == {"points": 5, "diverged": 1, "unsettled": 1, "meets_spec": 2,
+                 "corridor_points": 4, "corridor_meets_spec": 1}

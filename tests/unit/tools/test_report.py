@@ -19,7 +19,8 @@ def test_committed_tables_match_their_data():
             blocks += [m.group("name") for m in report._BLOCK.finditer(path.read_text())]
     assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_paper_gains", "mc_cruise",
             "mc_cruise_b", "mc_surfaces", "beta0_dip", "hil_prefilter",
-            "eq14_mirror_claim", "hil_compare_claim", "hil_alpha_claim"} <= set(blocks), blocks
+            "eq14_mirror_claim", "hil_compare_claim", "hil_alpha_claim",
+            "envelope_claim"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -88,3 +89,19 @@ def test_the_comparison_claim_reads_its_directions_from_the_data(tmp_path):
     after = report.claim_hil_compare(tmp_path)
     assert "does not lower both of alpha and mu overshoot" in after
     assert "settles alpha 0.50 s sooner" in after
+
+
+def test_an_envelope_map_is_imported_and_its_claim_follows_it(tmp_path):
+    """import-env copies a map's summary.json (tools.evidence.envelope.counts); the README's
+    envelope claim changes with it."""
+    shutil.copytree(report.ROOT / report.DATA_DIR, tmp_path / report.DATA_DIR)
+    summary = tmp_path / "summary.json"
+    d = json.loads((tmp_path / report.DATA_DIR / "env_b.json").read_text())["summary"]
+    d["variants"]["co_eq19"]["corridor_meets_spec"] = 270
+    d["variants"]["co_eq19"]["diverged"] = 2
+    summary.write_text(json.dumps(d))
+    report.import_summary(summary, "env_b", "python -m tools.evidence.envelope X", "env",
+                          root=tmp_path, commit_override="abc1234")
+    text = report.claim_envelope(tmp_path)
+    assert "270 of 295 coordinated (92 %)" in text and "Diverged: 0 / 2 points" in text
+    assert "`python -m tools.evidence.envelope X`" in text and "abc1234" in text
