@@ -15,6 +15,17 @@ over preallocated buffers, the same bytes and values as the pure-Python lean fra
 - :func:`servo_frame`: SERVO_OUTPUT_RAW (channels 1-4, port 0) framed as the codec does
   (trailing-zero truncation, CRC-16/MCRF4XX with CRC_EXTRA) into a preallocated buffer.
 
+And of the plant's (issue 24: its frame path without the Python framer):
+
+- :func:`sensor_frame`: the plant's sensor datagram framed into a preallocated buffer, the
+  bytes of ``hyfc_wire.framing.SensorFramer`` (and so of the codec); returns -1, writing
+  nothing the caller uses, for a value the codec's struct would refuse (a non-finite heading,
+  throttle or GNSS integer, a finite float beyond float32), so that the caller takes the
+  Python framer, which raises as before.
+- :func:`decode_servo`: a datagram that is exactly one good unsigned SERVO_OUTPUT_RAW into
+  (sysid, time_usec, servo1..4), as ``hyfc_wire.framing.ServoDecoder``; 0 for anything else
+  (the caller takes the codec's general parser, which counts).
+
 Message ids, CRC_EXTRA and payload sizes come from the codec's own classes at import; numba
 freezes them (and ``layout``'s ``M_*``, ``pwm``'s constants) into the machine code, so this
 module's numba cache is dropped at import when any of those modules is newer than it.
@@ -41,7 +52,8 @@ __all__ = ["decode_sensor", "pwm_map", "surfaces_pwm", "servo_frame", "crc16_ran
            "REJ_LENGTH", "REJ_SYSID", "REJ_MSGID", "REJ_REPEAT", "REJ_CRC", "REJ_INCOMPLETE",
            "REJ_STAMP", "REJ_NAMES", "GR_PRESENT", "GR_LAT_E7", "GR_LON_E7", "GR_ALT_M",
            "GR_VN", "GR_VE", "GR_VD", "GR_FIX", "GR_SATS", "GR_HACC_M", "GR_VACC_M",
-           "GR_SACC_M_S", "GR_N", "SERVO_FRAME_MAX_B"]
+           "GR_SACC_M_S", "GR_N", "SERVO_FRAME_MAX_B", "sensor_frame", "decode_servo",
+           "SENSOR_FRAME_MAX_B", "SV_SYSID", "SV_TIME_USEC", "SV_SERVO1", "SV_N"]
 
 # ---- rejection codes of decode_sensor (negative; a stamp is >= 0)
 REJ_FORMAT = -1        # not MAVLink 2, signed or incompatible flags, or shorter than a frame
@@ -87,6 +99,17 @@ N_ATT, N_AOA, N_HUD, N_GPS, N_SERVO = (_ATT.unpacker.size, _AOA.unpacker.size,
 #: the longest SERVO_OUTPUT_RAW frame (header, full payload, CRC), bytes
 SERVO_FRAME_MAX_B = _HDR + N_SERVO + 2
 _DEG2RAD = math.pi / 180.0     # what CPython's math.radians multiplies by
+_RAD = 180.0 / math.pi         # hyfc_wire.framing.RAD: rad -> deg as the Python framer does
+#: the longest sensor datagram (the four frames untruncated), bytes
+SENSOR_FRAME_MAX_B = 4 * (_HDR + 2) + N_ATT + N_AOA + N_HUD + N_GPS
+_GPS_HDOP = 1.0                # hyfc_wire.framing.GPS_HDOP
+_F32_MAX = 3.4028234663852886e38
+_U32 = 1 << 32
+# decode_servo's output record (int64[SV_N])
+SV_SYSID = 0
+SV_TIME_USEC = 1
+SV_SERVO1 = 2          # servo1..4 at SV_SERVO1 .. SV_SERVO1 + 3
+SV_N = 6
 
 # Payload offsets (wire order, little endian), checked against the codec's structs in
 # tests/unit/wire/test_frame_kernels.py: ATTITUDE <Iffffff, AOA_SSA <Qff, VFR_HUD <ffffhH,
@@ -315,3 +338,160 @@ def servo_frame(out, seq, sysid, compid, time_usec, pwm_us):
     out[end] = crc & 0xFF
     out[end + 1] = crc >> 8
     return end + 2
+
+
+# ---------------------------------------------------------------- the plant's frame path
+@njit(cache=True)
+def _put_u(out, i, v, nb):
+    """``nb`` little-endian bytes of the non-negative integer ``v`` at ``out[i:]``."""
+    for k in range(nb):
+        out[i + k] = (v >> (8 * k)) & 0xFF
+
+
+@njit(cache=True)
+def _put_f32(out, i, x):
+    """float32 of ``x`` (round to nearest, as struct's 'f') at ``out[i:i + 4]``; False if the
+    struct would refuse it (finite and beyond float32)."""
+    if math.isfinite(x) and abs(x) > _F32_MAX and not math.isfinite(np.float64(np.float32(x))):
+        return False
+    _put_u(out, i, np.int64(np.float32(x).view(np.uint32)), 4)
+    return True
+
+
+@njit(cache=True)
+def _frame_at(out, pos, size, seq, sysid, compid, msg_id, crc_extra):
+    """Header, trailing-zero truncation and CRC of the frame whose full ``size``-byte payload is
+    at ``out[pos + 10:]``; returns the position after the frame."""
+    p = pos + _HDR
+    n = size
+    while n > 1 and out[p + n - 1] == 0:
+        n -= 1
+    out[pos] = _MAGIC2
+    out[pos + 1] = n
+    out[pos + 2] = 0
+    out[pos + 3] = 0
+    out[pos + 4] = seq & 0xFF
+    out[pos + 5] = sysid & 0xFF
+    out[pos + 6] = compid & 0xFF
+    out[pos + 7] = msg_id & 0xFF
+    out[pos + 8] = (msg_id >> 8) & 0xFF
+    out[pos + 9] = msg_id >> 16
+    end = p + n
+    crc = _crc_byte(crc_extra, crc16_range(out, pos + 1, end, 0xFFFF))
+    out[end] = crc & 0xFF
+    out[end + 1] = crc >> 8
+    return end + 2
+
+
+@njit(cache=True)
+def _int_field(x, lo, hi):
+    """``int(x)`` (toward zero) if finite and in [lo, hi], else None-like: (False, 0)."""
+    if not math.isfinite(x):
+        return False, np.int64(0)
+    v = np.int64(x)
+    if v < lo or v > hi:
+        return False, np.int64(0)
+    return True, v
+
+
+@njit(cache=True)
+def sensor_frame(out, seq, sysid, compid, stamp_us, meas, throttle_pct, gnss, with_gnss):
+    """The plant's sensor datagram (ATTITUDE, AOA_SSA, VFR_HUD and, if ``with_gnss``,
+    GPS_INPUT from ``gnss``, float64[G_N]) framed at the start of ``out`` (uint8, at least
+    SENSOR_FRAME_MAX_B) with sequence numbers ``seq``, ``seq + 1``, ... (mod 256); ``meas``
+    float64[M_N] (SI), ``throttle_pct`` 0..100, ``stamp_us`` >= 0. Returns the length in bytes,
+    or -1 for a value the codec's struct would refuse (see the module's docstring)."""
+    ok = True
+    # ATTITUDE <Iffffff
+    p = _HDR
+    _put_u(out, p, (np.int64(stamp_us) // 1000) % _U32, 4)
+    ok &= _put_f32(out, p + 4, meas[M_ROLL])
+    ok &= _put_f32(out, p + 8, meas[M_PITCH])
+    ok &= _put_f32(out, p + 12, meas[M_YAW])
+    ok &= _put_f32(out, p + 16, meas[M_P])
+    ok &= _put_f32(out, p + 20, meas[M_Q])
+    ok &= _put_f32(out, p + 24, meas[M_R])
+    pos = _frame_at(out, 0, N_ATT, seq, sysid, compid, ID_ATT, X_ATT)
+    # AOA_SSA <Qff
+    p = pos + _HDR
+    _put_u(out, p, np.int64(stamp_us), 8)
+    ok &= _put_f32(out, p + 8, meas[M_AOA] * _RAD)
+    ok &= _put_f32(out, p + 12, meas[M_SSA] * _RAD)
+    pos = _frame_at(out, pos, N_AOA, seq + 1, sysid, compid, ID_AOA, X_AOA)
+    # VFR_HUD <ffffhH: airspeed, groundspeed, alt, climb, heading, throttle
+    p = pos + _HDR
+    ok &= _put_f32(out, p, meas[M_AIRSPEED])
+    ok &= _put_f32(out, p + 4, meas[M_GROUNDSPEED])
+    ok &= _put_f32(out, p + 8, meas[M_ALT])
+    ok &= _put_f32(out, p + 12, meas[M_CLIMB])
+    good, hdg = _int_field(meas[M_HEADING] * _RAD + 0.5, -(np.int64(1) << 62), np.int64(1) << 62)
+    ok &= good
+    hdg = hdg % 360
+    thr_x = throttle_pct
+    if not math.isfinite(thr_x):
+        ok = False
+        thr_x = 0.0
+    good, thr = _int_field(min(100.0, max(0.0, thr_x)) + 0.5, 0, 0xFFFF)
+    ok &= good
+    _put_u(out, p + 16, hdg, 2)
+    _put_u(out, p + 18, thr, 2)
+    pos = _frame_at(out, pos, N_HUD, seq + 2, sysid, compid, ID_HUD, X_HUD)
+    if with_gnss:
+        # GPS_INPUT <QIiifffffffffHHBBBH: time_usec, time_week_ms, lat, lon, alt, hdop, vdop,
+        # vn, ve, vd, speed_accuracy, horiz_accuracy, vert_accuracy, ignore_flags, time_week,
+        # gps_id, fix_type, satellites_visible, yaw (gnss: the G_* layout, as SensorFramer)
+        p = pos + _HDR
+        _put_u(out, p, np.int64(stamp_us), 8)
+        _put_u(out, p + 8, 0, 4)
+        for j in range(2):
+            x = gnss[1 + j] * 1e7
+            if not math.isfinite(x):
+                ok = False
+                x = 0.0
+            good, v = _int_field(np.rint(x), -(np.int64(1) << 31), (np.int64(1) << 31) - 1)
+            ok &= good
+            _put_u(out, p + 12 + 4 * j, v & 0xFFFFFFFF, 4)
+        ok &= _put_f32(out, p + 20, gnss[3])
+        ok &= _put_f32(out, p + 24, _GPS_HDOP)
+        ok &= _put_f32(out, p + 28, _GPS_HDOP)
+        ok &= _put_f32(out, p + 32, gnss[4])
+        ok &= _put_f32(out, p + 36, gnss[5])
+        ok &= _put_f32(out, p + 40, gnss[6])
+        ok &= _put_f32(out, p + 44, gnss[11])
+        ok &= _put_f32(out, p + 48, gnss[9])
+        ok &= _put_f32(out, p + 52, gnss[10])
+        _put_u(out, p + 56, 0, 2)          # ignore_flags
+        _put_u(out, p + 58, 0, 2)          # time_week
+        out[p + 60] = 0                    # gps_id
+        good, fix = _int_field(gnss[7], 0, 255)
+        ok &= good
+        good, sats = _int_field(gnss[8], 0, 255)
+        ok &= good
+        out[p + 61] = fix
+        out[p + 62] = sats
+        _put_u(out, p + 63, 0, 2)          # yaw
+        pos = _frame_at(out, pos, N_GPS, seq + 3, sysid, compid, ID_GPS, X_GPS)
+    return pos if ok else -1
+
+
+@njit(cache=True)
+def decode_servo(buf, n, out):
+    """``buf[:n]`` (uint8) as one unsigned MAVLink 2 SERVO_OUTPUT_RAW with a good CRC: writes
+    sysid, time_usec, servo1..4 into ``out`` (int64[SV_N]) and returns 1; anything else returns
+    0 without writing (``hyfc_wire.framing.ServoDecoder.decode``'s acceptance)."""
+    if n < _HDR + 3 or buf[0] != _MAGIC2 or buf[2] != 0:
+        return 0
+    mlen = np.int64(buf[1])
+    if n != _HDR + mlen + 2 or mlen > N_SERVO:
+        return 0
+    if buf[7] != (ID_SERVO & 0xFF) or buf[8] != 0 or buf[9] != 0:
+        return 0
+    end = _HDR + mlen
+    crc = _crc_byte(X_SERVO, crc16_range(buf, 1, end, 0xFFFF))
+    if crc != (np.int64(buf[end]) | (np.int64(buf[end + 1]) << 8)):
+        return 0
+    out[SV_SYSID] = buf[5]
+    out[SV_TIME_USEC] = np.int64(_uint(buf, _HDR, mlen, 0, 4))
+    for c in range(4):
+        out[SV_SERVO1 + c] = np.int64(_uint(buf, _HDR, mlen, 4 + 2 * c, 2))
+    return 1

@@ -19,8 +19,13 @@ import math
 import select
 import socket
 
+import numpy as np
+
 from hyfc_wire.codec import mavlink, new_codec, reset_parser
-from hyfc_wire.framing import GPS_HDOP, HDR2, U32, SensorFramer, ServoDecoder, ServoPacker
+from hyfc_wire.frame_kernels import (SENSOR_FRAME_MAX_B, SV_N, SV_SERVO1, SV_SYSID, SV_TIME_USEC,
+                                     decode_servo, sensor_frame)
+from hyfc_wire.framing import GPS_HDOP, HDR2, U32, SensorFramer, ServoPacker
+from hyfc_wire.layout import G_N
 from hyfc_wire.pwm import DEFAULT_PWM, PwmMap, throttle_from_pwm, throttle_to_pwm
 
 RAD = 180.0 / math.pi
@@ -53,11 +58,15 @@ class PlantLink:
         self.mav = new_codec(sysid, compid)
         self.fc_sysid = fc_sysid
         self.pwm = pwm
-        self._out = bytearray(512)
+        self._out = bytearray(max(512, SENSOR_FRAME_MAX_B))
         self._out_mv = memoryview(self._out)
+        self._out_np = np.frombuffer(self._out, dtype=np.uint8)     # the same memory
+        self._no_gnss = np.zeros(G_N)
         self._out_len = 0
         self._rxbuf = bytearray(2048)
         self._rx_mv = memoryview(self._rxbuf)
+        self._rx_np = np.frombuffer(self._rxbuf, dtype=np.uint8)    # the same memory
+        self._servo_rec = np.zeros(SV_N, dtype=np.int64)
         # latest accepted servo frame
         self.cmd_rad = [0.0, 0.0, 0.0]
         self.cmd_throttle = -1.0    # servo4 as throttle 0..1; -1 until a frame carries it
@@ -72,7 +81,6 @@ class PlantLink:
         self.rejected_sysid = 0
         self.ignored_messages = 0
         self.send_errors = 0
-        self._servo_decoder = ServoDecoder()
         self.lean = True
         self.lean = self._self_check()     # False: use the codec's message objects throughout
 
@@ -96,9 +104,17 @@ class PlantLink:
             self._build_with_codec(stamp_us, meas, throttle_pct, gnss)
             return
         mav = self.mav
-        pos, frames = _SENSOR_FRAMER.pack_into(self._out, self._out_mv, mav.seq, mav.srcSystem,
-                                               mav.srcComponent, stamp_us, meas, throttle_pct,
-                                               gnss)
+        # compiled framing (hyfc_wire.frame_kernels.sensor_frame, the same bytes); a value the
+        # codec's struct refuses (-1) goes through the Python framer, which raises as before
+        pos = sensor_frame(self._out_np, mav.seq, mav.srcSystem, mav.srcComponent, stamp_us,
+                           meas, throttle_pct, self._no_gnss if gnss is None else gnss,
+                           gnss is not None)
+        if pos >= 0:
+            frames = 3 if gnss is None else 4
+        else:
+            pos, frames = _SENSOR_FRAMER.pack_into(self._out, self._out_mv, mav.seq,
+                                                   mav.srcSystem, mav.srcComponent, stamp_us,
+                                                   meas, throttle_pct, gnss)
         mav.seq = (mav.seq + frames) & 0xFF
         self._out_len = pos
 
@@ -120,7 +136,6 @@ class PlantLink:
 
     def _self_check(self) -> bool:
         """The lean packer and decoder give the codec's bytes and values (start-up check)."""
-        import numpy as np
         meas = np.array([0.0, 0.1, -0.2, 3.0, 0.01, -0.02, 0.0, 0.05, -0.01, 2200.0, 21000.0,
                          -1.5, 2199.0, 6.1])
         gnss = np.array([0.0, 34.9054321, -117.8839876, 21000.5, 2199.5, -3.25, 1.5, 3.0, 12.0,
@@ -138,7 +153,7 @@ class PlantLink:
                 return False
         m = new_codec(self.fc_sysid)
         frame = m.servo_output_raw_encode(987654, 0, 1234, 1766, 0, 1500, 0, 0, 0, 0).pack(m)
-        got = self._decode_servo_fast(frame, len(frame))
+        got = self.decode_servo(frame)
         return got == (self.fc_sysid, 987654, 1234, 1766, 0, 1500)
 
     def send_sensors(self) -> bool:
@@ -207,7 +222,7 @@ class PlantLink:
             if addr[0] != self.fc_addr[0] or addr[1] != self.fc_addr[1]:
                 self.rejected_source += 1
                 continue
-            fast = self._decode_servo_fast(self._rxbuf, n) if self.lean else None
+            fast = self._decode_servo_fast(self._rx_np, n) if self.lean else None
             if fast is not None:
                 sysid, stamp, s1, s2, s3, s4 = fast
                 if sysid != self.fc_sysid:
@@ -274,12 +289,22 @@ class PlantLink:
     def decode_servo(self, data) -> tuple | None:
         """(sysid, time_usec, servo1, servo2, servo3, servo4) of a one-frame SERVO_OUTPUT_RAW
         datagram (lean path), or None if the datagram needs the general parser."""
-        return self._decode_servo_fast(data, len(data))
+        n = len(data)
+        if n > len(self._rxbuf):
+            return None
+        buf = np.empty(len(self._rxbuf), dtype=np.uint8)   # writable: the kernel's one signature
+        buf[:n] = np.frombuffer(data, dtype=np.uint8)
+        return self._decode_servo_fast(buf, n)
 
     def _decode_servo_fast(self, buf, n: int):
-        """(sysid, time_usec, servo1..4) of a datagram that is exactly one good unsigned
-        SERVO_OUTPUT_RAW, else None (the caller takes the general parser, which counts)."""
-        return self._servo_decoder.decode(buf, n)
+        """(sysid, time_usec, servo1..4) of a datagram (``buf``: uint8 array) that is exactly
+        one good unsigned SERVO_OUTPUT_RAW, else None (the caller takes the general parser,
+        which counts). Compiled: ``hyfc_wire.frame_kernels.decode_servo``."""
+        r = self._servo_rec
+        if not decode_servo(buf, n, r):
+            return None
+        return (int(r[SV_SYSID]), int(r[SV_TIME_USEC]), int(r[SV_SERVO1]),
+                int(r[SV_SERVO1 + 1]), int(r[SV_SERVO1 + 2]), int(r[SV_SERVO1 + 3]))
 
     def counters(self) -> dict:
         return {

@@ -46,9 +46,14 @@ def compile_plant() -> tuple[int, int]:
     """The plant process's warm-up on the paper scenario. Returns (loaded, compiled) of
     ``plant_sim``."""
     from hyfc_wire.numba_cache import kernel_stats
+    from hyfc_wire.pwm import DEFAULT_PWM
+    from plant_sim.link import PlantLink
     from plant_sim.scenario import load
     from plant_sim.sim import PlantSim
     PlantSim(load("paper")).warm_up()
+    # the link's start-up check runs its compiled framing and servo decoding
+    # (hyfc_wire.frame_kernels.sensor_frame, decode_servo) with the signatures of the run
+    PlantLink(("127.0.0.1", 9), ("127.0.0.1", 0), DEFAULT_PWM).close()
     return kernel_stats(("plant_sim",))
 
 
