@@ -14,6 +14,7 @@ import nothing of ours but themselves (the wire contract: adding it is one line,
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -118,6 +119,14 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> list[tuple[st
 def _defines(path: Path, name: str) -> bool:
     """Whether the module at ``path`` binds ``name`` at module level (def, class, assignment,
     import; also inside a module-level ``try``/``if``/``with``), or star-imports anything."""
+    names, star = _module_bindings(path)
+    return star or name in names
+
+
+@functools.lru_cache(maxsize=None)
+def _module_bindings(path: Path) -> tuple[frozenset, bool]:
+    """(names bound at module level, whether the module star-imports) of the file at ``path``:
+    parsed once per file (each module's imports ask it name by name)."""
     def stmts(body):
         for node in body:
             yield node
@@ -126,21 +135,24 @@ def _defines(path: Path, name: str) -> bool:
                     yield from stmts(getattr(node, field, []) or [])
 
     tree = ast.parse(path.read_text(), filename=str(path))
+    names: set[str] = set()
+    star = False
     for node in stmts(tree.body):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) \
-                and node.name == name:
-            return True
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
         if isinstance(node, (ast.Import, ast.ImportFrom)):
-            if any(a.name == "*" or (a.asname or a.name.split(".")[0]) == name
-                   for a in node.names):
-                return True
+            for a in node.names:
+                if a.name == "*":
+                    star = True
+                else:
+                    names.add(a.asname or a.name.split(".")[0])
         targets = node.targets if isinstance(node, ast.Assign) else \
             [node.target] if isinstance(node, (ast.AnnAssign, ast.AugAssign)) else []
         for t in targets:
             for n in ast.walk(t):
-                if isinstance(n, ast.Name) and n.id == name:
-                    return True
-    return False
+                if isinstance(n, ast.Name):
+                    names.add(n.id)
+    return frozenset(names), star
 
 
 def unresolved_imports(modules: dict[str, Path]) -> list[str]:
