@@ -22,8 +22,7 @@ import socket
 import numpy as np
 
 from hyfc_wire.codec import mavlink, new_codec, reset_parser
-from hyfc_wire.frame_kernels import (SENSOR_FRAME_MAX_B, SV_N, SV_SERVO1, SV_SYSID, SV_TIME_USEC,
-                                     decode_servo, sensor_frame)
+from hyfc_wire.frame_kernels import SENSOR_FRAME_MAX_B, SV_N, decode_servo, sensor_frame
 from hyfc_wire.framing import GPS_HDOP, HDR2, U32, SensorFramer, ServoPacker
 from hyfc_wire.layout import G_N
 from hyfc_wire.pwm import DEFAULT_PWM, PwmMap, throttle_from_pwm, throttle_to_pwm
@@ -67,6 +66,7 @@ class PlantLink:
         self._rx_mv = memoryview(self._rxbuf)
         self._rx_np = np.frombuffer(self._rxbuf, dtype=np.uint8)    # the same memory
         self._servo_rec = np.zeros(SV_N, dtype=np.int64)
+        self._scratch_np = np.zeros(len(self._rxbuf), dtype=np.uint8)  # decode_servo(data)
         # latest accepted servo frame
         self.cmd_rad = [0.0, 0.0, 0.0]
         self.cmd_throttle = -1.0    # servo4 as throttle 0..1; -1 until a frame carries it
@@ -222,7 +222,7 @@ class PlantLink:
             if addr[0] != self.fc_addr[0] or addr[1] != self.fc_addr[1]:
                 self.rejected_source += 1
                 continue
-            fast = self._decode_servo_fast(self._rx_np, n) if self.lean else None
+            fast = self.decode_rx(n) if self.lean else None
             if fast is not None:
                 sysid, stamp, s1, s2, s3, s4 = fast
                 if sysid != self.fc_sysid:
@@ -290,11 +290,22 @@ class PlantLink:
         """(sysid, time_usec, servo1, servo2, servo3, servo4) of a one-frame SERVO_OUTPUT_RAW
         datagram (lean path), or None if the datagram needs the general parser."""
         n = len(data)
-        if n > len(self._rxbuf):
+        if n > len(self._scratch_np):
             return None
-        buf = np.empty(len(self._rxbuf), dtype=np.uint8)   # writable: the kernel's one signature
+        buf = self._scratch_np            # writable, preallocated: the kernel's one signature
         buf[:n] = np.frombuffer(data, dtype=np.uint8)
         return self._decode_servo_fast(buf, n)
+
+    def decode_rx(self, n: int):
+        """``decode_servo`` of the first ``n`` bytes of the receive buffer (where the drain's
+        ``recvfrom_into`` puts each datagram; ``put_rx`` for a benchmark): no copy."""
+        return self._decode_servo_fast(self._rx_np, n)
+
+    def put_rx(self, data) -> int:
+        """Place ``data`` in the receive buffer as a receive would (benchmarks); its length."""
+        n = len(data)
+        self._rx_np[:n] = np.frombuffer(data, dtype=np.uint8)
+        return n
 
     def _decode_servo_fast(self, buf, n: int):
         """(sysid, time_usec, servo1..4) of a datagram (``buf``: uint8 array) that is exactly
@@ -303,8 +314,7 @@ class PlantLink:
         r = self._servo_rec
         if not decode_servo(buf, n, r):
             return None
-        return (int(r[SV_SYSID]), int(r[SV_TIME_USEC]), int(r[SV_SERVO1]),
-                int(r[SV_SERVO1 + 1]), int(r[SV_SERVO1 + 2]), int(r[SV_SERVO1 + 3]))
+        return tuple(r.tolist())       # (sysid, time_usec, servo1..4): the SV_* order
 
     def counters(self) -> dict:
         return {

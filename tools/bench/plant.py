@@ -69,7 +69,7 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
     link = PlantLink(("127.0.0.1", resp.addr[1]), ("127.0.0.1", 0), pwm)
     row = np.zeros(sim.TRUTH_N)
     cmd = np.zeros(3)
-    servo = resp.servo_frame(0, (1510, 1490, 1500))
+    n_servo = link.put_rx(resp.servo_frame(0, (1510, 1490, 1500)))  # as recvfrom_into leaves it
     res = []
     x = sim.x
     for _ in range(batches):
@@ -78,7 +78,7 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
         t = time.perf_counter()
         for k in range(frames):
             link.build_sensors(k * 2000, sim.last_meas, x[dy.X_THRUST] * 1e-4)
-            _, _, s1, s2, s3, _ = link.decode_servo(servo)
+            _, _, s1, s2, s3, _ = link.decode_rx(n_servo)
             cmd[0] = pwm.to_rad(s1)
             cmd[1] = pwm.to_rad(s2)
             cmd[2] = pwm.to_rad(s3)
