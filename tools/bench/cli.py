@@ -534,6 +534,7 @@ SUBCOMMANDS = {
     "fc-timing": "tools.bench.fc_timing",  # the fc's real-time tick lateness per fast rate
     "campaign": "tools.bench.campaign",  # Monte Carlo campaign wall time per worker count
     "profile": "tools.bench.profile",    # where the fc's CPU per plant frame goes (issue 16)
+    "treerss": "tools.bench.treerss",    # a command's process tree's memory, sampled (issue 24)
 }
 
 
