@@ -19,7 +19,7 @@ import math
 
 from numba import njit
 
-from fc.control.layout import (NM_GCO, S_ALLOC_RATE, S_ALLOC_SCALE, S_M_UNALLOC, S_SAT,
+from fc.control.layout import (NM_GCO, NM_GFD, S_ALLOC_RATE, S_ALLOC_SCALE, S_M_UNALLOC, S_SAT,
                                S_SAT_ANY, X_DCMD, X_DM)
 from fc.control.linalg3 import clip, matvec3, solve3
 from fc.control.options import (ALLOC_PRIO, ALLOC_SCALE, SURF_INTERCONNECT, SURF_LITERAL,
@@ -204,7 +204,11 @@ def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
             ixx = par[P_MDL_IXX]
             iyy = par[P_MDL_IYY]
             izz = par[P_MDL_IZZ]
-            d0, d1, d2 = prioritised(nm, NM_GCO, e_int, mc0, mc1, mc2,
+            # the re-solve delivers the loops' moment M_c in the physical effectiveness
+            # g_f_delta: with the surfaces short, the coordinated matrix's reshaping
+            # (g_Gamma = g_f_delta + the factors, Eq. 45) is not kept (docs/control_law.md
+            # s. 13: it let alpha overshoot 11-34 % at Mach 12-14 / 24-27 km)
+            d0, d1, d2 = prioritised(nm, NM_GFD, e_int, mc0, mc1, mc2,
                                      par[P_ALLOC_W] / (ixx * ixx),
                                      par[P_ALLOC_W + 1] / (iyy * iyy),
                                      par[P_ALLOC_W + 2] / (izz * izz), limit_rad, d0, d1, d2)

@@ -235,12 +235,17 @@ def _weighted_shortfall(law, G, mc, delta):
 @pytest.mark.parametrize("mc", [(2.0e7, -1.0e7, 8.0e6), (-3.0e6, 4.0e7, -2.0e7),
                                 (1.0e6, -2.0e6, 3.0e7)], ids=["roll", "pitch", "yaw"])
 def test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest(mc):
-    """ALLOC_MODE 2 (the default): the surface furthest beyond its limit is held at the limit,
-    the free ones solve the weighted least squares of the shortfall (their gradient is 0),
-    and the weighted shortfall is no larger than scaling's or clipping's."""
+    """ALLOC_MODE 2 (the default): the surface furthest beyond its limit in the coordinated
+    allocation g_Gamma^-1 M_c is held at the limit, the free ones solve the weighted least
+    squares of the *physical* shortfall g_f_delta delta - M_c (their gradient is 0; with the
+    surfaces short the coordinated reshaping is not kept, docs/control_law.md s. 13), and that
+    weighted shortfall is no larger than scaling's or clipping's. The unallocated moment is
+    reported in the coordinated matrix's terms, as in the other modes."""
     law, _ = _alloc_setup(coordinated=True, surf=0)
     assert law.get_param("ALLOC_MODE") == 2
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
+    Gf = law.nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3)
+    assert not np.allclose(G, Gf)                       # the factors are acting
     mc = np.array(mc)
     raw = np.linalg.solve(G, mc)
     assert np.max(np.abs(raw)) > 20 * DEG
@@ -251,10 +256,10 @@ def test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest
     assert np.all(np.abs(delta) <= lim * (1 + 1e-12))
     held = np.isclose(np.abs(delta), lim, rtol=1e-12)
     assert held[np.argmax(np.abs(raw))], "the worst surface is held at its limit"
-    j, w = _weighted_shortfall(law, G, mc, delta)
+    j, w = _weighted_shortfall(law, Gf, mc, delta)
     free = ~held
-    grad = G.T @ (w * (G @ delta - mc))
-    ref = np.abs(G.T) @ (w * (np.abs(G) @ np.abs(delta) + np.abs(mc)))
+    grad = Gf.T @ (w * (Gf @ delta - mc))
+    ref = np.abs(Gf.T) @ (w * (np.abs(Gf) @ np.abs(delta) + np.abs(mc)))
     assert np.all(np.abs(grad[free]) <= 1e-9 * ref[free])
     np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ delta,
                                rtol=1e-9, atol=1e-3)
@@ -263,7 +268,7 @@ def test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest
         law.set_param("ALLOC_MODE", mode)
         other = np.zeros(3)
         K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, other, law.status)
-        assert j <= _weighted_shortfall(law, G, mc, other)[0] * (1 + 1e-9), mode
+        assert j <= _weighted_shortfall(law, Gf, mc, other)[0] * (1 + 1e-9), mode
 
 
 def test_prioritised_allocation_serves_the_yaw_axis_first():
@@ -286,15 +291,16 @@ def test_prioritised_allocation_serves_the_yaw_axis_first():
     assert out["prio"] < out["equal"] and out["prio"] < out["scale"], out
 
 
-@pytest.mark.parametrize("mc", [(2.0e7, -1.0e7, 8.0e6), (1.0e6, -2.0e6, 3.0e7)],
+@pytest.mark.parametrize("mc", [(1.2e7, -6.0e6, 4.8e6), (6.0e5, -1.2e6, 1.8e7)],
                          ids=["roll", "yaw"])
 def test_prioritised_allocation_with_the_interconnect_stays_within_limits(mc):
     """CO_SURF 1 (Eq. 47 interconnect, u1 = d1 - E d2): the limits hold on the surfaces after
     Eq. 47, the unallocated moment is reported in the allocation's variables, and the free
-    surfaces are optimal for the matrix acting on the surfaces, G_d = G T^-1."""
+    surfaces are optimal for the physical matrix acting on the surfaces, G_d = g_f_delta T^-1."""
     law, _ = _alloc_setup(coordinated=True, surf=1)
     assert law.get_param("ALLOC_MODE") == 2
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3)
+    Gf = law.nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3)
     mc = np.array(mc)
     delta = np.zeros(3)
     e = 0.7
@@ -306,8 +312,8 @@ def test_prioritised_allocation_with_the_interconnect_stays_within_limits(mc):
     np.testing.assert_allclose(law.status[L.S_M_UNALLOC:L.S_M_UNALLOC + 3], mc - G @ u,
                                rtol=1e-9, atol=1e-3)
     t_inv = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -e], [0.0, 0.0, 1.0]])
-    gd = G @ t_inv
-    _, w = _weighted_shortfall(law, G, mc, delta)
+    gd = Gf @ t_inv
+    _, w = _weighted_shortfall(law, Gf, mc, delta)
     free = ~np.isclose(np.abs(delta), lim, rtol=1e-12)
     assert free.any()
     grad = gd.T @ (w * (gd @ delta - mc))
@@ -645,13 +651,15 @@ def test_allocator_properties_hypothesis():
 
 
 def test_prioritised_allocator_properties_hypothesis():
-    """ALLOC_MODE 2, any moment demand: |delta| <= limit; exact where within the limits; the
-    surfaces not at a limit leave no weighted shortfall to gain (gradient 0); the weighted
-    shortfall is no larger than scaling's."""
+    """ALLOC_MODE 2, any moment demand: |delta| <= limit; exact (g_Gamma^-1 M_c) where within
+    the limits; beyond them the surfaces not at a limit leave no weighted physical shortfall
+    (g_f_delta delta - M_c) to gain (gradient 0), and that shortfall is no larger than
+    scaling's."""
     from hypothesis import given, settings, strategies as st_
 
     law, _ = _alloc_setup(coordinated=True, surf=0)
     G = law.nm[L.NM_GCO:L.NM_GCO + 9].reshape(3, 3).copy()
+    Gf = law.nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3).copy()
     lim = 20 * DEG
     delta = np.zeros(3)
     other = np.zeros(3)
@@ -668,14 +676,14 @@ def test_prioritised_allocator_properties_hypothesis():
         if sat == 0.0:
             np.testing.assert_allclose(delta, raw, rtol=1e-9, atol=1e-12)
             return
-        j, w = _weighted_shortfall(law, G, mc, delta)
+        j, w = _weighted_shortfall(law, Gf, mc, delta)
         free = ~np.isclose(np.abs(delta), lim, rtol=1e-12)
-        grad = G.T @ (w * (G @ delta - mc))
-        ref = np.abs(G.T) @ (w * (np.abs(G) @ np.abs(delta) + np.abs(mc)))
+        grad = Gf.T @ (w * (Gf @ delta - mc))
+        ref = np.abs(Gf.T) @ (w * (np.abs(Gf) @ np.abs(delta) + np.abs(mc)))
         assert np.all(np.abs(grad[free]) <= 1e-8 * ref[free])
         law.set_param("ALLOC_MODE", 1)
         K.allocate(law.par, law.nm, m0, m1, m2, 0.7, other, law.status)
-        assert j <= _weighted_shortfall(law, G, mc, other)[0] * (1 + 1e-9) + 1e-30
+        assert j <= _weighted_shortfall(law, Gf, mc, other)[0] * (1 + 1e-9) + 1e-30
 
     check()
 
