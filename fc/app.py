@@ -27,7 +27,8 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.frame_calls import ArrayAddress, address_of, surfaces_pwm_p
+from fc.frame_calls import (ArrayAddress, address_of, surfaces_pwm_p,
+                            surfaces_throttle_pwm_p)
 from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
@@ -156,6 +157,10 @@ class FlightController:
         self._src_at = ArrayAddress(np.float64, 3)
         self._delta_p = address_of(self.out.delta_rad, np.float64, 3)
         self._pwm_p = address_of(self.out.pwm_us, np.int64, 4)
+        # the guidance modes' output kernel loaded now, not in the first tick that flies one
+        spare = (np.zeros(3), np.zeros(3), np.full(1, 0.5), np.zeros(4, np.int64))
+        surfaces_throttle_pwm_p(*(address_of(a, a.dtype, a.size) for a in spare[:3]), True,
+                                address_of(spare[3], np.int64, 4))
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -395,8 +400,11 @@ class FlightController:
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        surfaces_pwm_p(self._src_at.of(src), self._delta_p,
-                       self.guid.throttle_pwm() if modes.guidance_active else 0, self._pwm_p)
+        if modes.guidance_active:
+            surfaces_throttle_pwm_p(self._src_at.of(src), self._delta_p,
+                                    self.guid.throttle_addr, self.guid.engaged, self._pwm_p)
+        else:
+            surfaces_pwm_p(self._src_at.of(src), self._delta_p, 0, self._pwm_p)
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets

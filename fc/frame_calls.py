@@ -22,7 +22,7 @@ import hyfc_wire.frame_kernels as _frame_kernels
 import hyfc_wire.layout as _wire_layout
 import hyfc_wire.pwm as _pwm
 from fc.control.carrays import ArrayAddress, address_of, f8p, i8p, u8p
-from hyfc_wire.frame_kernels import decode_sensor, servo_frame, surfaces_pwm
+from hyfc_wire.frame_kernels import decode_sensor, servo_frame, surfaces_pwm, throttle_pwm
 from hyfc_wire.numba_cache import drop_stale
 
 # the entries below compile the frame kernels (and their constants) into their own cache
@@ -30,7 +30,7 @@ drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout._
                       _pwm.__file__, _codec.__file__])
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
-           "blend3_p", "f8p", "i8p", "u8p"]
+           "surfaces_throttle_pwm_p", "blend3_p", "f8p", "i8p", "u8p"]
 
 
 @njit(cache=True)
@@ -56,6 +56,16 @@ def surfaces_pwm_p(src, delta, throttle_pwm_us, pwm):
     ``delta`` and int64[4] ``pwm`` (us), all given by address."""
     surfaces_pwm(carray(f8p(src), (3,)), carray(f8p(delta), (3,)), throttle_pwm_us,
                  carray(i8p(pwm), (4,)))
+
+
+@njit(cache=True)
+def surfaces_throttle_pwm_p(src, delta, thr, engaged, pwm):
+    """:func:`surfaces_pwm_p` with servo4 = ``throttle_pwm`` of the float64 at ``thr`` (the
+    guidance's throttle command, 0..1) when ``engaged``, else 0 (no output): the guidance
+    modes' output without a Python value per tick (``throttle_to_pwm`` made 13 Python objects
+    of the numpy scalar)."""
+    t = throttle_pwm(carray(f8p(thr), (1,))[0]) if engaged else 0
+    surfaces_pwm(carray(f8p(src), (3,)), carray(f8p(delta), (3,)), t, carray(i8p(pwm), (4,)))
 
 
 @njit(cache=True)

@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from fc.control.carrays import address_of
 from fc.control.layout import ATM_N, ATM_RHO, E_GAMMA, E_H, E_N, E_V
 from fc.control.nominal import interp_atmosphere
 from fc.guidance import layout as G
@@ -59,6 +60,12 @@ class GuidanceRunner:
         self.gest = np.zeros(E_N)
         self.chi_rad = 0.0
         self.cmd_rad = self.g.out[0:3]  # a view: the kernel writes ``out`` in place
+        # the throttle command out[GO_THR] for the fast tick without a Python object per read:
+        # its address (the compiled output, fc/frame_calls.py) and ``out`` as a memoryview
+        # (a read gives a float, not a numpy scalar)
+        self.throttle_addr = (address_of(self.g.out, np.float64, G.GO_N)
+                              + G.GO_THR * self.g.out.itemsize)
+        self._out_mv = memoryview(self.g.out)
         self.limits = 0
         self._atm = np.zeros(ATM_N)
         #: (bearing to the waypoint rad, distance m, cross-track error m, + right of the leg)
@@ -162,7 +169,7 @@ class GuidanceRunner:
 
     def throttle(self) -> float:
         """The throttle command 0..1 (0 when not engaged)."""
-        return float(self.g.out[G.GO_THR]) if self.engaged else 0.0
+        return self._out_mv[G.GO_THR] if self.engaged else 0.0
 
     def throttle_pwm(self) -> int:
         """servo4 PWM (us) of the throttle command; 0 (no output) when not engaged."""

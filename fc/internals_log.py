@@ -72,17 +72,18 @@ class InternalsLog:
             self._free.put(np.zeros((chunk_rows, self.ncol)))
         self._full: queue.Queue = queue.Queue()
         self.chunk = self._free.get()
-        self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
-        self._row_b = self.ncol * 8        # bytes per row (C-contiguous float64 chunks)
+        #: the data address of ``chunk`` (C-contiguous float64[chunk_rows, ncol])
+        self.chunk_address = int(self.chunk.__array_interface__["data"][0])
         self._chunk_rows = chunk_rows
         self.n = 0
-        self.rows = 0
+        self._rows_before = 0      # rows taken in the chunks before ``chunk``
         self.dropped = 0           # rows not logged: no free buffer (the writer is behind)
         self.lost_rows = 0         # rows not written: the disk refused them
         self.decimated = 0         # rows not logged by choice: past full_rate_s, between tail rows
         self._full_us = None if full_rate_s is None else int(round(full_rate_s * 1e6))
         self._tail_us = max(1, int(round(1e6 / tail_hz)))
         self._t0_us: int | None = None
+        self._full_end_us = 0      # first stamp past the full-rate span (us), set at the first
         self._next_us = 0
         self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
         self._thread.start()
@@ -97,11 +98,16 @@ class InternalsLog:
         i = self._take(stamp_us)
         return None if i < 0 else self.chunk[i]
 
-    def row_address(self, stamp_us: int | None = None) -> int:
-        """:meth:`row` as the address of its float64[ncol] (0 for None), for a compiled filler
-        that takes addresses (fc/telemetry.py ``fill_row_p``: no array object per row)."""
-        i = self._take(stamp_us)
-        return 0 if i < 0 else self._chunk_addr + i * self._row_b
+    def row_index(self, stamp_us: int | None = None) -> int:
+        """:meth:`row` as its index in ``chunk`` (at ``chunk_address``; -1 for None), for a
+        compiled filler that takes addresses (fc/telemetry.py ``fill_row_p``: no array object
+        and no address int per row)."""
+        return self._take(stamp_us)
+
+    @property
+    def rows(self) -> int:
+        """Rows taken (filled) so far."""
+        return self._rows_before + self.n
 
     def _take(self, stamp_us: int | None) -> int:
         """Index in ``chunk`` of the next row, or -1 (see :meth:`row`)."""
@@ -117,11 +123,11 @@ class InternalsLog:
             except queue.Empty:
                 self.dropped += 1
                 return -1
-            self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
+            self.chunk_address = int(self.chunk.__array_interface__["data"][0])
+            self._rows_before += self.n
             self.n = 0
         i = self.n
         self.n = i + 1
-        self.rows += 1
         return i
 
     def _keep(self, stamp_us: int) -> bool:
@@ -129,11 +135,12 @@ class InternalsLog:
         then the first at or after each multiple of the tail period (from the first stamp)."""
         if self._t0_us is None:
             self._t0_us = stamp_us
-        since_us = stamp_us - self._t0_us
-        if since_us < self._full_us:
+            self._full_end_us = stamp_us + self._full_us
+        if stamp_us < self._full_end_us:     # stamp - t0 < full_us, without an int per row
             return True
         if stamp_us < self._next_us:
             return False
+        since_us = stamp_us - self._t0_us
         self._next_us = self._t0_us + (since_us // self._tail_us + 1) * self._tail_us
         return True
 

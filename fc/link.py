@@ -215,6 +215,8 @@ class PlantLink:
     _tx: bytearray = None           # the SERVO_OUTPUT_RAW frame being sent, and as uint8
     _tx_u8: np.ndarray = None
     _tx_mv: memoryview = None
+    _tx_views: tuple = ()           # _tx_mv[:n] for every frame length n (no slice per send)
+    _gps_raw_mv: memoryview = None  # _gps_raw as a memoryview (a read gives a float)
     # the compiled calls' arrays by address (fc/frame_calls.py: no numba array record per call)
     _rx_addr: int = 0
     _gps_raw_addr: int = 0
@@ -232,6 +234,8 @@ class PlantLink:
         self._tx = bytearray(SERVO_FRAME_MAX_B)
         self._tx_u8 = np.frombuffer(self._tx, np.uint8)
         self._tx_mv = memoryview(self._tx)
+        self._tx_views = tuple(self._tx_mv[:n] for n in range(SERVO_FRAME_MAX_B + 1))
+        self._gps_raw_mv = memoryview(self._gps_raw)
         self._rx_addr = ArrayAddress(np.uint8, MAX_DATAGRAM_B, self._rx_u8).addr
         self._gps_raw_addr = ArrayAddress(np.float64, GR_N, self._gps_raw).addr
         self._tx_addr = ArrayAddress(np.uint8, SERVO_FRAME_MAX_B, self._tx_u8).addr
@@ -288,8 +292,8 @@ class PlantLink:
             stamp = decode_sensor_p(self._rx_addr, MAX_DATAGRAM_B, n, self.plant_sysid,
                                     self._meas_at.of(meas_out), M_N, self._gps_raw_addr, GR_N)
             if stamp >= 0:
-                g = self._gps_raw
-                if g[GR_PRESENT]:
+                if self._gps_raw_mv[GR_PRESENT]:       # (no numpy scalar per frame)
+                    g = self._gps_raw
                     self._store_gps(stamp, int(g[GR_LAT_E7]), int(g[GR_LON_E7]), g[GR_ALT],
                                     g[GR_VN], g[GR_VE], g[GR_VD], int(g[GR_FIX]),
                                     int(g[GR_SATS]), g[GR_HACC_M], g[GR_VACC_M],
@@ -398,9 +402,11 @@ class PlantLink:
                 pwm_addr = self._pwm_at.of(pwm_us)
             except ValueError:          # not int64: converted as servo_frame would
                 pwm_addr = self._pwm_at.of(_pwm4(pwm_us))
-            buf = self._tx_mv[:servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
-                                             self._tx_codec.seq, self.sysid, self.compid,
-                                             stamp_us & 0xFFFFFFFF, pwm_addr)]
+            if stamp_us > 0xFFFFFFFF:   # (the kernel takes the low 32 bits of an int64)
+                stamp_us &= 0xFFFFFFFF
+            buf = self._tx_views[servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
+                                               self._tx_codec.seq, self.sysid, self.compid,
+                                               stamp_us, pwm_addr)]
         else:
             s4 = pwm_us[3] if len(pwm_us) > 3 else 0
             buf = self._tx_codec.servo_output_raw_encode(

@@ -78,12 +78,12 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(r, ncol, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
+def fill_row_p(chunk, i, ncol, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
                lateness_ns, exec_ns, status, status_n, n_status, throttle, limits, tgt):
-    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): the row
-    float64[ncol], meas float64[M_N], emem float64[EM_N], cmd/delta/tgt float64[3], status
-    float64[status_n]."""
-    fill_row(carray(f8p(r), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
+    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row ``i`` of
+    the float64[:, ncol] at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
+    float64[3], status float64[status_n]."""
+    fill_row(carray(f8p(chunk + i * ncol * 8), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
              armed, healthy, carray(f8p(emem), (EM_N,)), carray(f8p(cmd), (3,)),
              carray(f8p(delta), (3,)), lateness_ns, exec_ns, carray(f8p(status), (status_n,)),
              n_status, throttle, limits, carray(f8p(tgt), (3,)))
@@ -101,8 +101,12 @@ class _OneRow:
     def row(self, stamp_us: int | None = None) -> np.ndarray:
         return self._row
 
-    def row_address(self, stamp_us: int | None = None) -> int:
+    @property
+    def chunk_address(self) -> int:
         return address_of(self._row, np.float64, self._row.size)
+
+    def row_index(self, stamp_us: int | None = None) -> int:
+        return 0
 
 
 @dataclass
@@ -128,11 +132,11 @@ class FcCounters:
     fc_stalls: int = 0              # the fc's own loop stopped > FC_STALL_S (fc/loops.py)
     fc_stall_max_s: float = 0.0     # the longest of them, s (wall clock)
     gc_us: float = 0.0              # last 1 Hz garbage collection, us
-    exec_ns_sum: int = 0            # tick execution time since the last load figure, ns
+    exec_ns_sum: float = 0.0        # tick execution time since the last load figure, ns
     exec_n: int = 0
     load_permille: int = 0          # SYS_STATUS.load
 
-    def add_exec(self, ns: int) -> None:
+    def add_exec(self, ns: float) -> None:
         self.exec_ns_sum += ns
         self.exec_n += 1
 
@@ -265,21 +269,24 @@ class Telemetry:
                  "guid_tgt_V_m_s"]
         return cols
 
-    def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: int,
-                exec_ns: int, wall_s: float) -> None:
+    def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: float,
+                exec_ns: float, wall_s: float) -> None:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
-        frame's arrival, in real time the wake-up."""
+        frame's arrival, in real time the wake-up. ``lateness_ns``, ``exec_ns``: int or float
+        (the kernel takes floats: one specialisation, the same values)."""
         modes = self.modes
         st = self._status
         if st is not None:
-            # by address (fc/control/carrays.py): no array object nor numba record per row
-            ra = ilog.row_address(stamp_us)
-            if ra:
-                fill_row_p(ra, self._ncol, self._meas_at.of(meas), wall_s, float(stamp_us),
-                           int(modes.mode), modes.armed, self.est.healthy, self._emem_p,
-                           self._cmd_at.of(self.out.cmd_active), self._delta_p, lateness_ns,
-                           exec_ns, self._status_p, st.size, self._n_status,
+            # by address (fc/control/carrays.py): no array object nor numba record per row,
+            # and the row as an index (no address int per row)
+            i = ilog.row_index(stamp_us)
+            if i >= 0:
+                fill_row_p(ilog.chunk_address, i, self._ncol, self._meas_at.of(meas), wall_s,
+                           float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
+                           self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
+                           float(lateness_ns), float(exec_ns), self._status_p, st.size,
+                           self._n_status,
                            self.guid.throttle() if modes.guidance_active else math.nan,
                            self.guid.limits, self._tgt_p)
             return
