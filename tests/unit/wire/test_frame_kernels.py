@@ -62,12 +62,14 @@ def _both_paths(lk: PlantLink, data: bytes):
         lk._fast = fast
         lk.gps[:] = 0.0
         lk.gps_samples = 0
-        for f in lk.counters.__slots__:
+        names = [f for f in lk.counters.__slots__ if f != "hot"]
+        for f in names:
             setattr(lk.counters, f, 0)
+        lk.counters.hot[:] = 0
         meas = np.full(layout.M_N, -7.0)
         stamp = lk._decode(data, meas)
         out.append((stamp, meas.tobytes(), lk.gps.tobytes(),
-                    [getattr(lk.counters, f) for f in lk.counters.__slots__]))
+                    [getattr(lk.counters, f) for f in names] + lk.counters.hot.tolist()))
     lk._fast = True
     return out
 
