@@ -116,6 +116,26 @@ class PyAllocCounter:
         self.installed = False
 
 
+_MARK = None
+
+
+def _marker():
+    """``mark(counts, marks, k)``: ``marks[k] = counts[0] + counts[1]`` (the blocks counted so
+    far; both int64 arrays by address), compiled: the call makes no Python object."""
+    global _MARK
+    if _MARK is None:
+        from numba import carray, njit
+
+        from fc.control.carrays import i8p
+
+        @njit
+        def mark(counts, marks, k):
+            c = carray(i8p(counts), (4,))
+            carray(i8p(marks), (4,))[k] = c[0] + c[1]
+        _MARK = mark
+    return _MARK
+
+
 def _nrt_stats():
     from numba.core.runtime import rtsys
     return rtsys.get_allocation_stats()
@@ -180,47 +200,50 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
     try:
         rep.run(WARM_FRAMES)
         feed, drain = rep.feed, rep.drain
-        with PyAllocCounter() as counter:
-            c = counter.counts
-            # the window's own cost: two reads of the counter, nothing between
-            empty = 0
+        counter = PyAllocCounter()
+        # the windows' edges: a compiled call copies the count into ``marks[k]`` (no Python
+        # int is made inside a window: reading the ctypes counter from Python made one or two,
+        # depending on the values, so a window's own cost was not a constant)
+        marks = np.zeros(4, np.int64)
+        mark = _marker()
+        c_p, m_p = ctypes.addressof(counter.counts), marks.ctypes.data
+        fc = rep.rig.fc
+        plant, meas, loops = fc.plant, fc.meas_scratch, fc.loops
+        mark(c_p, m_p, 0)                   # (compiled or loaded before the count)
+        # per frame: the receive (read_frame), the frame (lockstep_frame), the housekeeping
+        # (ground station, .tlog streams, 1 Hz chores), as ``_Replay.step``
+        per = [[0, 0, 0] for _ in range(n)]
+        with counter:
+            empty = 0                       # the window's own cost: two marks, nothing between
             for _ in range(1000):
-                a = c[0] + c[1]
-                b = c[0] + c[1]
-                empty += b - a
+                mark(c_p, m_p, 0)
+                mark(c_p, m_p, 1)
+                empty += marks.item(1) - marks.item(0)
             read_cost = empty / 1000.0
-            fc = rep.rig.fc
-            plant, meas, loops = fc.plant, fc.meas_scratch, fc.loops
-            # per frame: the receive (read_frame), the frame (lockstep_frame), the
-            # housekeeping (ground station, .tlog streams, 1 Hz chores), as ``step``
-            per = [[0, 0, 0] for _ in range(n)]
             blocks0 = sys.getallocatedblocks()
             nrt0 = _nrt_stats()
             for k in range(n):
                 now = feed()
-                a = c[0] + c[1]
+                mark(c_p, m_p, 0)
                 st = plant.read_frame(meas)
-                b = c[0] + c[1]
+                mark(c_p, m_p, 1)
                 if st >= 0:
                     loops.lockstep_frame(st, now)
-                d = c[0] + c[1]
+                mark(c_p, m_p, 2)
                 loops.housekeeping(now, False)
-                e = c[0] + c[1]
+                mark(c_p, m_p, 3)
                 row = per[k]
-                row[0] = b - a
-                row[1] = d - b
-                row[2] = e - d
+                row[0] = marks.item(1) - marks.item(0)
+                row[1] = marks.item(2) - marks.item(1)
+                row[2] = marks.item(3) - marks.item(2)
                 drain()
             nrt1 = _nrt_stats()
             blocks1 = sys.getallocatedblocks()
-            realloc = c[2]
-        # a window's own cost is one block (the int of its closing read; ``read_cost``, the
-        # mean, is 0.99): a window that counted at most that allocated nothing
-        empty = int(round(read_cost))
+            realloc = counter.counts[2]
         parts = [sum(r[i] for r in per) / n - read_cost for i in range(3)]
-        net = sorted(max(0, sum(r) - 3 * empty) for r in per)
-        quiet = sum(1 for r in per if max(r) <= empty)
-        frame_free = sum(1 for r in per if r[0] <= empty and r[1] <= empty)
+        net = sorted(sum(r) for r in per)
+        quiet = sum(1 for r in per if not any(r))
+        frame_free = sum(1 for r in per if r[0] == 0 and r[1] == 0)
         py = sum(parts)
         return {"flight_mode": flight_mode, "frames": n,
                 "py_allocs_per_frame": py,
