@@ -93,12 +93,16 @@ class GuidanceRunner:
     def _inputs(self, est: np.ndarray, meas: np.ndarray) -> None:
         """``gest`` (the estimate, gamma from the climb rate) and ``chi_rad`` from a frame;
         a value that is not finite keeps the last good one."""
-        self.gest[:] = est
-        v = meas[M_AIRSPEED]
-        s = meas[M_CLIMB] / max(v, 1.0)
+        # Python floats (``item``), no numpy scalars, and no min/max (their argument
+        # iterator): the same operations on the same doubles, no object per step
+        np.copyto(self.gest, est)
+        v = meas.item(M_AIRSPEED)
+        s = meas.item(M_CLIMB) / (1.0 if 1.0 > v else v)           # / max(v, 1.0)
         if math.isfinite(s):
-            self.gest[E_GAMMA] = math.asin(min(max(s, -1.0), 1.0))
-        chi = course_from_air_data(meas[M_ROLL], meas[M_PITCH], meas[M_YAW], est[0], est[1])
+            s = -1.0 if -1.0 > s else s                              # max(s, -1.0)
+            self.gest[E_GAMMA] = math.asin(1.0 if 1.0 < s else s)    # min(., 1.0)
+        chi = course_from_air_data(meas.item(M_ROLL), meas.item(M_PITCH), meas.item(M_YAW),
+                                   est.item(0), est.item(1))
         if math.isfinite(chi):
             self.chi_rad = chi
 

@@ -19,7 +19,7 @@ import fc.control.carrays as _carrays
 import fc.estimator as _estimator
 import fc.guidance.layout as _guid_layout
 import hyfc_wire.layout as _wire_layout
-from fc.control.carrays import ArrayAddress, address_of, f8p
+from fc.control.carrays import ArrayAddress, address_of, f8p, i8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
@@ -78,11 +78,14 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(chunk, i, ncol, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
-               lateness_ns, exec_ns, status, status_n, n_status, throttle, limits, tgt):
+def fill_row_p(chunk, i, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
+               lateness_ns, exec_ns, status, throttle, limits, tgt):
     """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row ``i`` of
     the float64[:, ncol] at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
-    float64[3], status float64[status_n]."""
+    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status).
+    (Fewer than 20 arguments: CPython takes the call's argument tuple from its free list.)"""
+    d = carray(i8p(dims), (3,))
+    ncol, status_n, n_status = d[0], d[1], d[2]
     fill_row(carray(f8p(chunk + i * ncol * 8), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
              armed, healthy, carray(f8p(emem), (EM_N,)), carray(f8p(cmd), (3,)),
              carray(f8p(delta), (3,)), lateness_ns, exec_ns, carray(f8p(status), (status_n,)),
@@ -188,6 +191,10 @@ class Telemetry:
         self._delta_p = address_of(self._delta, np.float64, 3)
         self._tgt_p = address_of(self._tgt, np.float64, 3)
         self._status_p = address_of(st, np.float64, 0) if self._status is not None else 0
+        # the row kernel's sizes: (columns, the law's status length, status columns logged)
+        self._dims = np.array([self._ncol, st.size if self._status is not None else 0,
+                               self._n_status], np.int64)
+        self._dims_p = address_of(self._dims, np.int64, 3)
         # compile / load the row kernel now (the guidance's command array, which the tick
         # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
@@ -282,11 +289,10 @@ class Telemetry:
             # and the row as an index (no address int per row)
             i = ilog.row_index(stamp_us)
             if i >= 0:
-                fill_row_p(ilog.chunk_address, i, self._ncol, self._meas_at.of(meas), wall_s,
+                fill_row_p(ilog.chunk_address, i, self._dims_p, self._meas_at.of(meas), wall_s,
                            float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
                            self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
-                           float(lateness_ns), float(exec_ns), self._status_p, st.size,
-                           self._n_status,
+                           float(lateness_ns), float(exec_ns), self._status_p,
                            self.guid.throttle() if modes.guidance_active else math.nan,
                            self.guid.limits, self._tgt_p)
             return
