@@ -263,7 +263,7 @@ class RunLoops:
             return
         if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
             self.mode_ctl.sync()
-        n = self.planner.due(stamp * 1000)
+        n = self.planner.due_us(stamp)
         k = n
         while k:
             self.tick(self.planner.slow_due(), False)
