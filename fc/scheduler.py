@@ -151,6 +151,7 @@ _NEXT, _ANCHORED, _TICKS, _SKIPPED, _ST_N = 0, 1, 2, 3, 4
 #: beyond it (a u64 stamp from a faulty plant, x 1000) the same steps run on Python ints
 _SAFE_NS = 1 << 61
 _SAFE_US = _SAFE_NS // 1000
+_MIN_SAFE_NS, _MIN_SAFE_US = -_SAFE_NS, -_SAFE_US    # (bound once: ``-x`` makes an int)
 
 
 @njit(cache=True)
@@ -237,7 +238,7 @@ class TickPlanner:
         self._big_next = None
         if value is None:
             self._st[_ANCHORED] = 0
-        elif -_SAFE_NS < value < _SAFE_NS:
+        elif _MIN_SAFE_NS < value < _SAFE_NS:
             self._st[_NEXT] = value
             self._st[_ANCHORED] = 1
         else:
@@ -267,13 +268,13 @@ class TickPlanner:
         self.next_ns = t_ns
 
     def due(self, t_ns: int) -> int:
-        if self._big_next is None and -_SAFE_NS < t_ns < _SAFE_NS:
+        if self._big_next is None and _MIN_SAFE_NS < t_ns < _SAFE_NS:
             return _due_p(self._st_p, t_ns, self.period_ns, self.max_catchup)
         return self._due_py(t_ns)
 
     def due_us(self, t_us: int) -> int:
         """``due(t_us * 1000)`` (a frame stamp in us) without the product as a Python int."""
-        if self._big_next is None and -_SAFE_US < t_us < _SAFE_US:
+        if self._big_next is None and _MIN_SAFE_US < t_us < _SAFE_US:
             return _due_us_p(self._st_p, t_us, self.period_ns, self.max_catchup)
         return self._due_py(t_us * 1000)
 

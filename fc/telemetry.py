@@ -78,14 +78,16 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(chunk, i, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
-               lateness_ns, exec_ns, status, throttle, limits, tgt):
-    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row ``i`` of
-    the float64[:, ncol] at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
+def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd,
+               delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
+    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row
+    ``cursor[1]`` (fc/internals_log.py ``CUR_ROW`` of the int64 cursor) of the float64[:, ncol]
+    at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
     float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status).
     (Fewer than 20 arguments: CPython takes the call's argument tuple from its free list.)"""
     d = carray(i8p(dims), (3,))
     ncol, status_n, n_status = d[0], d[1], d[2]
+    i = carray(i8p(cursor), (2,))[1]
     fill_row(carray(f8p(chunk + i * ncol * 8), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
              armed, healthy, carray(f8p(emem), (EM_N,)), carray(f8p(cmd), (3,)),
              carray(f8p(delta), (3,)), lateness_ns, exec_ns, carray(f8p(status), (status_n,)),
@@ -108,8 +110,15 @@ class _OneRow:
     def chunk_address(self) -> int:
         return address_of(self._row, np.float64, self._row.size)
 
-    def row_index(self, stamp_us: int | None = None) -> int:
-        return 0
+    @property
+    def cursor_address(self) -> int:
+        return address_of(_ROW_0, np.int64, 2)
+
+    def take_row(self, stamp_us: int | None = None) -> bool:
+        return True
+
+
+_ROW_0 = np.zeros(2, np.int64)      # a cursor at row 0 (_OneRow's)
 
 
 @dataclass
@@ -287,9 +296,8 @@ class Telemetry:
         if st is not None:
             # by address (fc/control/carrays.py): no array object nor numba record per row,
             # and the row as an index (no address int per row)
-            i = ilog.row_index(stamp_us)
-            if i >= 0:
-                fill_row_p(ilog.chunk_address, i, self._dims_p, self._meas_at.of(meas), wall_s,
+            if ilog.take_row(stamp_us):
+                fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas), wall_s,
                            float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
                            self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
                            float(lateness_ns), float(exec_ns), self._status_p,

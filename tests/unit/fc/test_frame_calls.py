@@ -107,7 +107,8 @@ def test_frame_kernels_by_address_equal_the_array_entries():
     emem, cmd, delta, tgt = e1.mem, rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
     chunk, r2 = np.zeros((3, 50)), np.zeros(50)
     dims = np.array([50, st.size, 10], np.int64)
-    fill_row_p(_p(chunk), 1, _p(dims), _p(m1), 12.5, 3.0e6, 4, True, True, _p(emem), _p(cmd),
+    cursor = np.array([2, 1], np.int64)             # (rows taken, the row taken last)
+    fill_row_p(_p(chunk), _p(cursor), _p(dims), _p(m1), 12.5, 3.0e6, 4, True, True, _p(emem), _p(cmd),
                _p(delta), 1234.0, 5678.0, _p(st), 0.4, 3, _p(tgt))
     fill_row(r2, m1, 12.5, 3.0e6, 4, True, True, emem, cmd, delta, 1234, 5678, st, 10, 0.4, 3,
              tgt)
