@@ -49,6 +49,10 @@ from hyfc_wire.earth import EARTH_RADIUS_M
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
 ML = mavlink
+# the modes the tick compares with, bound once: looking a member up on the enum class makes a
+# Python object on every lookup (measured: tools.bench.allocs), and the tick runs per frame
+_CRUISE, _FAILSAFE = FlightMode.CRUISE, FlightMode.FAILSAFE
+_MISSION, _RTL, _GUIDED = FlightMode.MISSION, FlightMode.RTL, FlightMode.GUIDED
 
 
 @dataclass
@@ -373,7 +377,7 @@ class FlightController:
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
-                    pre = self._cruise_course if modes.mode == FlightMode.CRUISE else None
+                    pre = self._cruise_course if modes.mode == _CRUISE else None
                     if self.guid.tick(self.est.est, self.meas, pre):
                         self._navigate()
                     out.cmd_active = self.guid.cmd_rad
@@ -389,7 +393,7 @@ class FlightController:
                 self.log.exception("law raised: %r", exc)
                 self.mode_ctl.law_fault()
                 src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
-        elif modes.armed and modes.mode == FlightMode.FAILSAFE:
+        elif modes.armed and modes.mode == _FAILSAFE:
             # hold the trim the law flew (not the TRIM_* defaults: 0 deg while the cruise
             # trims at 5.4 / 5.4 / 0 deg), as the plant holds a silent fc's commands averaged
             src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
@@ -413,9 +417,9 @@ class FlightController:
         here only, and never as an exception (the navigators answer ``("hold", why)`` instead,
         fc/mission_mode.py)."""
         mode = self.modes.mode
-        if mode == FlightMode.MISSION:
+        if mode == _MISSION:
             self._nav_out(self.mission_flight.tick(self))
-        elif mode == FlightMode.RTL:
+        elif mode == _RTL:
             pf = self.point_flight
             if not pf.active or pf.stale(self):        # entered before the guidance engaged
                 reason = pf.start_home(self)
@@ -423,7 +427,7 @@ class FlightController:
                     self._nav_out([("hold", f"RTL cannot go home ({reason}): holding (CRUISE)")])
                     return
             self._nav_out(pf.tick(self))
-        elif mode == FlightMode.GUIDED and self.point_flight.active:
+        elif mode == _GUIDED and self.point_flight.active:
             self._nav_out(self.point_flight.tick(self))
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:
