@@ -244,6 +244,7 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
         net = sorted(sum(r) for r in per)
         quiet = sum(1 for r in per if not any(r))
         frame_free = sum(1 for r in per if r[0] == 0 and r[1] == 0)
+        hk_free = sum(1 for r in per if r[2] == 0)
         py = sum(parts)
         return {"flight_mode": flight_mode, "frames": n,
                 "py_allocs_per_frame": py,
@@ -253,6 +254,7 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
                 "py_allocs_frame_median": float(net[n // 2]),
                 "py_alloc_free_frames_pct": 100.0 * quiet / n,
                 "py_alloc_free_frame_paths_pct": 100.0 * frame_free / n,
+                "py_alloc_free_housekeeping_pct": 100.0 * hk_free / n,
                 "py_window_read_cost": read_cost,
                 "py_reallocs_total": int(realloc),
                 "nrt_allocs_per_frame": (nrt1.mi_alloc - nrt0.mi_alloc) / n,
@@ -263,8 +265,9 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
                         "run; _read / _frame / _housekeeping: read_frame, lockstep_frame, "
                         "housekeeping); alloc_free_frames: frames whose three calls allocated "
                         "nothing; alloc_free_frame_paths: frames whose read and frame allocated "
-                        "nothing (the housekeeping aside); nrt = numba NRT meminfo records "
-                        "(mi_alloc)"}
+                        "nothing (the housekeeping aside); alloc_free_housekeeping: frames "
+                        "whose housekeeping allocated nothing (no stream or chore due); nrt = "
+                        "numba NRT meminfo records (mi_alloc)"}
     finally:
         rep.close()
         if not stats_were_on:
