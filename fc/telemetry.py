@@ -145,18 +145,18 @@ class FcCounters:
     fc_stall_max_s: float = 0.0     # the longest of them, s (wall clock)
     gc_us: float = 0.0              # last 1 Hz garbage collection, us
     exec_ns_sum: float = 0.0        # tick execution time since the last load figure, ns
-    exec_n: int = 0
+    exec_n: float = 0.0             # ticks timed since then (a float: no int object per tick)
     load_permille: int = 0          # SYS_STATUS.load
 
     def add_exec(self, ns: float) -> None:
         self.exec_ns_sum += ns
-        self.exec_n += 1
+        self.exec_n += 1.0
 
     def roll_load(self, period_ns: int) -> None:
         """The 1 Hz load figure: mean tick execution time over the fast period."""
         if self.exec_n:
             self.load_permille = min(1000, int(1000 * self.exec_ns_sum / self.exec_n / period_ns))
-        self.exec_ns_sum = self.exec_n = 0
+        self.exec_ns_sum = self.exec_n = 0.0
 
 
 @dataclass
