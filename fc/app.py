@@ -27,7 +27,8 @@ from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.frame_calls import ArrayAddress, address_of, surfaces_pwm_p
+from fc.frame_calls import (ArrayAddress, address_of, surfaces_pwm_p,
+                            surfaces_throttle_pwm_p)
 from fc.link import M_N, PlantLink, UdpEndpoint, load_signing_key, mavlink
 from fc.mission import Mission
 from fc.mission_mode import MissionFlight
@@ -48,6 +49,10 @@ from hyfc_wire.earth import EARTH_RADIUS_M
 __all__ = ["FcConfig", "FlightController", "load_law_module"]
 
 ML = mavlink
+# the modes the tick compares with, bound once: looking a member up on the enum class makes a
+# Python object on every lookup (measured: tools.bench.allocs), and the tick runs per frame
+_CRUISE, _FAILSAFE = FlightMode.CRUISE, FlightMode.FAILSAFE
+_MISSION, _RTL, _GUIDED = FlightMode.MISSION, FlightMode.RTL, FlightMode.GUIDED
 
 
 @dataclass
@@ -156,6 +161,10 @@ class FlightController:
         self._src_at = ArrayAddress(np.float64, 3)
         self._delta_p = address_of(self.out.delta_rad, np.float64, 3)
         self._pwm_p = address_of(self.out.pwm_us, np.int64, 4)
+        # the guidance modes' output kernel loaded now, not in the first tick that flies one
+        spare = (np.zeros(3), np.zeros(3), np.full(1, 0.5), np.zeros(4, np.int64))
+        surfaces_throttle_pwm_p(*(address_of(a, a.dtype, a.size) for a in spare[:3]), True,
+                                address_of(spare[3], np.int64, 4))
         self.counters = FcCounters()
         self.modes = ModeManager()
 
@@ -368,7 +377,7 @@ class FlightController:
         elif modes.law_active and not self.mode_ctl.reset_pending:
             try:
                 if self.guid.engaged:
-                    pre = self._cruise_course if modes.mode == FlightMode.CRUISE else None
+                    pre = self._cruise_course if modes.mode == _CRUISE else None
                     if self.guid.tick(self.est.est, self.meas, pre):
                         self._navigate()
                     out.cmd_active = self.guid.cmd_rad
@@ -384,7 +393,7 @@ class FlightController:
                 self.log.exception("law raised: %r", exc)
                 self.mode_ctl.law_fault()
                 src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
-        elif modes.armed and modes.mode == FlightMode.FAILSAFE:
+        elif modes.armed and modes.mode == _FAILSAFE:
             # hold the trim the law flew (not the TRIM_* defaults: 0 deg while the cruise
             # trims at 5.4 / 5.4 / 0 deg), as the plant holds a silent fc's commands averaged
             src = self.mode_ctl.hold.hold_rad(self.settings.trim_rad)
@@ -395,8 +404,11 @@ class FlightController:
         # out.delta_rad = src and servo1..3 from it (compiled, deflection_to_pwm's rounding);
         # throttle only while the guidance flies (its last command held with the law); 0 = no
         # output otherwise (the plant keeps its throttle): the attitude modes' bytes unchanged
-        surfaces_pwm_p(self._src_at.of(src), self._delta_p,
-                       self.guid.throttle_pwm() if modes.guidance_active else 0, self._pwm_p)
+        if modes.guidance_active:
+            surfaces_throttle_pwm_p(self._src_at.of(src), self._delta_p,
+                                    self.guid.throttle_addr, self.guid.engaged, self._pwm_p)
+        else:
+            surfaces_pwm_p(self._src_at.of(src), self._delta_p, 0, self._pwm_p)
 
     def _navigate(self) -> None:
         """After a guidance step: the mission (MISSION), home (RTL) or a point (GUIDED) sets
@@ -405,9 +417,9 @@ class FlightController:
         here only, and never as an exception (the navigators answer ``("hold", why)`` instead,
         fc/mission_mode.py)."""
         mode = self.modes.mode
-        if mode == FlightMode.MISSION:
+        if mode == _MISSION:
             self._nav_out(self.mission_flight.tick(self))
-        elif mode == FlightMode.RTL:
+        elif mode == _RTL:
             pf = self.point_flight
             if not pf.active or pf.stale(self):        # entered before the guidance engaged
                 reason = pf.start_home(self)
@@ -415,7 +427,7 @@ class FlightController:
                     self._nav_out([("hold", f"RTL cannot go home ({reason}): holding (CRUISE)")])
                     return
             self._nav_out(pf.tick(self))
-        elif mode == FlightMode.GUIDED and self.point_flight.active:
+        elif mode == _GUIDED and self.point_flight.active:
             self._nav_out(self.point_flight.tick(self))
 
     def _event(self, text: str, severity: int = ML.MAV_SEVERITY_NOTICE) -> None:

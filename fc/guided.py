@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from fc.control.carrays import address_of
 from fc.control.layout import ATM_N, ATM_RHO, E_GAMMA, E_H, E_N, E_V
 from fc.control.nominal import interp_atmosphere
 from fc.guidance import layout as G
@@ -59,6 +60,12 @@ class GuidanceRunner:
         self.gest = np.zeros(E_N)
         self.chi_rad = 0.0
         self.cmd_rad = self.g.out[0:3]  # a view: the kernel writes ``out`` in place
+        # the throttle command out[GO_THR] for the fast tick without a Python object per read:
+        # its address (the compiled output, fc/frame_calls.py) and ``out`` as a memoryview
+        # (a read gives a float, not a numpy scalar)
+        self.throttle_addr = (address_of(self.g.out, np.float64, G.GO_N)
+                              + G.GO_THR * self.g.out.itemsize)
+        self._out_mv = memoryview(self.g.out)
         self.limits = 0
         self._atm = np.zeros(ATM_N)
         #: (bearing to the waypoint rad, distance m, cross-track error m, + right of the leg)
@@ -86,12 +93,16 @@ class GuidanceRunner:
     def _inputs(self, est: np.ndarray, meas: np.ndarray) -> None:
         """``gest`` (the estimate, gamma from the climb rate) and ``chi_rad`` from a frame;
         a value that is not finite keeps the last good one."""
-        self.gest[:] = est
-        v = meas[M_AIRSPEED]
-        s = meas[M_CLIMB] / max(v, 1.0)
+        # Python floats (``item``), no numpy scalars, and no min/max (their argument
+        # iterator): the same operations on the same doubles, no object per step
+        np.copyto(self.gest, est)
+        v = meas.item(M_AIRSPEED)
+        s = meas.item(M_CLIMB) / (1.0 if 1.0 > v else v)           # / max(v, 1.0)
         if math.isfinite(s):
-            self.gest[E_GAMMA] = math.asin(min(max(s, -1.0), 1.0))
-        chi = course_from_air_data(meas[M_ROLL], meas[M_PITCH], meas[M_YAW], est[0], est[1])
+            s = -1.0 if -1.0 > s else s                              # max(s, -1.0)
+            self.gest[E_GAMMA] = math.asin(1.0 if 1.0 < s else s)    # min(., 1.0)
+        chi = course_from_air_data(meas.item(M_ROLL), meas.item(M_PITCH), meas.item(M_YAW),
+                                   est.item(0), est.item(1))
         if math.isfinite(chi):
             self.chi_rad = chi
 
@@ -162,7 +173,7 @@ class GuidanceRunner:
 
     def throttle(self) -> float:
         """The throttle command 0..1 (0 when not engaged)."""
-        return float(self.g.out[G.GO_THR]) if self.engaged else 0.0
+        return self._out_mv[G.GO_THR] if self.engaged else 0.0
 
     def throttle_pwm(self) -> int:
         """servo4 PWM (us) of the throttle command; 0 (no output) when not engaged."""

@@ -28,10 +28,38 @@ import threading
 import zipfile
 
 import numpy as np
+from numba import carray, njit
 
+from fc.control.carrays import i8p
 from fc.storage import AppendFile, DiskHealth, atomic_write, open_for_write
 
 __all__ = ["InternalsLog", "load"]
+
+# the row cursor (int64[CUR_N], ``InternalsLog.cursor_address``), kept by compiled steps: no
+# Python int per row (issue 24)
+CUR_N_ROWS = 0          # rows taken in ``chunk``
+CUR_ROW = 1             # index in ``chunk`` of the row taken last
+CUR_DECIMATED = 2       # rows not logged by choice (``decimated``)
+CUR_N = 3
+
+
+@njit(cache=True)
+def _take_row_p(cur, chunk_rows):
+    """Take the next row of a chunk of ``chunk_rows`` (its index into ``cur[CUR_ROW]``); False
+    when the chunk is full."""
+    c = carray(i8p(cur), (CUR_N,))
+    if c[CUR_N_ROWS] >= chunk_rows:
+        return False
+    c[CUR_ROW] = c[CUR_N_ROWS]
+    c[CUR_N_ROWS] += 1
+    return True
+
+
+@njit(cache=True)
+def _count_p(cur, k):
+    """``cur[k] += 1``."""
+    carray(i8p(cur), (CUR_N,))[k] += 1
+
 
 NPZ_NAME = "fc_internals.npz"
 RAW_NAME = "fc_internals.raw"
@@ -72,17 +100,23 @@ class InternalsLog:
             self._free.put(np.zeros((chunk_rows, self.ncol)))
         self._full: queue.Queue = queue.Queue()
         self.chunk = self._free.get()
-        self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
-        self._row_b = self.ncol * 8        # bytes per row (C-contiguous float64 chunks)
+        #: the data address of ``chunk`` (C-contiguous float64[chunk_rows, ncol])
+        self.chunk_address = int(self.chunk.__array_interface__["data"][0])
         self._chunk_rows = chunk_rows
-        self.n = 0
-        self.rows = 0
+        self._cur = np.zeros(CUR_N, np.int64)    # the row cursor (CUR_*)
+        #: the data address of the row cursor (int64[CUR_N]): ``cur[CUR_ROW]`` is the row the
+        #: last :meth:`take_row` took (fc/telemetry.py ``fill_row_p`` reads it there)
+        self.cursor_address = int(self._cur.__array_interface__["data"][0])
+        self._rows_before = 0      # rows taken in the chunks before ``chunk``
         self.dropped = 0           # rows not logged: no free buffer (the writer is behind)
         self.lost_rows = 0         # rows not written: the disk refused them
-        self.decimated = 0         # rows not logged by choice: past full_rate_s, between tail rows
+        scratch = np.zeros(CUR_N, np.int64)     # the compiled steps loaded now, not per row
+        _take_row_p(int(scratch.__array_interface__["data"][0]), 1)
+        _count_p(int(scratch.__array_interface__["data"][0]), CUR_DECIMATED)
         self._full_us = None if full_rate_s is None else int(round(full_rate_s * 1e6))
         self._tail_us = max(1, int(round(1e6 / tail_hz)))
         self._t0_us: int | None = None
+        self._full_end_us = 0      # first stamp past the full-rate span (us), set at the first
         self._next_us = 0
         self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
         self._thread.start()
@@ -94,46 +128,59 @@ class InternalsLog:
         between two tail rows; without a stamp every row is kept).
         A full chunk goes to the writer on the next call (or ``flush``), after the caller has
         filled its last row."""
-        i = self._take(stamp_us)
-        return None if i < 0 else self.chunk[i]
+        if not self.take_row(stamp_us):
+            return None
+        return self.chunk[int(self._cur[CUR_ROW])]
 
-    def row_address(self, stamp_us: int | None = None) -> int:
-        """:meth:`row` as the address of its float64[ncol] (0 for None), for a compiled filler
-        that takes addresses (fc/telemetry.py ``fill_row_p``: no array object per row)."""
-        i = self._take(stamp_us)
-        return 0 if i < 0 else self._chunk_addr + i * self._row_b
-
-    def _take(self, stamp_us: int | None) -> int:
-        """Index in ``chunk`` of the next row, or -1 (see :meth:`row`)."""
+    def take_row(self, stamp_us: int | None = None) -> bool:
+        """:meth:`row` for a compiled filler that takes addresses (fc/telemetry.py
+        ``fill_row_p``: no array object and no int per row): True when a row was taken, at
+        index ``cursor[CUR_ROW]`` of ``chunk`` (at ``chunk_address``)."""
         if self._full_us is not None and stamp_us is not None and not self._keep(stamp_us):
-            self.decimated += 1
-            return -1
-        if self.n == self._chunk_rows or self.chunk is None:
+            _count_p(self.cursor_address, CUR_DECIMATED)
+            return False
+        if self.chunk is None or not _take_row_p(self.cursor_address, self._chunk_rows):
+            n = self.n
             if self.chunk is not None:
-                self._full.put((self.chunk, self.n))
+                self._full.put((self.chunk, n))
                 self.chunk = None
             try:
                 self.chunk = self._free.get_nowait()
             except queue.Empty:
                 self.dropped += 1
-                return -1
-            self._chunk_addr = int(self.chunk.__array_interface__["data"][0])
-            self.n = 0
-        i = self.n
-        self.n = i + 1
-        self.rows += 1
-        return i
+                return False
+            self.chunk_address = int(self.chunk.__array_interface__["data"][0])
+            self._rows_before += n
+            self._cur[CUR_N_ROWS] = 0
+            _take_row_p(self.cursor_address, self._chunk_rows)
+        return True
+
+    @property
+    def n(self) -> int:
+        """Rows taken in ``chunk``."""
+        return int(self._cur[CUR_N_ROWS])
+
+    @property
+    def rows(self) -> int:
+        """Rows taken (filled) so far."""
+        return self._rows_before + self.n
+
+    @property
+    def decimated(self) -> int:
+        """Rows not logged by choice: past full_rate_s, between tail rows."""
+        return int(self._cur[CUR_DECIMATED])
 
     def _keep(self, stamp_us: int) -> bool:
         """Is the row of this frame stamp (us) kept? Every one in the first ``full_rate_s``,
         then the first at or after each multiple of the tail period (from the first stamp)."""
         if self._t0_us is None:
             self._t0_us = stamp_us
-        since_us = stamp_us - self._t0_us
-        if since_us < self._full_us:
+            self._full_end_us = stamp_us + self._full_us
+        if stamp_us < self._full_end_us:     # stamp - t0 < full_us, without an int per row
             return True
         if stamp_us < self._next_us:
             return False
+        since_us = stamp_us - self._t0_us
         self._next_us = self._t0_us + (since_us // self._tail_us + 1) * self._tail_us
         return True
 

@@ -14,13 +14,18 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import select
+import socket
 import stat
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from fc.frame_calls import (ArrayAddress, address_of, decode_sensor_p, servo_frame_p,
-                            surfaces_pwm_p)
+from fc.frame_calls import (FAST_IO, HOT_DATAGRAMS, HOT_EMPTY_READS, HOT_FRAMES, HOT_N,
+                            HOT_OUTPUTS, IO_LEN, IO_N, RX_NONE, RX_OTHER, RX_REJECTED,
+                            SOCKADDR_IN_B, ArrayAddress, address_of, decode_sensor_p,
+                            recv_sensor_p, send_servo_p, servo_frame_p, surfaces_pwm_p)
 from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
 from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
                                      GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
@@ -149,18 +154,99 @@ def _lean_self_check(link: "PlantLink") -> bool:
         return False
 
 
+_LITTLE = sys.byteorder == "little"     # sockaddr_in's family is in host order
+
+
+def _libc_io_self_check(link: "PlantLink") -> bool:
+    """True if the compiled receive and answer (libc ``recvfrom``/``sendto``, fc/frame_calls.py)
+    work on this system as ``socket``'s calls do, on a pair of throw-away loopback sockets:
+    a datagram from an unknown source is handed back with its length and its source's
+    address; from the locked source it is decoded (the general parser's stamp and values);
+    the answer arrives as the codec's SERVO_OUTPUT_RAW; an empty socket reads nothing. Else the
+    link keeps ``socket``'s calls. (Also loads the two kernels before the first frame.)"""
+    a = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    b = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    saved = (link.peer, link._peer_sa_of, link.counters.hot.copy(), link._fd)
+    try:
+        for x in (a, b):
+            x.bind(("127.0.0.1", 0))
+            x.setblocking(False)
+        tx = new_codec(link.plant_sysid)
+        frame = (tx.attitude_encode(1234, 0.1, -0.2, 0.3, 0.01, -0.02, 0.0).pack(tx)
+                 + tx.aoa_ssa_encode(7_654_321, 2.5, -0.5).pack(tx)
+                 + tx.vfr_hud_encode(2200.0, 2190.0, 45, 0, 25000.0, -1.5).pack(tx))
+        want = np.zeros(M_N)
+        if link._decode_general(frame, want) != 7_654_321:
+            return False
+        link._fd = a.fileno()
+        link.peer = None
+        got = np.zeros(M_N)
+        if link._read_frame_compiled(got) != -1 or link.counters.empty_reads != saved[2][
+                HOT_EMPTY_READS] + 1:
+            return False
+        for locked in (False, True):
+            b.sendto(frame, a.getsockname())
+            select.select([a], [], [], 1.0)
+            link.peer = b.getsockname() if locked else None
+            link._bind_peer_sa()
+            code = recv_sensor_p(link._fd, link._rx_addr, MAX_DATAGRAM_B, link._sa_addr,
+                                 link._salen_addr, link._peer_sa_addr, locked, link.plant_sysid,
+                                 link._meas_at.of(got), M_N, link._gps_raw_addr, GR_N,
+                                 link._hot_at.of(link.counters.hot), link._io_addr)
+            if locked:
+                if code != 7_654_321 or not np.array_equal(got, want):
+                    return False
+            elif (code != RX_OTHER or int(link._io[IO_LEN]) != len(frame)
+                  or link._source() != b.getsockname()):
+                return False
+        link.peer = b.getsockname()
+        link._bind_peer_sa()
+        pwm = np.array([1000, 2000, 1500, 1420], np.int64)
+        if not send_servo_p(link._fd, link._tx_addr, SERVO_FRAME_MAX_B, 9, link.sysid,
+                            link.compid, 123456, link._pwm_at.of(pwm), link._peer_sa_addr,
+                            link._hot_at.of(link.counters.hot)):
+            return False
+        select.select([b], [], [], 1.0)
+        data, src = b.recvfrom(MAX_DATAGRAM_B)
+        c = new_codec(link.sysid, link.compid)
+        c.seq = 9
+        ref = c.servo_output_raw_encode(123456, 0, 1000, 2000, 1500, 1420, 0, 0, 0, 0).pack(c)
+        return data == ref and src == a.getsockname()
+    except Exception:  # noqa: BLE001 - any surprise: keep socket's calls
+        return False
+    finally:
+        link.peer, link._peer_sa_of, link._fd = saved[0], saved[1], saved[3]
+        link.counters.hot[:] = saved[2]
+        link._peer_sa[:] = 0
+        link._gps_raw[:] = 0.0
+        a.close()
+        b.close()
+
+
 def _pwm4(pwm_us) -> np.ndarray:
     """servo1..4 as int64[4] (servo4 0 = no output when ``pwm_us`` has three values)."""
     v = [int(x) for x in pwm_us[:4]]
     return np.array(v + [0] * (4 - len(v)), np.int64)
 
 
+def _hot_counter(i: int, doc: str) -> property:
+    """A counter kept in ``LinkCounters.hot[i]`` (read as an int, settable)."""
+    def get(self) -> int:
+        return int(self.hot[i])
+
+    def put(self, value: int) -> None:
+        self.hot[i] = value
+    return property(get, put, doc=doc)
+
+
 @dataclass(slots=True)
 class LinkCounters:
-    """Rejected and accepted input of the plant link (telemetry and fc.log)."""
+    """Rejected and accepted input of the plant link (telemetry and fc.log).
 
-    datagrams: int = 0
-    frames: int = 0               # complete sensor frames accepted
+    ``datagrams``, ``frames``, ``outputs`` and ``empty_reads`` live in the int64 array ``hot``,
+    which the compiled receive and answer count in (fc/frame_calls.py: no Python int per
+    frame); they read and assign as ints."""
+
     duplicates: int = 0           # frames with a stamp already answered (plant re-requests)
     rejected_sysid: int = 0       # from a system id other than the plant's
     rejected_addr: int = 0        # from another address than the first accepted one
@@ -168,9 +254,14 @@ class LinkCounters:
     rejected_incomplete: int = 0  # datagram without the ATTITUDE+AOA_SSA+VFR_HUD triple
     gnss: int = 0                 # GNSS samples (GPS_INPUT) accepted with a frame
     gnss_rejected: int = 0        # GNSS samples dropped: non-finite or out of range
-    outputs: int = 0
     relocks: int = 0              # new source address accepted after a data loss
     goodbyes: int = 0             # the plant said its run is over (docs/wire.md section 5)
+    hot: np.ndarray = field(default_factory=lambda: np.zeros(HOT_N, np.int64))
+
+    datagrams = _hot_counter(HOT_DATAGRAMS, "datagrams received")
+    frames = _hot_counter(HOT_FRAMES, "complete sensor frames accepted")
+    outputs = _hot_counter(HOT_OUTPUTS, "SERVO_OUTPUT_RAW sent")
+    empty_reads = _hot_counter(HOT_EMPTY_READS, "receives that found nothing (or failed)")
 
     @property
     def rejected(self) -> int:
@@ -215,12 +306,28 @@ class PlantLink:
     _tx: bytearray = None           # the SERVO_OUTPUT_RAW frame being sent, and as uint8
     _tx_u8: np.ndarray = None
     _tx_mv: memoryview = None
+    _tx_views: tuple = ()           # _tx_mv[:n] for every frame length n (no slice per send)
+    _gps_raw_mv: memoryview = None  # _gps_raw as a memoryview (a read gives a float)
     # the compiled calls' arrays by address (fc/frame_calls.py: no numba array record per call)
     _rx_addr: int = 0
     _gps_raw_addr: int = 0
     _tx_addr: int = 0
     _meas_at: ArrayAddress = None
     _pwm_at: ArrayAddress = None
+    _hot_at: ArrayAddress = None    # counters.hot
+    #: the receive and the answer call libc from compiled code (fc/frame_calls.py; their
+    #: start-up self-check passed, the socket is IPv4 and does not stamp arrivals)
+    _fast_io: bool = False
+    _fd: int = -1
+    _sa: np.ndarray = None          # the source of the last datagram (sockaddr_in bytes)
+    _salen: np.ndarray = None       # its length (uint32[1])
+    _peer_sa: np.ndarray = None     # ``peer`` as sockaddr_in bytes (zeros when None)
+    _peer_sa_of: tuple | None = None    # the ``peer`` that _peer_sa holds
+    _io: np.ndarray = None          # int64[IO_N]: the receive's length
+    _sa_addr: int = 0
+    _salen_addr: int = 0
+    _peer_sa_addr: int = 0
+    _io_addr: int = 0
 
     def __post_init__(self) -> None:
         self.gps = np.zeros(G_N)
@@ -232,45 +339,122 @@ class PlantLink:
         self._tx = bytearray(SERVO_FRAME_MAX_B)
         self._tx_u8 = np.frombuffer(self._tx, np.uint8)
         self._tx_mv = memoryview(self._tx)
+        self._tx_views = tuple(self._tx_mv[:n] for n in range(SERVO_FRAME_MAX_B + 1))
+        self._gps_raw_mv = memoryview(self._gps_raw)
         self._rx_addr = ArrayAddress(np.uint8, MAX_DATAGRAM_B, self._rx_u8).addr
         self._gps_raw_addr = ArrayAddress(np.float64, GR_N, self._gps_raw).addr
         self._tx_addr = ArrayAddress(np.uint8, SERVO_FRAME_MAX_B, self._tx_u8).addr
         self._meas_at = ArrayAddress(np.float64, M_N)
         self._pwm_at = ArrayAddress(np.int64, 4)
+        self._hot_at = ArrayAddress(np.int64, HOT_N)
+        self._sa = np.zeros(SOCKADDR_IN_B, np.uint8)
+        self._salen = np.zeros(1, np.uint32)
+        self._peer_sa = np.zeros(SOCKADDR_IN_B, np.uint8)
+        self._io = np.zeros(IO_N, np.int64)
+        self._sa_addr = address_of(self._sa, np.uint8, SOCKADDR_IN_B)
+        self._salen_addr = address_of(self._salen, np.uint32, 1)
+        self._peer_sa_addr = address_of(self._peer_sa, np.uint8, SOCKADDR_IN_B)
+        self._io_addr = address_of(self._io, np.int64, IO_N)
+        self._fd = self.endpoint.sock.fileno()
         self._fast = _lean_self_check(self)
+        self._fast_io = (self._fast and FAST_IO and self.endpoint.sock.family == socket.AF_INET
+                         and _libc_io_self_check(self))
 
     def read_frame(self, meas_out: np.ndarray) -> int:
         """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
 
         Returns the frame stamp in us (u64) or -1 when no acceptable datagram is waiting.
-        At most 64 datagrams are read per call (bounded work).
-        """
+        At most 64 datagrams are read per call (bounded work). In the common case (a frame
+        from the locked peer) no Python object is made but the stamp (``_fast_io``: receive,
+        source check and decode in one compiled call)."""
+        if self._fast_io and not self.endpoint.stamped:
+            return self._read_frame_compiled(meas_out)
         rx = self._rx
         for _ in range(64):
             got = self.endpoint.recv_into(rx)
             if got is None:
+                self.counters.empty_reads += 1
                 return -1
             n, addr = got
             self.counters.datagrams += 1
-            relock = False
-            if self.peer is not None and addr != self.peer:
-                if not self.relock_allowed:
-                    self.counters.rejected_addr += 1
-                    continue
-                relock = True
-            stamp = self._decode_rx(n, meas_out)
-            if stamp < 0:
-                continue
-            if self.peer is None or relock:
-                if relock:
-                    self.counters.relocks += 1
-                self.peer = addr
-                self.relock_allowed = False
-            self.counters.frames += 1
-            self.frame_rx_ns = self.endpoint.rx_ns
-            self.ended = False
-            return stamp
+            stamp = self._accept(n, addr, meas_out)
+            if stamp >= 0:
+                return stamp
         return -1
+
+    def _read_frame_compiled(self, meas_out: np.ndarray) -> int:
+        """:meth:`read_frame` through ``recv_sensor_p`` (counted there); a datagram it does not
+        take (another source, none locked yet, rejected by the compiled decoder) goes through
+        :meth:`_accept` as the socket path's would."""
+        if self.peer is not self._peer_sa_of:
+            self._bind_peer_sa()
+        meas = self._meas_at.of(meas_out)
+        hot = self._hot_at.of(self.counters.hot)
+        locked = self.peer is not None
+        k = 64                          # (counted down: no range object per call)
+        while k:
+            k -= 1
+            stamp = recv_sensor_p(self._fd, self._rx_addr, MAX_DATAGRAM_B, self._sa_addr,
+                                  self._salen_addr, self._peer_sa_addr, locked,
+                                  self.plant_sysid, meas, M_N, self._gps_raw_addr, GR_N, hot,
+                                  self._io_addr)
+            if stamp >= 0:
+                self._take_gps(stamp)
+                self.frame_rx_ns = self.endpoint.rx_ns
+                self.ended = False
+                return stamp
+            if stamp == RX_NONE:
+                return -1
+            src = self.peer if stamp == RX_REJECTED else self._source()
+            stamp = self._accept(int(self._io[IO_LEN]), src, meas_out)
+            if stamp >= 0:
+                return stamp
+            locked = self.peer is not None
+            if self.peer is not self._peer_sa_of:
+                self._bind_peer_sa()
+        return -1
+
+    def _accept(self, n: int, addr: tuple, meas_out: np.ndarray) -> int:
+        """The datagram of ``n`` bytes in the receive buffer, from ``addr`` (counted as
+        received): its stamp (the source locked or relocked to ``addr`` as needed), or -1
+        (counted)."""
+        relock = False
+        if self.peer is not None and addr != self.peer:
+            if not self.relock_allowed:
+                self.counters.rejected_addr += 1
+                return -1
+            relock = True
+        stamp = self._decode_rx(n, meas_out)
+        if stamp < 0:
+            return -1
+        if self.peer is None or relock:
+            if relock:
+                self.counters.relocks += 1
+            self.peer = addr
+            self.relock_allowed = False
+        self.counters.frames += 1
+        self.frame_rx_ns = self.endpoint.rx_ns
+        self.ended = False
+        return stamp
+
+    def _source(self) -> tuple:
+        """The source of the datagram ``recv_sensor_p`` received (its sockaddr_in) as
+        ``socket`` gives it: (dotted IPv4 address, port)."""
+        sa = self._sa
+        return socket.inet_ntoa(sa[4:8].tobytes()), int.from_bytes(sa[2:4].tobytes(), "big")
+
+    def _bind_peer_sa(self) -> None:
+        """``_peer_sa`` := ``peer`` as sockaddr_in bytes (all zero when None: matches no
+        source, and the answer is not sent then)."""
+        sa = self._peer_sa
+        sa[:] = 0
+        if self.peer is not None:
+            sa[0:2] = np.frombuffer(socket.AF_INET.to_bytes(2, "little" if _LITTLE else "big"),
+                                    np.uint8)
+            sa[2:4] = np.frombuffer(int(self.peer[1]).to_bytes(2, "big"), np.uint8)
+            sa[4:8] = np.frombuffer(socket.inet_aton(socket.gethostbyname(self.peer[0])),
+                                    np.uint8)
+        self._peer_sa_of = self.peer
 
     def _decode(self, data: bytes, meas_out: np.ndarray) -> int:
         """Decode the datagram ``data`` into ``meas_out``: its stamp (us), or -1 (counted)."""
@@ -288,14 +472,17 @@ class PlantLink:
             stamp = decode_sensor_p(self._rx_addr, MAX_DATAGRAM_B, n, self.plant_sysid,
                                     self._meas_at.of(meas_out), M_N, self._gps_raw_addr, GR_N)
             if stamp >= 0:
-                g = self._gps_raw
-                if g[GR_PRESENT]:
-                    self._store_gps(stamp, int(g[GR_LAT_E7]), int(g[GR_LON_E7]), g[GR_ALT],
-                                    g[GR_VN], g[GR_VE], g[GR_VD], int(g[GR_FIX]),
-                                    int(g[GR_SATS]), g[GR_HACC_M], g[GR_VACC_M],
-                                    g[GR_SACC_M_S])
+                self._take_gps(stamp)
                 return stamp
         return self._decode_general(bytes(self._rx[:n]), meas_out)
+
+    def _take_gps(self, stamp: int) -> None:
+        """The GPS_INPUT the compiled decoder found in the frame stamped ``stamp``, if any."""
+        if self._gps_raw_mv[GR_PRESENT]:       # (a float: no numpy scalar per frame)
+            g = self._gps_raw
+            self._store_gps(stamp, int(g[GR_LAT_E7]), int(g[GR_LON_E7]), g[GR_ALT], g[GR_VN],
+                            g[GR_VE], g[GR_VD], int(g[GR_FIX]), int(g[GR_SATS]), g[GR_HACC_M],
+                            g[GR_VACC_M], g[GR_SACC_M_S])
 
     def _decode_general(self, data: bytes, meas_out: np.ndarray) -> int:
         """The codec's general parser: any datagram, every rejection counted."""
@@ -398,9 +585,21 @@ class PlantLink:
                 pwm_addr = self._pwm_at.of(pwm_us)
             except ValueError:          # not int64: converted as servo_frame would
                 pwm_addr = self._pwm_at.of(_pwm4(pwm_us))
-            buf = self._tx_mv[:servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
-                                             self._tx_codec.seq, self.sysid, self.compid,
-                                             stamp_us & 0xFFFFFFFF, pwm_addr)]
+            if stamp_us > 0xFFFFFFFF:   # (the kernel takes the low 32 bits of an int64)
+                stamp_us &= 0xFFFFFFFF
+            if self._fast_io:           # framed and sent in one compiled call (counted there)
+                if self.peer is not self._peer_sa_of:
+                    self._bind_peer_sa()
+                ok = send_servo_p(self._fd, self._tx_addr, SERVO_FRAME_MAX_B,
+                                  self._tx_codec.seq, self.sysid, self.compid, stamp_us,
+                                  pwm_addr, self._peer_sa_addr, self._hot_at.of(self.counters.hot))
+                if not ok:
+                    self.endpoint.send_errors += 1
+                self._tx_codec.seq = (self._tx_codec.seq + 1) % 256
+                return ok
+            buf = self._tx_views[servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
+                                               self._tx_codec.seq, self.sysid, self.compid,
+                                               stamp_us, pwm_addr)]
         else:
             s4 = pwm_us[3] if len(pwm_us) > 3 else 0
             buf = self._tx_codec.servo_output_raw_encode(

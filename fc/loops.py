@@ -225,6 +225,7 @@ class RunLoops:
         gcs_fd = self.gcs.endpoint.fileno()
         fds = [plant_fd, gcs_fd]
         mono = time.monotonic
+        pc = time.perf_counter      # a float: no int per frame (floats come from a free list)
         while not stop():
             # select() takes microsecond timeouts (no ms rounding); it only bounds idle waits.
             # It also says whether the GCS socket has datagrams: read it only then (a read
@@ -245,28 +246,32 @@ class RunLoops:
             if plant_fd in ready:
                 stamp = self.plant.read_frame(self.intake.scratch)
                 if stamp >= 0:
-                    t0 = time.perf_counter_ns()
+                    t0 = pc()
                     self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
-                    self.counters.add_exec(time.perf_counter_ns() - t0)
+                    self.counters.add_exec((pc() - t0) * 1e9)
             self.housekeeping(now_s, gcs_ready)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
         """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),
-        arrived at ``now_s`` (wall clock): the ticks its stamp makes due, one answer."""
-        t_exec = time.perf_counter_ns()
+        arrived at ``now_s`` (wall clock): the ticks its stamp makes due, one answer.
+        Allocates no Python object but the ints of the stamp's arithmetic (issue 24): the
+        clock is read as floats, the ticks counted down without a range."""
+        t_exec = time.perf_counter()
         if not self.intake.take(stamp, now_s):
             # the plant re-sent frame k (re-request): answer again with the same output
             self.plant.send_servo(stamp, self.out.pwm_us)
             return
         if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
             self.mode_ctl.sync()
-        n = self.planner.due(stamp * 1000)
-        for _ in range(n):
+        n = self.planner.due_us(stamp)
+        k = n
+        while k:
             self.tick(self.planner.slow_due(), False)
+            k -= 1
         self.plant.send_servo(stamp, self.out.pwm_us)
         if n:
             self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, 0,
-                                   time.perf_counter_ns() - t_exec, now_s)
+                                   (time.perf_counter() - t_exec) * 1e9, now_s)
 
     def _run_realtime(self, stop) -> None:
         if self.sync == "frame":

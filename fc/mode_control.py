@@ -65,7 +65,8 @@ class SurfaceHold:
     def update(self, delta_rad: np.ndarray, dt_s: float) -> None:
         """One fast tick of the law's fresh command ``delta_rad`` (rad)."""
         self.flown_s += dt_s
-        k = dt_s / min(self.flown_s, self.tau_s)
+        f, tau = self.flown_s, self.tau_s
+        k = dt_s / (tau if tau < f else f)      # min(f, tau) without min's argument iterator
         blend3_p(self._est_p, self._src_at.of(delta_rad), k)
 
     def clear(self) -> None:

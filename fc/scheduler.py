@@ -24,6 +24,9 @@ import struct
 import time
 
 import numpy as np
+from numba import carray, njit
+
+from fc.control.carrays import i8p
 
 __all__ = ["monotonic_ns", "sleep_until_ns", "try_realtime", "freeze_heap", "release_heap",
            "collect_garbage",
@@ -142,6 +145,49 @@ def try_realtime(priority: int = 50) -> tuple[bool, str]:
     return False, "; ".join(msgs)
 
 
+# TickPlanner's state (int64[_ST_N]), updated in place by its compiled steps
+_NEXT, _ANCHORED, _TICKS, _SKIPPED, _ST_N = 0, 1, 2, 3, 4
+#: times (ns) below this in magnitude keep every sum of ``due`` in int64 (its compiled domain);
+#: beyond it (a u64 stamp from a faulty plant, x 1000) the same steps run on Python ints
+_SAFE_NS = 1 << 61
+_SAFE_US = _SAFE_NS // 1000
+_MIN_SAFE_NS, _MIN_SAFE_US = -_SAFE_NS, -_SAFE_US    # (bound once: ``-x`` makes an int)
+
+
+@njit(cache=True)
+def _due_p(st, t_ns, period_ns, max_catchup):
+    """:meth:`TickPlanner.due` on its state (int64[_ST_N] at ``st``)."""
+    s = carray(i8p(st), (_ST_N,))
+    if s[_ANCHORED] == 0:
+        s[_NEXT] = t_ns
+        s[_ANCHORED] = 1
+    nxt = s[_NEXT]
+    if t_ns < nxt:
+        return 0
+    n = (t_ns - nxt) // period_ns + 1
+    if n > max_catchup:
+        s[_SKIPPED] += n - 1
+        s[_NEXT] = t_ns + period_ns
+        return 1
+    s[_NEXT] = nxt + n * period_ns
+    return n
+
+
+@njit(cache=True)
+def _due_us_p(st, t_us, period_ns, max_catchup):
+    """:func:`_due_p` at ``t_us`` microseconds."""
+    return _due_p(st, t_us * 1000, period_ns, max_catchup)
+
+
+@njit(cache=True)
+def _slow_due_p(st, ratio):
+    """:meth:`TickPlanner.slow_due` on its state (int64[_ST_N] at ``st``)."""
+    s = carray(i8p(st), (_ST_N,))
+    due = s[_TICKS] % ratio == 0
+    s[_TICKS] += 1
+    return due
+
+
 class TickPlanner:
     """Fast/slow tick bookkeeping on an integer nanosecond time base (sim or wall time).
 
@@ -149,6 +195,11 @@ class TickPlanner:
     integer, checked here). ``due(t_ns)`` returns how many fast ticks are due at time
     ``t_ns``; more than ``max_catchup`` are skipped and counted as overruns, and the
     deadlines are re-anchored on ``t_ns``.
+
+    The state (``next_ns``, ``ticks``, ``skipped``) lives in an int64 array that compiled
+    steps update in place (issue 24: no Python int per tick); it reads and assigns as ints
+    (``next_ns`` None before the first deadline). A deadline beyond int64's safe range is
+    kept as a Python int and stepped in Python, with the same results.
     """
 
     def __init__(self, fast_hz: float, slow_hz: float, max_catchup: int = 8) -> None:
@@ -165,32 +216,86 @@ class TickPlanner:
         self.fast_dt_s = self.period_ns * 1e-9
         self.slow_dt_s = self.fast_dt_s * self.ratio
         self.max_catchup = max_catchup
-        self.next_ns: int | None = None
-        self.ticks = 0          # fast ticks run
-        self.skipped = 0        # fast deadlines skipped (overruns)
+        self._st = np.zeros(_ST_N, np.int64)
+        self._st_p = int(self._st.__array_interface__["data"][0])
+        self._big_next: int | None = None     # a deadline beyond the safe range (see above)
+        # the compiled steps loaded now (on a scratch state), not in the first tick
+        scratch = np.zeros(_ST_N, np.int64)
+        p = int(scratch.__array_interface__["data"][0])
+        _due_p(p, 0, self.period_ns, max_catchup)
+        _due_us_p(p, 0, self.period_ns, max_catchup)
+        _slow_due_p(p, self.ratio)
+
+    @property
+    def next_ns(self) -> int | None:
+        """The next fast deadline (ns), None before the first."""
+        if self._big_next is not None:
+            return self._big_next
+        return int(self._st[_NEXT]) if self._st[_ANCHORED] else None
+
+    @next_ns.setter
+    def next_ns(self, value: int | None) -> None:
+        self._big_next = None
+        if value is None:
+            self._st[_ANCHORED] = 0
+        elif _MIN_SAFE_NS < value < _SAFE_NS:
+            self._st[_NEXT] = value
+            self._st[_ANCHORED] = 1
+        else:
+            self._big_next = value
+            self._st[_ANCHORED] = 1
+
+    @property
+    def ticks(self) -> int:
+        """Fast ticks run (``slow_due`` calls)."""
+        return int(self._st[_TICKS])
+
+    @ticks.setter
+    def ticks(self, value: int) -> None:
+        self._st[_TICKS] = value
+
+    @property
+    def skipped(self) -> int:
+        """Fast deadlines skipped (overruns)."""
+        return int(self._st[_SKIPPED])
+
+    @skipped.setter
+    def skipped(self, value: int) -> None:
+        self._st[_SKIPPED] = value
 
     def anchor(self, t_ns: int) -> None:
         """Start (or restart) the deadlines at ``t_ns``: the first tick is due at ``t_ns``."""
         self.next_ns = t_ns
 
     def due(self, t_ns: int) -> int:
+        if self._big_next is None and _MIN_SAFE_NS < t_ns < _SAFE_NS:
+            return _due_p(self._st_p, t_ns, self.period_ns, self.max_catchup)
+        return self._due_py(t_ns)
+
+    def due_us(self, t_us: int) -> int:
+        """``due(t_us * 1000)`` (a frame stamp in us) without the product as a Python int."""
+        if self._big_next is None and _MIN_SAFE_US < t_us < _SAFE_US:
+            return _due_us_p(self._st_p, t_us, self.period_ns, self.max_catchup)
+        return self._due_py(t_us * 1000)
+
+    def _due_py(self, t_ns: int) -> int:
+        """:func:`_due_p`'s steps on Python ints (times beyond the int64-safe range)."""
         if self.next_ns is None:
             self.anchor(t_ns)
-        if t_ns < self.next_ns:
+        nxt = self.next_ns
+        if t_ns < nxt:
             return 0
-        n = (t_ns - self.next_ns) // self.period_ns + 1
+        n = (t_ns - nxt) // self.period_ns + 1
         if n > self.max_catchup:
             self.skipped += n - 1
             self.next_ns = t_ns + self.period_ns
             return 1
-        self.next_ns += n * self.period_ns
+        self.next_ns = nxt + n * self.period_ns
         return int(n)
 
     def slow_due(self) -> bool:
         """Call once per fast tick, before running it: True when the slow loop runs too."""
-        due = self.ticks % self.ratio == 0
-        self.ticks += 1
-        return due
+        return _slow_due_p(self._st_p, self.ratio)
 
 
 class FrameGate:

@@ -19,7 +19,7 @@ import fc.control.carrays as _carrays
 import fc.estimator as _estimator
 import fc.guidance.layout as _guid_layout
 import hyfc_wire.layout as _wire_layout
-from fc.control.carrays import ArrayAddress, address_of, f8p
+from fc.control.carrays import ArrayAddress, address_of, f8p, i8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
 from fc.guidance.layout import GS_GAM_C
@@ -78,12 +78,17 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(r, ncol, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
-               lateness_ns, exec_ns, status, status_n, n_status, throttle, limits, tgt):
-    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): the row
-    float64[ncol], meas float64[M_N], emem float64[EM_N], cmd/delta/tgt float64[3], status
-    float64[status_n]."""
-    fill_row(carray(f8p(r), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
+def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd,
+               delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
+    """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row
+    ``cursor[1]`` (fc/internals_log.py ``CUR_ROW`` of the int64 cursor) of the float64[:, ncol]
+    at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
+    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status).
+    (Fewer than 20 arguments: CPython takes the call's argument tuple from its free list.)"""
+    d = carray(i8p(dims), (3,))
+    ncol, status_n, n_status = d[0], d[1], d[2]
+    i = carray(i8p(cursor), (2,))[1]
+    fill_row(carray(f8p(chunk + i * ncol * 8), (ncol,)), carray(f8p(meas), (M_N,)), wall_s, stamp_us, mode,
              armed, healthy, carray(f8p(emem), (EM_N,)), carray(f8p(cmd), (3,)),
              carray(f8p(delta), (3,)), lateness_ns, exec_ns, carray(f8p(status), (status_n,)),
              n_status, throttle, limits, carray(f8p(tgt), (3,)))
@@ -101,8 +106,19 @@ class _OneRow:
     def row(self, stamp_us: int | None = None) -> np.ndarray:
         return self._row
 
-    def row_address(self, stamp_us: int | None = None) -> int:
+    @property
+    def chunk_address(self) -> int:
         return address_of(self._row, np.float64, self._row.size)
+
+    @property
+    def cursor_address(self) -> int:
+        return address_of(_ROW_0, np.int64, 2)
+
+    def take_row(self, stamp_us: int | None = None) -> bool:
+        return True
+
+
+_ROW_0 = np.zeros(2, np.int64)      # a cursor at row 0 (_OneRow's)
 
 
 @dataclass
@@ -128,19 +144,19 @@ class FcCounters:
     fc_stalls: int = 0              # the fc's own loop stopped > FC_STALL_S (fc/loops.py)
     fc_stall_max_s: float = 0.0     # the longest of them, s (wall clock)
     gc_us: float = 0.0              # last 1 Hz garbage collection, us
-    exec_ns_sum: int = 0            # tick execution time since the last load figure, ns
-    exec_n: int = 0
+    exec_ns_sum: float = 0.0        # tick execution time since the last load figure, ns
+    exec_n: float = 0.0             # ticks timed since then (a float: no int object per tick)
     load_permille: int = 0          # SYS_STATUS.load
 
-    def add_exec(self, ns: int) -> None:
+    def add_exec(self, ns: float) -> None:
         self.exec_ns_sum += ns
-        self.exec_n += 1
+        self.exec_n += 1.0
 
     def roll_load(self, period_ns: int) -> None:
         """The 1 Hz load figure: mean tick execution time over the fast period."""
         if self.exec_n:
             self.load_permille = min(1000, int(1000 * self.exec_ns_sum / self.exec_n / period_ns))
-        self.exec_ns_sum = self.exec_n = 0
+        self.exec_ns_sum = self.exec_n = 0.0
 
 
 @dataclass
@@ -184,6 +200,10 @@ class Telemetry:
         self._delta_p = address_of(self._delta, np.float64, 3)
         self._tgt_p = address_of(self._tgt, np.float64, 3)
         self._status_p = address_of(st, np.float64, 0) if self._status is not None else 0
+        # the row kernel's sizes: (columns, the law's status length, status columns logged)
+        self._dims = np.array([self._ncol, st.size if self._status is not None else 0,
+                               self._n_status], np.int64)
+        self._dims_p = address_of(self._dims, np.int64, 3)
         # compile / load the row kernel now (the guidance's command array, which the tick
         # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
@@ -265,21 +285,22 @@ class Telemetry:
                  "guid_tgt_V_m_s"]
         return cols
 
-    def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: int,
-                exec_ns: int, wall_s: float) -> None:
+    def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: float,
+                exec_ns: float, wall_s: float) -> None:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
-        frame's arrival, in real time the wake-up."""
+        frame's arrival, in real time the wake-up. ``lateness_ns``, ``exec_ns``: int or float
+        (the kernel takes floats: one specialisation, the same values)."""
         modes = self.modes
         st = self._status
         if st is not None:
-            # by address (fc/control/carrays.py): no array object nor numba record per row
-            ra = ilog.row_address(stamp_us)
-            if ra:
-                fill_row_p(ra, self._ncol, self._meas_at.of(meas), wall_s, float(stamp_us),
-                           int(modes.mode), modes.armed, self.est.healthy, self._emem_p,
-                           self._cmd_at.of(self.out.cmd_active), self._delta_p, lateness_ns,
-                           exec_ns, self._status_p, st.size, self._n_status,
+            # by address (fc/control/carrays.py): no array object nor numba record per row,
+            # and the row as an index (no address int per row)
+            if ilog.take_row(stamp_us):
+                fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas), wall_s,
+                           float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
+                           self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
+                           float(lateness_ns), float(exec_ns), self._status_p,
                            self.guid.throttle() if modes.guidance_active else math.nan,
                            self.guid.limits, self._tgt_p)
             return

@@ -44,11 +44,12 @@ from hyfc_wire.codec import mavlink
 from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_P,
                               M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_T_S, M_YAW)
 from hyfc_wire.numba_cache import drop_stale
-from hyfc_wire.pwm import DEFLECTION_LIMIT_RAD, PWM_MAX_US, PWM_MIN_US, PWM_TRIM_US
+from hyfc_wire.pwm import (DEFLECTION_LIMIT_RAD, PWM_MAX_US, PWM_MIN_US, PWM_TRIM_US,
+                           THROTTLE_PWM_MAX_US, THROTTLE_PWM_MIN_US)
 
 drop_stale(__file__, [_codec_mod.__file__, _layout_mod.__file__, _pwm_mod.__file__])
 
-__all__ = ["decode_sensor", "pwm_map", "surfaces_pwm", "servo_frame", "crc16_range", "REJ_FORMAT",
+__all__ = ["decode_sensor", "pwm_map", "surfaces_pwm", "throttle_pwm", "servo_frame", "crc16_range", "REJ_FORMAT",
            "REJ_LENGTH", "REJ_SYSID", "REJ_MSGID", "REJ_REPEAT", "REJ_CRC", "REJ_INCOMPLETE",
            "REJ_STAMP", "REJ_NAMES", "GR_PRESENT", "GR_LAT_E7", "GR_LON_E7", "GR_ALT_M",
            "GR_VN", "GR_VE", "GR_VD", "GR_FIX", "GR_SATS", "GR_HACC_M", "GR_VACC_M",
@@ -294,6 +295,20 @@ def pwm_map(delta_rad, throttle_pwm_us, pwm_out):
     pwm_out[1] = _to_pwm(delta_rad[1])
     pwm_out[2] = _to_pwm(delta_rad[2])
     pwm_out[3] = throttle_pwm_us
+
+
+@njit(cache=True)
+def throttle_pwm(throttle):
+    """``hyfc_wire.pwm.throttle_to_pwm``: the same operations, rounded half to even (Python's
+    ``round``), clipped in floating point first (no integer overflow); 0 if not finite."""
+    if not math.isfinite(throttle):
+        return 0
+    r = np.rint(THROTTLE_PWM_MIN_US + throttle * (THROTTLE_PWM_MAX_US - THROTTLE_PWM_MIN_US))
+    if r < THROTTLE_PWM_MIN_US:
+        return THROTTLE_PWM_MIN_US
+    if r > THROTTLE_PWM_MAX_US:
+        return THROTTLE_PWM_MAX_US
+    return np.int64(r)
 
 
 @njit(cache=True)

@@ -76,6 +76,11 @@ class UdpEndpoint:
         self.rx_ns = 0
         self._stamped = False
 
+    @property
+    def stamped(self) -> bool:
+        """The kernel stamps each datagram's arrival (:meth:`enable_rx_timestamps`)."""
+        return self._stamped
+
     def enable_rx_timestamps(self) -> bool:
         """Ask the kernel to stamp each datagram on arrival (``SO_TIMESTAMPNS``); ``recv``
         then stores the stamp in ``rx_ns``. Costs ~0.6 us per datagram (recvmsg instead of

@@ -16,7 +16,7 @@ from numba import types
 from numba.core import config as numba_config
 from numba.extending import intrinsic
 
-__all__ = ["ArrayAddress", "address_of", "f8p", "i8p", "u8p"]
+__all__ = ["ArrayAddress", "address_of", "f8p", "i8p", "u4p", "u8p"]
 
 
 def _pointer_cast(elem):
@@ -42,11 +42,13 @@ if numba_config.DISABLE_JIT:
     # Python, where ``numba.carray`` takes a ctypes pointer; an intrinsic is not callable there.
     f8p = _ctypes_cast(ctypes.c_double)
     i8p = _ctypes_cast(ctypes.c_int64)
+    u4p = _ctypes_cast(ctypes.c_uint32)
     u8p = _ctypes_cast(ctypes.c_uint8)
 else:
     #: int64 address -> typed pointer (compiled code only): for ``carray(f8p(addr), (n,))``
     f8p = intrinsic(_pointer_cast(types.float64))
     i8p = intrinsic(_pointer_cast(types.int64))
+    u4p = intrinsic(_pointer_cast(types.uint32))
     u8p = intrinsic(_pointer_cast(types.uint8))
 
 

@@ -116,6 +116,26 @@ class PyAllocCounter:
         self.installed = False
 
 
+_MARK = None
+
+
+def _marker():
+    """``mark(counts, marks, k)``: ``marks[k] = counts[0] + counts[1]`` (the blocks counted so
+    far; both int64 arrays by address), compiled: the call makes no Python object."""
+    global _MARK
+    if _MARK is None:
+        from numba import carray, njit
+
+        from fc.control.carrays import i8p
+
+        @njit
+        def mark(counts, marks, k):
+            c = carray(i8p(counts), (4,))
+            carray(i8p(marks), (4,))[k] = c[0] + c[1]
+        _MARK = mark
+    return _MARK
+
+
 def _nrt_stats():
     from numba.core.runtime import rtsys
     return rtsys.get_allocation_stats()
@@ -179,31 +199,62 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
     rep = _Replay(datagrams, flight_mode, frame_hz)
     try:
         rep.run(WARM_FRAMES)
-        feed, step, drain = rep.feed, rep.step, rep.drain
-        with PyAllocCounter() as counter:
-            c = counter.counts
-            # the window's own cost: two reads of the counter, nothing between
-            empty = 0
+        feed, drain = rep.feed, rep.drain
+        counter = PyAllocCounter()
+        # the windows' edges: a compiled call copies the count into ``marks[k]`` (no Python
+        # int is made inside a window: reading the ctypes counter from Python made one or two,
+        # depending on the values, so a window's own cost was not a constant)
+        marks = np.zeros(4, np.int64)
+        mark = _marker()
+        c_p, m_p = ctypes.addressof(counter.counts), marks.ctypes.data
+        fc = rep.rig.fc
+        plant, meas, loops = fc.plant, fc.meas_scratch, fc.loops
+        mark(c_p, m_p, 0)                   # (compiled or loaded before the count)
+        # per frame: the receive (read_frame), the frame (lockstep_frame), the housekeeping
+        # (ground station, .tlog streams, 1 Hz chores), as ``_Replay.step``
+        per = [[0, 0, 0] for _ in range(n)]
+        with counter:
+            empty = 0                       # the window's own cost: two marks, nothing between
             for _ in range(1000):
-                a = c[0] + c[1]
-                b = c[0] + c[1]
-                empty += b - a
+                mark(c_p, m_p, 0)
+                mark(c_p, m_p, 1)
+                empty += marks.item(1) - marks.item(0)
             read_cost = empty / 1000.0
-            py = 0
             blocks0 = sys.getallocatedblocks()
             nrt0 = _nrt_stats()
-            for _ in range(n):
+            for k in range(n):
                 now = feed()
-                a = c[0] + c[1]
-                step(now)
-                b = c[0] + c[1]
-                py += b - a
+                mark(c_p, m_p, 0)
+                st = plant.read_frame(meas)
+                mark(c_p, m_p, 1)
+                if st >= 0:
+                    loops.lockstep_frame(st, now)
+                mark(c_p, m_p, 2)
+                loops.housekeeping(now, False)
+                mark(c_p, m_p, 3)
+                row = per[k]
+                row[0] = marks.item(1) - marks.item(0)
+                row[1] = marks.item(2) - marks.item(1)
+                row[2] = marks.item(3) - marks.item(2)
                 drain()
             nrt1 = _nrt_stats()
             blocks1 = sys.getallocatedblocks()
-            realloc = c[2]
+            realloc = counter.counts[2]
+        parts = [sum(r[i] for r in per) / n - read_cost for i in range(3)]
+        net = sorted(sum(r) for r in per)
+        quiet = sum(1 for r in per if not any(r))
+        frame_free = sum(1 for r in per if r[0] == 0 and r[1] == 0)
+        hk_free = sum(1 for r in per if r[2] == 0)
+        py = sum(parts)
         return {"flight_mode": flight_mode, "frames": n,
-                "py_allocs_per_frame": py / n - read_cost,
+                "py_allocs_per_frame": py,
+                "py_allocs_per_frame_read": parts[0],
+                "py_allocs_per_frame_frame": parts[1],
+                "py_allocs_per_frame_housekeeping": parts[2],
+                "py_allocs_frame_median": float(net[n // 2]),
+                "py_alloc_free_frames_pct": 100.0 * quiet / n,
+                "py_alloc_free_frame_paths_pct": 100.0 * frame_free / n,
+                "py_alloc_free_housekeeping_pct": 100.0 * hk_free / n,
                 "py_window_read_cost": read_cost,
                 "py_reallocs_total": int(realloc),
                 "nrt_allocs_per_frame": (nrt1.mi_alloc - nrt0.mi_alloc) / n,
@@ -211,7 +262,12 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
                 "blocks_net_change": int(blocks1 - blocks0),
                 "note": "in process, one datagram per lockstep loop step; loop clock = sensor "
                         "time; py = blocks from PYMEM_DOMAIN_OBJ (gross, while the fc's calls "
-                        "run); nrt = numba NRT meminfo records (mi_alloc)"}
+                        "run; _read / _frame / _housekeeping: read_frame, lockstep_frame, "
+                        "housekeeping); alloc_free_frames: frames whose three calls allocated "
+                        "nothing; alloc_free_frame_paths: frames whose read and frame allocated "
+                        "nothing (the housekeeping aside); alloc_free_housekeeping: frames "
+                        "whose housekeeping allocated nothing (no stream or chore due); nrt = "
+                        "numba NRT meminfo records (mi_alloc)"}
     finally:
         rep.close()
         if not stats_were_on:

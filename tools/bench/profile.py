@@ -177,8 +177,8 @@ def replay(datagrams: list, flight_mode: str = "COORDINATED", baseline: bool = F
 # Each is found by ``_target`` below; a part the controller does not have is left out.
 PARTS = (
     ("read_frame", None, "recv + decode (plant.read_frame)"),
-    ("recv", "read_frame", "socket recv + kernel stamp (endpoint.recv_into)"),
-    ("decode", "read_frame", "decode ATTITUDE+AOA_SSA+VFR_HUD (plant._decode_rx, compiled)"),
+    ("recv", "read_frame", "socket recv + source check + decode ATTITUDE+AOA_SSA+VFR_HUD "
+                           "(recv_sensor_p, compiled, libc recvfrom)"),
     ("frame", None, "frame (loops.lockstep_frame)"),
     ("new_frame", "frame", "frame intake (intake.take)"),
     ("estimator", "new_frame", "frame copy + estimator (est.accept)"),
@@ -189,8 +189,7 @@ PARTS = (
     ("fast_step", "fast_tick", "law fast loop (law.fast_step)"),
     ("pwm", "fast_tick", "surface copy + PWM x3 + throttle (surfaces_pwm_p, compiled)"),
     ("send_servo", "frame", "SERVO_OUTPUT_RAW (plant.send_servo)"),
-    ("framing", "send_servo", "framing + CRC (servo_frame_p, compiled)"),
-    ("sendto", "send_servo", "socket send (endpoint.send)"),
+    ("framing", "send_servo", "framing + CRC + socket send (send_servo_p, compiled, libc sendto)"),
     ("log_row", "frame", "internals log row (telemetry.log_row)"),
     ("housekeeping", None, "housekeeping (loops.housekeeping)"),
     ("gcs_poll", "housekeeping", "GCS receive (gcs.poll)"),
@@ -212,15 +211,14 @@ def _target(fc, name: str):
     import fc.loops as loops_mod
     plant = fc.plant
     return {
-        "read_frame": (plant, "read_frame"), "recv": (plant.endpoint, "recv_into"),
-        "decode": (plant, "_decode_rx"), "frame": (fc.loops, "lockstep_frame"),
+        "read_frame": (plant, "read_frame"), "recv": (link_mod, "recv_sensor_p"),
+        "frame": (fc.loops, "lockstep_frame"),
         "new_frame": (fc.intake, "take"), "estimator": (fc.est, "accept"),
         "sync_mode": (fc.mode_ctl, "sync"), "fast_tick": (fc.loops, "tick"),
         "guidance": (fc.guid, "tick"), "slow_step": (fc.law, "slow_step"),
         "fast_step": (fc.law, "fast_step"), "pwm": (app, "surfaces_pwm_p"),
         "send_servo": (plant, "send_servo"),
-        "framing": (link_mod, "servo_frame_p"),
-        "sendto": (plant.endpoint, "send"), "log_row": (fc.telemetry, "log_row"),
+        "framing": (link_mod, "send_servo_p"), "log_row": (fc.telemetry, "log_row"),
         "housekeeping": (fc.loops, "housekeeping"), "gcs_poll": (fc.gcs, "poll"),
         "gcs_service": (fc.gcs, "service"), "tlog_streams": (fc.gcs, "_service_log"),
         "gcs_streams": (fc.gcs, "_streams"), "stats_roll": (fc.stats, "roll"),

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fc.modes import FS_DATA, FS_NONE, FS_REQUESTED, FlightMode, ModeManager
 from fc.scheduler import LoopStats, TickPlanner
@@ -86,6 +88,74 @@ def test_tick_planner_skips_beyond_catchup_and_counts():
 def test_tick_planner_rejects_bad_ratios(fast, slow):
     with pytest.raises(ValueError):
         TickPlanner(fast, slow)
+
+
+class _PythonPlanner:
+    """TickPlanner's steps as they were in Python (before its state went into a compiled
+    step's array, issue 24): the reference."""
+
+    def __init__(self, period_ns: int, ratio: int, max_catchup: int) -> None:
+        self.period_ns, self.ratio, self.max_catchup = period_ns, ratio, max_catchup
+        self.next_ns, self.ticks, self.skipped = None, 0, 0
+
+    def due(self, t_ns: int) -> int:
+        if self.next_ns is None:
+            self.next_ns = t_ns
+        if t_ns < self.next_ns:
+            return 0
+        n = (t_ns - self.next_ns) // self.period_ns + 1
+        if n > self.max_catchup:
+            self.skipped += n - 1
+            self.next_ns = t_ns + self.period_ns
+            return 1
+        self.next_ns += n * self.period_ns
+        return int(n)
+
+    def slow_due(self) -> bool:
+        due = self.ticks % self.ratio == 0
+        self.ticks += 1
+        return due
+
+
+# one step: a time (ns; some beyond int64, as a u64 stamp x 1000 from a faulty plant), a stamp
+# (us, due_us), a restart (next_ns = None), an anchor, a slow_due, ticks reset to 0
+_STEP = st.one_of(
+    st.tuples(st.just("due"), st.one_of(st.integers(-10**10, 10**11),
+                                        st.integers(0, (2**64 - 1) * 1000))),
+    st.tuples(st.just("due_us"), st.one_of(st.integers(0, 10**8), st.integers(0, 2**64 - 1))),
+    st.tuples(st.just("restart"), st.none()), st.tuples(st.just("anchor"),
+                                                        st.integers(-10**10, 10**11)),
+    st.tuples(st.just("slow"), st.none()), st.tuples(st.just("ticks0"), st.none()))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from([(500, 100, 8), (1000, 100, 1), (400, 50, 3)]),
+       st.lists(_STEP, max_size=40))
+def test_tick_planner_steps_as_the_python_planner_did(rates, steps):
+    # GIVEN the compiled planner and the Python reference at the same rates
+    fast, slow, catchup = rates
+    p = TickPlanner(fast, slow, max_catchup=catchup)
+    ref = _PythonPlanner(p.period_ns, p.ratio, catchup)
+    # WHEN both take the same steps
+    for kind, x in steps:
+        if kind == "due":
+            got, want = p.due(x), ref.due(x)
+        elif kind == "due_us":
+            got, want = p.due_us(x), ref.due(x * 1000)
+        elif kind == "slow":
+            got, want = p.slow_due(), ref.slow_due()
+        else:
+            if kind == "restart":
+                p.next_ns = ref.next_ns = None
+            elif kind == "anchor":
+                p.anchor(x)
+                ref.next_ns = x
+            else:
+                p.ticks = ref.ticks = 0
+            got = want = None
+        # THEN every answer and the state after it are the same
+        assert got == want and type(got) is type(want), (kind, x)
+        assert (p.next_ns, p.ticks, p.skipped) == (ref.next_ns, ref.ticks, ref.skipped)
 
 
 def test_loop_stats_counts_late_ticks():

@@ -105,12 +105,15 @@ def test_frame_kernels_by_address_equal_the_array_entries():
     # internals-log row
     st = rng.normal(size=12)
     emem, cmd, delta, tgt = e1.mem, rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
-    r1, r2 = np.zeros(50), np.zeros(50)
-    fill_row_p(_p(r1), 50, _p(m1), 12.5, 3.0e6, 4, True, True, _p(emem), _p(cmd), _p(delta),
-               1234, 5678, _p(st), st.size, 10, 0.4, 3, _p(tgt))
+    chunk, r2 = np.zeros((3, 50)), np.zeros(50)
+    dims = np.array([50, st.size, 10], np.int64)
+    cursor = np.array([2, 1], np.int64)             # (rows taken, the row taken last)
+    fill_row_p(_p(chunk), _p(cursor), _p(dims), _p(m1), 12.5, 3.0e6, 4, True, True, _p(emem), _p(cmd),
+               _p(delta), 1234.0, 5678.0, _p(st), 0.4, 3, _p(tgt))
     fill_row(r2, m1, 12.5, 3.0e6, 4, True, True, emem, cmd, delta, 1234, 5678, st, 10, 0.4, 3,
              tgt)
-    assert r1.tobytes() == r2.tobytes()
+    assert chunk[1].tobytes() == r2.tobytes()            # row 1 of the chunk, the others kept
+    assert not chunk[0].any() and not chunk[2].any()
 
 
 def test_calls_by_address_allocate_no_numba_record():

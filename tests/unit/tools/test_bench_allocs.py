@@ -19,6 +19,17 @@ SPAN_FRAMES = 1500
 ALLOWANCE_BLOCKS = 100
 
 
+#: Python blocks the receive and the frame (read_frame + lockstep_frame) may allocate per frame,
+#: on average: the frame's stamp (one int: the compiled receive hands it to the Python glue,
+#: fc/link.py) and less than one more (a guidance step's and the answer's rare ones, 0.2-0.4
+#: measured). The code before issue 24's frame-path work made 25.8 (COORDINATED) and 42.5
+#: (CRUISE) by the same count
+FRAME_PATH_BLOCKS = 2.0
+#: frames whose housekeeping allocates nothing: no ground-station or .tlog stream and no 1 Hz
+#: chore due (78-81 % measured; a stream allocates only when a message is due)
+QUIET_HOUSEKEEPING_PCT = 60.0
+
+
 @pytest.fixture(scope="module")
 def flights():
     """Recorded datagrams per flight mode (warm-up + 500 + SPAN_FRAMES frames)."""
@@ -44,6 +55,19 @@ def test_frames_create_no_numba_array_record(flights, mode):
     # the arrays go by address)
     assert r["frames"] == 300
     assert r["nrt_allocs_per_frame"] == 0.0 and r["nrt_data_allocs_per_frame"] == 0.0, r
+
+
+@pytest.mark.parametrize("mode", ["COORDINATED", "CRUISE"])
+def test_the_frame_path_allocates_only_its_stamp(flights, mode):
+    # GIVEN the counted replay of a flight in each mode
+    r = allocs.count_allocations(flights[mode][:allocs.WARM_FRAMES + 300], mode)
+    # THEN the receive and the frame (decode, intake, estimator, guidance, law, PWM, answer,
+    # internals row) allocate about one Python block per frame: the stamp
+    assert r["py_window_read_cost"] == 0.0, r         # the windows count nothing of their own
+    assert r["py_allocs_per_frame_read"] + r["py_allocs_per_frame_frame"] <= FRAME_PATH_BLOCKS, r
+    assert r["py_allocs_frame_median"] <= 1.0, r      # the median frame, housekeeping included
+    # AND the housekeeping allocates only when something is due
+    assert r["py_alloc_free_housekeeping_pct"] >= QUIET_HOUSEKEEPING_PCT, r
 
 
 def test_a_per_frame_leak_is_seen(flights, monkeypatch):

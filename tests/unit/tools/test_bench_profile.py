@@ -18,7 +18,7 @@ def test_profile_reports_every_frame_part(tmp_path, capsys):
     d = json.loads(out.read_text())
     rows = {r["part"]: r for r in d["parts"]}
     # the per-frame parts were wrapped and called once per frame
-    for part in ("read_frame", "decode", "estimator", "fast_step", "send_servo", "framing",
+    for part in ("read_frame", "recv", "estimator", "fast_step", "send_servo", "framing",
                  "log_row", "gcs_service", "tlog_streams"):
         assert rows[part]["calls_per_frame"] == 1.0, part
         assert rows[part]["mean_us_per_frame"] > 0.0, part

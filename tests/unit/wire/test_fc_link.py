@@ -59,9 +59,14 @@ def _wait_readable(sock, timeout=2.0):
     return bool(r)
 
 
-def test_plant_link_accepts_configured_sysid_then_only_that_address():
+# fast_io: the compiled receive and answer (libc recvfrom/sendto, fc/frame_calls.py), else
+# socket's calls; both must filter, count and answer alike
+@pytest.mark.parametrize("fast_io", [True, False])
+def test_plant_link_accepts_configured_sysid_then_only_that_address(fast_io):
     ep = UdpEndpoint("127.0.0.1", 0)
     link = PlantLink(ep, plant_sysid=2)
+    assert link._fast_io                 # passed its start-up self-check
+    link._fast_io = fast_io
     port = ep.address[1]
     meas = np.zeros(14)
     intruder_id = ScriptedPlant(port, sysid=7)
@@ -98,14 +103,21 @@ def test_plant_link_accepts_configured_sysid_then_only_that_address():
     assert _wait_readable(ep.sock)
     assert link.read_frame(meas) == 2000 and link.counters.relocks == 1
     assert link.peer == other.sock.getsockname() and not link.relock_allowed
+    # AND every datagram, frame and answer was counted: 7 datagrams, 3 frames, 1 answer
+    c = link.counters
+    assert (c.datagrams, c.frames, c.outputs) == (7, 3, 1)
+    assert link.send_servo(2000, (1500, 1500, 1500)) and other.recv_servo(2.0).time_usec == 2000
+    assert c.outputs == 2
     for p in (intruder_id, plant, other):
         p.close()
     ep.close()
 
 
-def test_servo_stamp_wraps_modulo_2_32():
+@pytest.mark.parametrize("fast_io", [True, False])
+def test_servo_stamp_wraps_modulo_2_32(fast_io):
     ep = UdpEndpoint("127.0.0.1", 0)
     link = PlantLink(ep)
+    link._fast_io = fast_io
     plant = ScriptedPlant(ep.address[1])
     plant.send_frame(level_meas(5000.0))           # 5e9 us > 2^32
     assert _wait_readable(ep.sock)

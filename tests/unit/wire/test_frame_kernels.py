@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from fc.link import PlantLink, UdpEndpoint, new_codec
 from hyfc_wire import frame_kernels as K
 from hyfc_wire import layout
-from hyfc_wire.pwm import DEFLECTION_LIMIT_RAD, deflection_to_pwm
+from hyfc_wire.pwm import DEFLECTION_LIMIT_RAD, deflection_to_pwm, throttle_to_pwm
 
 F32 = st.floats(width=32, allow_nan=False)
 #: float32 values, zeros likely (a zero last field makes the codec truncate the payload)
@@ -62,12 +62,14 @@ def _both_paths(lk: PlantLink, data: bytes):
         lk._fast = fast
         lk.gps[:] = 0.0
         lk.gps_samples = 0
-        for f in lk.counters.__slots__:
+        names = [f for f in lk.counters.__slots__ if f != "hot"]
+        for f in names:
             setattr(lk.counters, f, 0)
+        lk.counters.hot[:] = 0
         meas = np.full(layout.M_N, -7.0)
         stamp = lk._decode(data, meas)
         out.append((stamp, meas.tobytes(), lk.gps.tobytes(),
-                    [getattr(lk.counters, f) for f in lk.counters.__slots__]))
+                    [getattr(lk.counters, f) for f in names] + lk.counters.hot.tolist()))
     lk._fast = True
     return out
 
@@ -244,6 +246,27 @@ def test_surfaces_pwm_copies_the_command_then_maps_it():
     K.surfaces_pwm(delta, delta, 0, pwm)
     assert np.array_equal(delta, src, equal_nan=True)
     assert pwm.tolist() == [deflection_to_pwm(x) for x in src] + [0]
+
+
+def test_throttle_pwm_is_throttle_to_pwm_around_every_half_step_and_on_any_float():
+    # GIVEN throttles next to every k + 0.5 us boundary of 1000..2000 us, beyond 0..1 and not
+    # finite, and random floats
+    xs = [0.0, -0.0, 1.0, -1.0, 2.0, 5e-324, 1e300, -1e300, math.inf, -math.inf, math.nan]
+    for k in range(-5, 1006):
+        x = (k + 0.5) / 1000.0
+        for _ in range(4):
+            xs += [x]
+            x = np.nextafter(x, np.inf)
+        x = (k + 0.5) / 1000.0
+        for _ in range(4):
+            x = np.nextafter(x, -np.inf)
+            xs += [x]
+    xs += list(np.random.default_rng(0).uniform(-0.5, 1.5, 2000))
+    # THEN the compiled map gives throttle_to_pwm's value (on the float and on the numpy
+    # scalar the guidance's output array holds)
+    for x in xs:
+        want = throttle_to_pwm(float(x))
+        assert K.throttle_pwm(float(x)) == want == throttle_to_pwm(np.float64(x)), x
 
 
 # ---- SERVO_OUTPUT_RAW -----------------------------------------------------------------------
