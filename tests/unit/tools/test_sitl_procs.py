@@ -7,7 +7,11 @@ import sys
 
 from tools.sitl.procs import Child, free_udp_port
 
-PRINT_THEN_WAIT = ("import sys, time\n"
+#: the child takes SIGINT as KeyboardInterrupt even when it inherited SIGINT ignored (a test run
+#: started as a background job of a non-interactive shell, ``cmd &``: CPython then leaves it
+#: ignored; the fc and the plant install their own handlers)
+PRINT_THEN_WAIT = ("import signal, sys, time\n"
+                   "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
                    "print('hello', flush=True)\n"
                    "print('oops', file=sys.stderr, flush=True)\n"
                    "print('READY', flush=True)\n"
