@@ -321,62 +321,10 @@ def surfaces_pwm(src_rad, delta_out, throttle_pwm_us, pwm_out):
 
 
 @njit(cache=True)
-def servo_frame(out, seq, sysid, compid, time_usec, pwm_us):
-    """SERVO_OUTPUT_RAW (``time_usec`` u32, servo1..4 = ``pwm_us[0:4]``, port 0, the other
-    channels 0) framed at the start of ``out`` (uint8, at least SERVO_FRAME_MAX_B) as
-    ``sysid``/``compid`` with sequence ``seq``; returns the frame's length in bytes."""
-    p = _HDR
-    t = np.int64(time_usec) & 0xFFFFFFFF
-    for k in range(4):
-        out[p + k] = (t >> (8 * k)) & 0xFF
-    for c in range(4):
-        v = np.int64(pwm_us[c]) & 0xFFFF
-        out[p + 4 + 2 * c] = v & 0xFF
-        out[p + 5 + 2 * c] = v >> 8
-    for i in range(p + 12, p + N_SERVO):            # servo5..8, port, servo9..16
-        out[i] = 0
-    n = N_SERVO
-    while n > 1 and out[p + n - 1] == 0:            # MAVLink 2 trailing-zero truncation
-        n -= 1
-    out[0] = _MAGIC2
-    out[1] = n
-    out[2] = 0
-    out[3] = 0
-    out[4] = seq & 0xFF
-    out[5] = sysid & 0xFF
-    out[6] = compid & 0xFF
-    out[7] = ID_SERVO & 0xFF
-    out[8] = (ID_SERVO >> 8) & 0xFF
-    out[9] = ID_SERVO >> 16
-    end = p + n
-    crc = _crc_byte(X_SERVO, crc16_range(out, 1, end, 0xFFFF))
-    out[end] = crc & 0xFF
-    out[end + 1] = crc >> 8
-    return end + 2
-
-
-# ---------------------------------------------------------------- the plant's frame path
-@njit(cache=True)
-def _put_u(out, i, v, nb):
-    """``nb`` little-endian bytes of the non-negative integer ``v`` at ``out[i:]``."""
-    for k in range(nb):
-        out[i + k] = (v >> (8 * k)) & 0xFF
-
-
-@njit(cache=True)
-def _put_f32(out, i, x):
-    """float32 of ``x`` (round to nearest, as struct's 'f') at ``out[i:i + 4]``; False if the
-    struct would refuse it (finite and beyond float32)."""
-    if math.isfinite(x) and abs(x) > _F32_MAX and not math.isfinite(np.float64(np.float32(x))):
-        return False
-    _put_u(out, i, np.int64(np.float32(x).view(np.uint32)), 4)
-    return True
-
-
-@njit(cache=True)
 def _frame_at(out, pos, size, seq, sysid, compid, msg_id, crc_extra):
     """Header, trailing-zero truncation and CRC of the frame whose full ``size``-byte payload is
-    at ``out[pos + 10:]``; returns the position after the frame."""
+    at ``out[pos + 10:]``, as the codec frames it; returns the position after the frame (the
+    fc's SERVO_OUTPUT_RAW and the plant's sensor datagram)."""
     p = pos + _HDR
     n = size
     while n > 1 and out[p + n - 1] == 0:
@@ -396,6 +344,42 @@ def _frame_at(out, pos, size, seq, sysid, compid, msg_id, crc_extra):
     out[end] = crc & 0xFF
     out[end + 1] = crc >> 8
     return end + 2
+
+
+@njit(cache=True)
+def servo_frame(out, seq, sysid, compid, time_usec, pwm_us):
+    """SERVO_OUTPUT_RAW (``time_usec`` u32, servo1..4 = ``pwm_us[0:4]``, port 0, the other
+    channels 0) framed at the start of ``out`` (uint8, at least SERVO_FRAME_MAX_B) as
+    ``sysid``/``compid`` with sequence ``seq``; returns the frame's length in bytes."""
+    p = _HDR
+    t = np.int64(time_usec) & 0xFFFFFFFF
+    for k in range(4):
+        out[p + k] = (t >> (8 * k)) & 0xFF
+    for c in range(4):
+        v = np.int64(pwm_us[c]) & 0xFFFF
+        out[p + 4 + 2 * c] = v & 0xFF
+        out[p + 5 + 2 * c] = v >> 8
+    for i in range(p + 12, p + N_SERVO):            # servo5..8, port, servo9..16
+        out[i] = 0
+    return _frame_at(out, 0, N_SERVO, seq, sysid, compid, ID_SERVO, X_SERVO)
+
+
+# ---------------------------------------------------------------- the plant's frame path
+@njit(cache=True)
+def _put_u(out, i, v, nb):
+    """``nb`` little-endian bytes of the non-negative integer ``v`` at ``out[i:]``."""
+    for k in range(nb):
+        out[i + k] = (v >> (8 * k)) & 0xFF
+
+
+@njit(cache=True)
+def _put_f32(out, i, x):
+    """float32 of ``x`` (round to nearest, as struct's 'f') at ``out[i:i + 4]``; False if the
+    struct would refuse it (finite and beyond float32)."""
+    if math.isfinite(x) and abs(x) > _F32_MAX and not math.isfinite(np.float64(np.float32(x))):
+        return False
+    _put_u(out, i, np.int64(np.float32(x).view(np.uint32)), 4)
+    return True
 
 
 @njit(cache=True)
