@@ -102,7 +102,8 @@ P_DIST_QREF = 82   # Pa; > 0: d(t) scaled by qbar / P_DIST_QREF (a moment coeffi
 P_EARTH = 83       # EARTH_FLAT (the paper's flat NED earth) or EARTH_SPHERE
 P_EARTH_R = 84     # sphere radius (m)
 P_ORIGIN = 85      # 85..93: origin (start) on the sphere, E axes: unit up, north, east vectors
-P_N = 94
+P_DIST_END = 94    # s; > 0: d(t) = 0 from this sim time on (a release test), 0 = never
+P_N = 95
 
 EARTH_FLAT = 0
 EARTH_SPHERE = 1
@@ -167,9 +168,10 @@ def disturbance_components(t_s, p, qbar_pa):
     campaigns disperse the disturbance. With P_DIST_QREF > 0 (``qbar_ref_Pa``) d is multiplied
     by qbar_pa / P_DIST_QREF: a moment coefficient, equal to d at the reference dynamic pressure
     and proportional to the dynamic pressure ``qbar_pa`` (Pa) elsewhere (docs/plant.md s. 8).
-    Returns (d_p, d_q, d_r); zeros when off.
+    With P_DIST_END > 0 (``end_s``) d is zero from that sim time on. Returns (d_p, d_q, d_r);
+    zeros when off.
     """
-    if p[P_DIST_ON] == 0.0:
+    if p[P_DIST_ON] == 0.0 or (p[P_DIST_END] > 0.0 and t_s >= p[P_DIST_END]):
         return 0.0, 0.0, 0.0
     a = p[P_DIST_AMP]
     if p[P_DIST_QREF] > 0.0:

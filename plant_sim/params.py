@@ -52,6 +52,7 @@ def build_params(sc: Scenario) -> tuple[np.ndarray, int]:
     for i, k in enumerate(("phase_roll_deg", "phase_pitch_deg", "phase_yaw_deg")):
         p[dy.P_DIST_PHASE + i] = ds[k] * DEG
     p[dy.P_DIST_QREF] = ds["qbar_ref_Pa"]
+    p[dy.P_DIST_END] = ds["end_s"]
     s = d["speed"]
     p[dy.P_SPEED_MODE] = dy.SPEED_HOLD if s["model"] == "hold" else dy.SPEED_NONE
     p[dy.P_VREF] = s["V_ref_m_s"] if s["V_ref_m_s"] > 0.0 else d["initial"]["V_m_s"]

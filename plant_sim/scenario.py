@@ -111,6 +111,9 @@ SCHEMA: dict[str, Any] = {
         "qbar_ref_Pa": Key("float", 0.0, 0.0, 1e7,
                            doc="0: d(t) as given (the paper's); > 0: d(t) x qbar / qbar_ref_Pa, a "
                                "moment coefficient equal to d at this dynamic pressure"),
+        "end_s": Key("float", 0.0, 0.0, 1e7,
+                     doc="0: d(t) for the whole flight; > 0: d(t) = 0 from this sim time (s) on, "
+                         "e.g. to tell a forced oscillation from a limit cycle"),
     },
     "actuators": {
         "limit_deg": Key("float", vehicle.DEFLECTION_MAX_DEG, 0.1, vehicle.DEFLECTION_MAX_DEG),

@@ -48,6 +48,8 @@ TARGET_Q_KPA = (24.0, 300.0)
 #: the paper's spec of the campaigns (tools/evidence/dispersions/paper.toml [spec])
 SPEC_OS_PCT = 10.0
 SPEC_TS_S = 5.0
+#: the release test (``release_check``): flown this long after d(t) is switched off, s
+RELEASE_S = 15.0
 VARIANTS = {"unco": (False, "eq14"), "co_eq14": (True, "eq14"), "co_eq19": (True, "eq19")}
 #: --disturbance: map (a) the paper's angular acceleration, map (b) a moment coefficient
 DISTURBANCES = ("accel", "coefficient")
@@ -64,12 +66,14 @@ def flight_condition(mach: float, h_m: float) -> tuple[float, float]:
     return mach * a_m_s, 0.5 * GAMMA_AIR * p_pa * mach * mach
 
 
-def point_scenario(mach: float, h_m: float, base: str = "paper", disturbance: str = "accel"):
+def point_scenario(mach: float, h_m: float, base: str = "paper", disturbance: str = "accel",
+                   disturbance_end_s: float = 0.0):
     """The paper's scenario flown at (mach, h_m), surfaces starting at the initial trim.
 
     ``disturbance``: "accel" keeps the base scenario's d(t) (map a); "coefficient" makes it a
     moment coefficient equal to the base's d(t) at the base scenario's initial dynamic pressure
     (the paper's point, 183 kPa), so it scales with the point's dynamic pressure (map b).
+    ``disturbance_end_s`` > 0: d(t) switched off from that sim time on (the release test).
     """
     from plant_sim.scenario import Scenario, load, parse
     if disturbance not in DISTURBANCES:
@@ -78,6 +82,8 @@ def point_scenario(mach: float, h_m: float, base: str = "paper", disturbance: st
     d = copy.deepcopy(sc.data)
     if disturbance == "coefficient":
         d["disturbance"]["qbar_ref_Pa"] = paper_qbar_pa(sc)
+    if disturbance_end_s > 0.0:
+        d["disturbance"]["end_s"] = float(disturbance_end_s)
     v, _ = flight_condition(mach, h_m)
     d["initial"]["V_m_s"] = float(v)
     d["initial"]["h_m"] = float(h_m)
@@ -110,8 +116,11 @@ def trim_point(sc) -> dict:
 
 
 def fly_point(mach: float, h_m: float, duration_s: float = 20.0, variants=tuple(VARIANTS),
-              disturbance: str = "accel") -> list:
-    """The Dask task: trim one point and fly each variant; one row per variant."""
+              disturbance: str = "accel", overrides: dict | None = None) -> list:
+    """The Dask task: trim one point and fly each variant; one row per variant.
+
+    ``overrides``: law parameters {name: value} (table units) set on top of each variant's
+    reading, e.g. a weight swept over the map (``--set``)."""
     from tools.sitl.closed_loop import simulate
     from tools.evidence.coordination import READINGS, run_metrics
     v, q = flight_condition(mach, h_m)
@@ -126,6 +135,7 @@ def fly_point(mach: float, h_m: float, duration_s: float = 20.0, variants=tuple(
     for var in variants:
         co, reading = VARIANTS[var]
         ov = dict(READINGS[reading])
+        ov.update(overrides or {})
         t0 = time.perf_counter()
         try:
             res = simulate(sc, coordinated=co, duration_s=duration_s, law_overrides=ov,
@@ -135,9 +145,43 @@ def fly_point(mach: float, h_m: float, duration_s: float = 20.0, variants=tuple(
         except Exception as exc:  # noqa: BLE001
             row = {**base, "variant": var, "error": f"{type(exc).__name__}: {exc}",
                    "diverged": True}
+        if unsettled(row):
+            row.update(release_check(mach, h_m, duration_s, co, ov, disturbance))
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
     return rows
+
+
+def release_check(mach: float, h_m: float, duration_s: float, coordinated: bool, overrides: dict,
+                  disturbance: str, release_s: float = RELEASE_S) -> dict:
+    """The release test of a point left unsettled: the same flight again, with d(t) switched off
+    at ``duration_s`` and flown ``release_s`` longer. A forced response (the disturbance beyond
+    the surfaces' authority) settles once d is gone; a limit cycle or a drift does not.
+
+    Returns {"release_ts_s": worst channel's settling time of the longer flight (s; NaN: some
+    channel still outside its band at the end), "release_fe_deg": worst final error (deg),
+    "release_diverged": bool}.
+    """
+    from tools.sitl.closed_loop import simulate
+    from tools.evidence.coordination import run_metrics
+    sc = point_scenario(mach, h_m, disturbance=disturbance, disturbance_end_s=duration_s)
+    try:
+        res = simulate(sc, coordinated=coordinated, duration_s=duration_s + release_s,
+                       law_overrides=overrides, command_shaping="steps", estimate="truth")
+        r = run_metrics(res)
+    except Exception:  # noqa: BLE001 - a failed release is reported, not raised
+        return {"release_ts_s": math.nan, "release_fe_deg": math.nan, "release_diverged": True}
+    ts = _worst(r, "ts_s")
+    return {"release_ts_s": ts if math.isfinite(ts) else math.nan,
+            "release_fe_deg": float(np.nanmax([r[f"{c}_fe_deg"] for c in ("alpha", "beta", "mu")])),
+            "release_diverged": bool(r["diverged"])}
+
+
+def released(r: dict) -> bool:
+    """An unsettled point whose release test settled: its oscillation was forced by d(t)."""
+    v = r.get("release_ts_s", math.nan)
+    return unsettled(r) and r.get("release_diverged") is not True and \
+        isinstance(v, float) and math.isfinite(v)
 
 
 def grid(quick: bool = False):
@@ -148,7 +192,8 @@ def grid(quick: bool = False):
 
 
 def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20.0,
-        variants=tuple(VARIANTS), disturbance: str = "accel") -> list:
+        variants=tuple(VARIANTS), disturbance: str = "accel",
+        overrides: dict | None = None) -> list:
     machs, hs = grid(quick)
     pts = [(float(m), float(h)) for h in hs for m in machs
            if Q_MIN_PA <= flight_condition(m, h)[1] <= Q_MAX_PA]
@@ -157,12 +202,13 @@ def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20
     rows: list = []
     if workers <= 0:
         for m, h in pts:
-            rows += fly_point(m, h, duration_s, variants, disturbance)
+            rows += fly_point(m, h, duration_s, variants, disturbance, overrides)
     else:
         from distributed import as_completed
         from tools.evidence.montecarlo.campaign import cluster_client
         with cluster_client(workers) as client:
-            futs = [client.submit(fly_point, m, h, duration_s, variants, disturbance, pure=False)
+            futs = [client.submit(fly_point, m, h, duration_s, variants, disturbance, overrides,
+                                  pure=False)
                     for m, h in pts]
             for fut in as_completed(futs):
                 rows += fut.result()
@@ -172,7 +218,8 @@ def run(out: Path, quick: bool = False, workers: int = 2, duration_s: float = 20
     write_rows(out / "points.csv", rows)
     info = {"mach": machs.tolist(), "h_m": hs.tolist(), "points": len(pts), "runs": len(rows),
             "q_corridor_Pa": [Q_MIN_PA, Q_MAX_PA], "workers": workers, "wall_s": wall,
-            "duration_s": duration_s, "variants": list(variants), "disturbance": disturbance}
+            "duration_s": duration_s, "variants": list(variants), "disturbance": disturbance,
+            "overrides": dict(overrides or {})}
     (out / "envelope.json").write_text(json.dumps(info, indent=1))
     print(f"envelope: {len(pts)} points, {len(rows)} runs, {wall:.0f} s wall, {workers} workers")
     return rows
@@ -333,6 +380,7 @@ def counts(rows: list[dict]) -> dict:
                     "diverged": sum(bool(r.get("diverged")) or bool(r.get("error"))
                                     for r in pts.values()),
                     "unsettled": sum(unsettled(r) for r in pts.values()),
+                    "unsettled_released": sum(released(r) for r in pts.values()),
                     "meets_spec": sum(meets_spec(r) for r in pts.values()),
                     "corridor_points": len(cor),
                     "corridor_meets_spec": sum(meets_spec(r) for r in cor)}
@@ -351,10 +399,12 @@ def summary(rows: list[dict]) -> str:
         n = len(pts)
         div = sum(bool(r.get("diverged")) or bool(r.get("error")) for r in pts.values())
         uns = sum(unsettled(r) for r in pts.values())
+        rel = sum(released(r) for r in pts.values())
         ok = [k for k, r in pts.items() if meets_spec(r)]
         cor = [r for r in pts.values() if in_target_corridor(r)]
         cor_ok = sum(meets_spec(r) for r in cor)
-        lines.append(f"{var}: {n} points, diverged {div}, unsettled at 20 s {uns}, "
+        lines.append(f"{var}: {n} points, diverged {div}, unsettled at 20 s {uns} "
+                     f"(of which settled once d(t) was switched off: {rel}), "
                      f"meet spec {len(ok)}"
                      + (f" (Mach {min(k[0] for k in ok):g}-{max(k[0] for k in ok):g}, "
                         f"{min(k[1] for k in ok):g}-{max(k[1] for k in ok):g} km)" if ok else "")
@@ -379,6 +429,23 @@ def summary(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def parse_sets(items) -> dict:
+    """``NAME=VALUE`` strings -> {name: value}, each checked against the law's parameter table
+    (fc.control.params.checked_value: known name, a number within its range). Raises
+    ValueError naming the bad item."""
+    from fc.control.params import LAW_PARAMS, PARAM_INDEX, checked_value
+    out = {}
+    for item in items:
+        name, eq, value = str(item).partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise ValueError(f"{item!r}: expected NAME=VALUE")
+        if name not in PARAM_INDEX:
+            raise ValueError(f"{name!r}: not a law parameter (docs/params.md)")
+        out[name] = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value.strip())
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.evidence.envelope",
                                  description=__doc__.split("\n")[0])
@@ -398,7 +465,14 @@ def main(argv=None) -> int:
                     help=f"comma-separated subset of {','.join(VARIANTS)} (default all)")
     ap.add_argument("--suffix", default="",
                     help="appended to the pictures' names, e.g. _before -> envelope_spec_before.png")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a law parameter (table units) set in every variant on top of its "
+                         "reading, e.g. --set ALLOC_W_ROLL=0.3; repeatable")
     a = ap.parse_args(argv)
+    try:
+        overrides = parse_sets(a.set)
+    except ValueError as exc:
+        ap.error(f"--set: {exc}")
     variants = tuple(v.strip() for v in a.variants.split(",") if v.strip())
     bad = [v for v in variants if v not in VARIANTS]
     if bad or not variants:
@@ -408,7 +482,7 @@ def main(argv=None) -> int:
         dist = json.loads((a.out / "envelope.json").read_text()).get("disturbance", "accel")
     dist = dist or "accel"
     if not a.plots_only:
-        rows = run(a.out, a.quick, a.workers, a.duration, variants, dist)
+        rows = run(a.out, a.quick, a.workers, a.duration, variants, dist, overrides)
     rows = read_points(a.out / "points.csv")
     machs, hs = grid(a.quick)
     paths = plot(rows, machs, hs, a.img or a.out, MAP_PREFIX[dist], a.suffix, dist)

@@ -287,7 +287,11 @@ def claim_envelope(root: Path = ROOT) -> str:
             f"the target is 90 % in both. Diverged: {bu['diverged']} / {bc['diverged']} points; "
             f"unsettled at 20 s: {bu['unsettled']} / {bc['unsettled']}. Map (a) (`{a['command']}`): "
             f"{share(au)} ({pct(au)}) and {share(ac)} ({pct(ac)}); diverged {au['diverged']} / "
-            f"{ac['diverged']}, unsettled {au['unsettled']} / {ac['unsettled']}. (Commit "
+            f"{ac['diverged']}, unsettled {au['unsettled']} / {ac['unsettled']}"
+            + (f" (of which {au['unsettled_released']} / {ac['unsettled_released']} settle once "
+               f"d(t) is switched off: forced, not limit cycles)"
+               if "unsettled_released" in au and "unsettled_released" in ac else "")
+            + f". (Commit "
             f"{b['commit']}, {b['created_utc'][:10]}, written by "
             f"`python -m tools.evidence.report`.)")
 

@@ -97,3 +97,24 @@ def test_coefficient_disturbance_is_proportional_to_qbar():
                                ratio * _angular_accel_of_disturbance(high, t_s), rtol=1e-6)
     np.testing.assert_allclose(_angular_accel_of_disturbance(high, t_s),
                                _angular_accel_of_disturbance(paper, t_s), rtol=1e-12)
+
+
+# ---- d(t) switched off at end_s (the envelope's release test) --------------------------------
+def test_disturbance_end_switches_d_off_from_that_time_on():
+    # GIVEN the paper's d(t) with end_s = 1.0 s
+    paper = load("paper")
+    ended = parse(_with(paper.to_toml(), end_s="1.0"))
+    # THEN before 1 s it is the paper's, from 1 s on it is zero in the dynamics
+    np.testing.assert_allclose(_angular_accel_of_disturbance(ended, 0.7),
+                               _angular_accel_of_disturbance(paper, 0.7), rtol=1e-12)
+    assert np.all(np.abs(_angular_accel_of_disturbance(paper, 1.3)) > 1e-3)
+    assert np.all(_angular_accel_of_disturbance(ended, 1.0) == 0.0)
+    assert np.all(_angular_accel_of_disturbance(ended, 1.3) == 0.0)
+    # and end_s = 0 (the default) keeps d for the whole flight
+    assert paper.data["disturbance"]["end_s"] == 0.0
+
+
+def test_disturbance_end_is_refused_when_negative():
+    from plant_sim.scenario import ScenarioError
+    with pytest.raises(ScenarioError):
+        parse(_with(load("paper").to_toml(), end_s="-1.0"))

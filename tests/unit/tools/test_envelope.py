@@ -72,7 +72,14 @@ def test_summary_counts_unsettled_and_the_target_corridor():
     assert E.unsettled(rows[1]) and not E.unsettled(rows[0])
     assert [E.in_target_corridor(r) for r in rows] == [True, True, False]
     text = E.summary(rows)
-    assert "unsettled at 20 s 1" in text and "Mach <= 15: 1 of 2 (50 %)" in text
+    assert "unsettled at 20 s 1 (of which settled once d(t) was switched off: 0)" in text
+    assert "Mach <= 15: 1 of 2 (50 %)" in text
+    # the release test's verdict: settled after d was switched off -> a forced response
+    rows[1].update(release_ts_s=23.0, release_fe_deg=0.01, release_diverged=False)
+    assert E.released(rows[1]) and not E.released(rows[0])
+    assert "settled once d(t) was switched off: 1)" in E.summary(rows)
+    assert not E.released(dict(rows[1], release_ts_s=math.nan))       # still unsettled
+    assert not E.released(dict(rows[1], release_diverged=True))
 
 
 @pytest.mark.parametrize("name, disturbance", [("paper_cruise", "accel"),
@@ -107,5 +114,43 @@ def test_counts_per_variant_and_over_the_corridor():
          "alpha_os_pct": 12.0},
     ]
     c = E.counts(rows)["unco"]
-    assert c == {"points": 5, "diverged": 1, "unsettled": 1, "meets_spec": 2,
-                 "corridor_points": 4, "corridor_meets_spec": 1}
+    assert c == {"points": 5, "diverged": 1, "unsettled": 1, "unsettled_released": 0,
+                 "meets_spec": 2, "corridor_points": 4, "corridor_meets_spec": 1}
+
+
+def test_release_check_tells_a_forced_response_from_one_that_persists():
+    """Mach 11 / 40 km, map (a): the paper's d(t) (a fixed angular acceleration) is beyond the
+    surfaces' authority at 24 kPa, so mu is still outside its band at 20 s. Switched off at
+    20 s, the flight settles: a forced response, not a limit cycle (issue 20's "no point
+    limit-cycles"). The same release after only 2 s of d cannot be settled at 2 + 1 s."""
+    r = E.fly_point(11.0, 40e3, 20.0, ("unco",), "accel")[0]
+    assert E.unsettled(r)
+    assert E.released(r), r
+    assert 20.0 < r["release_ts_s"] < 20.0 + E.RELEASE_S
+    assert r["release_fe_deg"] < 0.2
+    short = E.release_check(11.0, 40e3, 2.0, False, {}, "accel", release_s=1.0)
+    assert not math.isfinite(short["release_ts_s"])
+
+
+def test_set_overrides_are_checked_against_the_law_table():
+    assert E.parse_sets(["ALLOC_W_ROLL=0.3", " ALLOC_W_YAW = 200"]) == {
+        "ALLOC_W_ROLL": 0.3, "ALLOC_W_YAW": 200.0}
+    for bad in ("NOPE=1", "ALLOC_W_ROLL", "ALLOC_W_ROLL=x", "ALLOC_W_ROLL=5000"):
+        with pytest.raises(ValueError):
+            E.parse_sets([bad])
+    with pytest.raises(SystemExit):
+        E.main(["--set", "NOPE=1", "--quick", "--workers", "0", "--out", "/nonexistent/x"])
+
+
+def test_set_overrides_reach_the_flight():
+    """--set's values are flown in every variant (the flights are deterministic, so an ignored
+    override would give the same figures): the law's surface limit cut to 2 deg at the paper's
+    point changes each variant's flight, and flying the default value again changes nothing."""
+    keys = ("alpha_os_pct", "mu_fe_deg", "usage_deg_s", "travel_deg")
+    variants = ("unco", "co_eq19")
+    free = E.fly_point(7.44, 21e3, 1.0, variants, "accel")
+    same = E.fly_point(7.44, 21e3, 1.0, variants, "accel", {"ACT_MAX": 20.0})
+    cut = E.fly_point(7.44, 21e3, 1.0, variants, "accel", {"ACT_MAX": 2.0})
+    for f, s, c in zip(free, same, cut):
+        assert [f[k] for k in keys] == [s[k] for k in keys]
+        assert c["travel_deg"] < 0.8 * f["travel_deg"], (f["variant"], c, f)
