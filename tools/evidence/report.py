@@ -292,7 +292,10 @@ def claim_envelope(root: Path = ROOT) -> str:
                f"d(t) is switched off: forced, not limit cycles)"
                if "unsettled_released" in au and "unsettled_released" in ac else "")
             + f". (Commit "
-            f"{b['commit']}, {b['created_utc'][:10]}, written by "
+            f"{b['commit']}, {b['created_utc'][:10]}"
+            + (f"; map (a) commit {a['commit']}, {a['created_utc'][:10]}"
+               if a.get("commit") != b.get("commit") else "")
+            + ", written by "
             f"`python -m tools.evidence.report`.)")
 
 
