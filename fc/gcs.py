@@ -415,7 +415,7 @@ class GcsLink:
                 for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                                else len(self.v.named_values())
                                if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1):
-                    msg = self._build(msg_id, k)
+                    msg = self._build(msg_id, k, us)    # (real time: the base moves on)
                     c.seq = 17
                     want = msg.pack(c)
                     n = self._frame_stream(msg_id, k, -1, 0, 17, us)
@@ -1252,13 +1252,16 @@ class GcsLink:
         t = self.v.meas_stamp_us * 1e-6 if self.v.plant.counters.frames else math.nan
         return self.v.debug_vectors() + [(b"SIM_T", (t, 0.0, 0.0))]
 
-    def _build(self, msg_id: int, cursor: int):
+    def _build(self, msg_id: int, cursor: int, us: int | None = None):
+        """The streamed message ``msg_id`` (``cursor``: which named value or vector) at time
+        base ``us`` (default: now, ``time_us``)."""
         v = self.v
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
         if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
             return mission_encode(self.mav, self.mission, ("current",), self._mission_active())
-        us = self.time_us()
+        if us is None:
+            us = self.time_us()
         ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE

@@ -241,3 +241,23 @@ def test_named_value_float_is_the_codecs(values, names, us, seq, log, data):
     want = _want(_codec(seq).named_value_float_encode((us // 1000) & 0xFFFFFFFF, names[k],
                                                       values[k]), seq, us if log else None)
     _check(got, b, want)
+
+
+@pytest.mark.parametrize("timing", ["lockstep", "realtime"])
+def test_the_compiled_framing_is_taken_in_both_timing_modes(tmp_path, timing):
+    # GIVEN a controller built as python -m fc builds it, in each timing mode (real time: the
+    # time base moves on between two reads of it)
+    import logging
+
+    from fc.app import FcConfig, FlightController
+    log = logging.getLogger("test_gcs_frames")
+    log.addHandler(logging.NullHandler())
+    log.propagate = False
+    cfg = FcConfig(mode=timing, plant_bind=("127.0.0.1", 0), gcs=[], gcs_bind=("127.0.0.1", 0),
+                   out=str(tmp_path))
+    fc = FlightController(cfg, log)
+    try:
+        # THEN its start-up check found the kernels' frames equal to the codec's
+        assert fc.gcs.fast is True
+    finally:
+        fc.close()
