@@ -227,6 +227,7 @@ class FlightController:
             self.modes.set_armed(True, data_ok=True)
         self.mode_ctl.sync()
         self.telemetry.refresh()
+        self.gcs.warm_up()          # the streams' compiled framing (fc/gcs_frames.py) loaded now
 
     # ------------------------------------------------------------------ parameters
     def set_param(self, name: str, value: float) -> str | None:
@@ -459,6 +460,21 @@ class FlightController:
 
     def throttle_percent(self) -> int:
         return self.telemetry.throttle_percent()
+
+    # optional members of VehicleView: GcsLink frames the DEBUG_VECTs and NAMED_VALUE_FLOATs
+    # with fc/gcs_frames.py
+    def debug_vector_count(self) -> int:
+        return self.telemetry.debug_vector_count()
+
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+                           sysid: int, compid: int, time_us: int) -> int:
+        return self.telemetry.frame_debug_vector(k, tx, log_epoch_us, log_t_us, seq, sysid,
+                                                 compid, time_us)
+
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+                          sysid: int, compid: int, time_us: int) -> int:
+        return self.telemetry.frame_named_value(k, tx, log_epoch_us, log_t_us, seq, sysid,
+                                                compid, time_us)
 
     def nav_controller_output(self):
         return self.telemetry.nav_controller_output()

@@ -36,8 +36,13 @@ import struct
 import time
 from collections import deque
 
+import numpy as np
+
+from fc import gcs_frames as GF
+from fc.control.carrays import ArrayAddress, address_of
+from fc.frame_calls import FAST_IO, HOT_FRAMES
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, LeanFramer,
+                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
                      UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
 from fc.gcs_ftp import FtpService
 from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
@@ -80,6 +85,20 @@ STREAM_DEFAULTS_S = {
     ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: 0.25,  # in the guidance modes only
     ML.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,      # and on every change (fc/mission.py)
 }
+#: The stream schedules' message ids, in the order a schedule is walked (every ``_Streams``
+#: holds exactly these keys; a rate request for another id is refused)
+STREAM_IDS = tuple(STREAM_DEFAULTS_S)
+#: The streamed messages framed by compiled kernels from the vehicle's state arrays
+#: (fc/gcs_frames.py; the same bytes as the codec's): no Python object per message. The rest
+#: are built as the codec's message objects (``_build``).
+FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
+                          ML.MAVLINK_MSG_ID_VFR_HUD, ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,
+                          ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT})
+#: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
+#: (and 8, 10, 12, 15, 16): ``cursor % n`` is unchanged and the cursor stays a small int
+#: (CPython caches the ints up to 256: no int object per message)
+DV_CURSOR_WRAP = 240
+_I64_MAX = (1 << 63) - 1
 #: GUIDED's target commands (``_guided_command``) -> the name in STATUSTEXT.
 GUIDED_COMMANDS = {
     ML.MAV_CMD_GUIDED_CHANGE_SPEED: "GUIDED_CHANGE_SPEED",
@@ -280,6 +299,7 @@ class GcsLink:
         self._log_next = 0
         self._log_last_us = 0
         self.io = io
+        self._init_fast_frames()
         # the protocol services (one module each): log download of this .tlog, read-only FTP
         # of the run directory; their answers go to the requester only, never to the .tlog
         self.logs = LogService(tlog_path, self.epoch_us // 1_000_000)
@@ -331,6 +351,179 @@ class GcsLink:
     @staticmethod
     def _allow_unsigned(_mav, msg_id: int) -> bool:
         return msg_id in UNSIGNED_ALLOWED
+
+    # ------------------------------------------------------------------ compiled frames
+    def _init_fast_frames(self) -> None:
+        """The compiled framing of FAST_STREAMS (fc/gcs_frames.py): a frame buffer, its slices,
+        the destinations as sockaddr_in. ``fast`` (decided at the first use, the vehicle being
+        complete then: :meth:`_fast_ok`) is False, the codec's path for everything, when the
+        vehicle's state is not in the arrays the kernels read (a stub vehicle), libc's
+        ``sendto`` cannot be compiled (NUMBA_DISABLE_JIT), or a kernel's bytes differ from the
+        codec's."""
+        self._tx = np.zeros(GF.FRAME_MAX_B, np.uint8)
+        self._tx_p = address_of(self._tx, np.uint8, GF.FRAME_MAX_B)
+        mv = memoryview(self._tx)
+        self._tx_views = tuple(mv[:n] for n in range(GF.FRAME_MAX_B + 1))
+        self._meas_at = ArrayAddress(np.float64, M_N)
+        self._pwm_at = ArrayAddress(np.int64, 4)
+        self._frames_at = ArrayAddress(np.int64, HOT_FRAMES + 1)
+        self._fd = self.endpoint.fileno()
+        # the default schedule's destinations (``_default_addrs``): the IPv4 ones as
+        # sockaddr_in rows for the compiled send, the others sent by ``socket``; rebuilt when
+        # the peers or the own-rate links change (``_dests_dirty``)
+        self._dests = np.zeros((len(self.outputs) + MAX_PEERS, GF.SOCKADDR_IN_B), np.uint8)
+        self._dests_p = address_of(self._dests, np.uint8, self._dests.size)
+        self._n_dests = 0
+        self._slow_dests: tuple = ()
+        self._dests_dirty = True
+        self._dv_frame = getattr(self.v, "frame_debug_vector", None)
+        self._dv_count = getattr(self.v, "debug_vector_count", None)
+        self._nv_frame = getattr(self.v, "frame_named_value", None)
+        self.fast: bool | None = None if FAST_IO else False
+
+    def warm_up(self) -> bool:
+        """Decide the compiled stream framing now, loading its kernels (the fc calls this at
+        the end of its construction, before READY, so the first frames do not load them and
+        ``hyfc-precompile`` compiles them): True when FAST_STREAMS use it."""
+        return self._fast_ok()
+
+    def _fast_ok(self) -> bool:
+        """Whether FAST_STREAMS go through the compiled framing (``fast``, decided once)."""
+        if self.fast is None:
+            try:
+                self._meas_at.of(self.v.meas)
+                self._pwm_at.of(self.v.pwm_us)
+                self._frames_at.of(self.v.plant.counters.hot)
+            except (ValueError, AttributeError, TypeError):
+                self.fast = False
+                return False
+            self.fast = self._fast_self_check()
+            if not self.fast and self.log is not None:
+                self.log.warning("ground-station streams: the compiled framing differs from "
+                                 "the codec here; the codec frames them")
+        return self.fast
+
+    def _fast_self_check(self) -> bool:
+        """The kernels' frames of the vehicle's state now equal the codec's (as ``_build``
+        makes them), each with and without the .tlog stamp."""
+        try:
+            c = new_codec(self.v.sysid, self.v.compid)
+            us = self.time_us()
+            for msg_id in STREAM_IDS:
+                if msg_id not in FAST_STREAMS:
+                    continue
+                for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
+                               else len(self.v.named_values())
+                               if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1):
+                    msg = self._build(msg_id, k, us)    # (real time: the base moves on)
+                    c.seq = 17
+                    want = msg.pack(c)
+                    n = self._frame_stream(msg_id, k, -1, 0, 17, us)
+                    if bytes(self._tx[:n]) != want:
+                        return False
+                    n = self._frame_stream(msg_id, k, self.epoch_us, us, 17, us)
+                    if bytes(self._tx[:n]) != struct.pack(">Q", self.epoch_us + us) + want:
+                        return False
+            GF.send_frame_p(self._fd, self._tx_p, 0, self._dests_p, 0)     # (loaded: sends none)
+            return True
+        except Exception:  # noqa: BLE001 - any surprise: the codec's path
+            return False
+
+    def _n_debug_vectors(self) -> int:
+        """How many DEBUG_VECTs a stream period has (the vehicle's, then SIM_T)."""
+        if self._dv_count is not None:
+            return self._dv_count() + 1
+        return len(self._debug_vectors())
+
+    def _frame_stream(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
+                      us: int) -> int:
+        """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at time base
+        ``us`` with sequence ``seq`` into ``_tx`` (with the .tlog stamp ``log_epoch_us +
+        log_t_us`` when ``log_epoch_us`` >= 0): the bytes written, or 0 when the kernel
+        declines (the caller takes the codec's path)."""
+        v = self.v
+        if us > _I64_MAX:
+            return 0
+        if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
+            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
+                                 self._meas_at.of(v.meas))
+        if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
+            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
+                                self._meas_at.of(v.meas))
+        if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
+            return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                self._meas_at.of(v.meas), v.throttle_percent())
+        if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
+            return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                  us, self._pwm_at.of(v.pwm_us))
+        if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
+            if self._nv_frame is None:
+                return 0
+            return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                  us)
+        if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
+            if self._dv_frame is None:
+                return 0
+            if k < self._dv_count():
+                return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+                                      v.compid, us)
+            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
+                              v.meas_stamp_us * 1e-6,
+                              self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
+        return 0
+
+    def _refresh_dests(self) -> None:
+        """The default schedule's destinations (``_default_addrs``) as sockaddr_in rows."""
+        n = 0
+        slow = []
+        for addr in self._default_addrs():
+            sa = GF.sockaddr_in(*addr) if len(addr) == 2 else None
+            if sa is None or n >= len(self._dests):
+                slow.append(addr)
+            else:
+                self._dests[n] = sa
+                n += 1
+        self._n_dests = n
+        self._slow_dests = tuple(slow)
+        self._dests_dirty = False
+
+    def _send_frame(self, n: int) -> None:
+        """Send the ``n`` bytes framed in ``_tx`` to the default schedule's destinations (as
+        ``_send_on`` sends a message on the default link)."""
+        if self._dests_dirty:
+            self._refresh_dests()
+        if self._n_dests:
+            failed = GF.send_frame_p(self._fd, self._tx_p, n, self._dests_p, self._n_dests)
+            if failed:
+                self.endpoint.send_errors += failed
+        if self._slow_dests:
+            for addr in self._slow_dests:
+                self.endpoint.send(self._tx_views[n], addr)
+
+    def _log_fast(self, msg_id: int, t_us: int) -> None:
+        """The .tlog's messages of one stream period of ``msg_id`` (FAST_STREAMS: every named
+        value and every vector, in order) framed by the kernels and stamped ``t_us``, as
+        ``_stream_messages`` + ``_log_msg`` write them; one the kernel declines is built and
+        written by the codec's path."""
+        mav = self.log_mav
+        us = self.time_us()
+        if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
+            count = len(self.v.named_values())
+        elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
+            count = self._n_debug_vectors()
+        else:
+            count = 1
+        k = 0
+        while k < count:
+            n = self._frame_stream(msg_id, k, self.epoch_us, t_us, mav.seq, us)
+            if n:
+                self._tlog_buf += self._tx_views[n]
+                mav.seq = (mav.seq + 1) % 256
+            else:
+                msg = self._build(msg_id, k)
+                if msg is not None:
+                    self._log_msg(msg, t_us)
+            k += 1
 
     def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
         """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64)."""
@@ -420,6 +613,7 @@ class GcsLink:
             if self.signing:
                 self._sign(link.mav, (len(self.links) + 1) % 256)
             self.links[addr] = link
+            self._dests_dirty = True
         return link
 
     def statustext(self, severity: int, text: str) -> None:
@@ -524,6 +718,8 @@ class GcsLink:
         """Note a message from ``addr`` (``signed``: with a valid signature). A newcomer to a
         full table makes room (``_expire_peers``); with signing on, an unsigned newcomer that
         finds only signed peers is not added (its messages are still handled)."""
+        if addr not in self.peers:
+            self._dests_dirty = True
         if addr not in self.peers and len(self.peers) >= MAX_PEERS:
             self._expire_peers(now_s, force=True, newcomer_signed=signed)
             if len(self.peers) >= MAX_PEERS:
@@ -534,6 +730,7 @@ class GcsLink:
             self.signed_peers.add(addr)
 
     def _forget(self, addr) -> None:
+        self._dests_dirty = True
         del self.peers[addr]
         self.signed_peers.discard(addr)
         self.links.pop(addr, None)     # its rates go with it (an output: defaults again)
@@ -1055,13 +1252,16 @@ class GcsLink:
         t = self.v.meas_stamp_us * 1e-6 if self.v.plant.counters.frames else math.nan
         return self.v.debug_vectors() + [(b"SIM_T", (t, 0.0, 0.0))]
 
-    def _build(self, msg_id: int, cursor: int):
+    def _build(self, msg_id: int, cursor: int, us: int | None = None):
+        """The streamed message ``msg_id`` (``cursor``: which named value or vector) at time
+        base ``us`` (default: now, ``time_us``)."""
         v = self.v
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
         if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
             return mission_encode(self.mav, self.mission, ("current",), self._mission_active())
-        us = self.time_us()
+        if us is None:
+            us = self.time_us()
         ms = (us // 1000) & 0xFFFFFFFF
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             present = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -1177,8 +1377,11 @@ class GcsLink:
         for msg_id, iv_us in self._log_iv_us.items():
             due = self.log_due[msg_id]
             if t_us >= due:
-                for msg in self._stream_messages(msg_id):
-                    self._log_msg(msg, t_us)
+                if msg_id in FAST_STREAMS and self._fast_ok():
+                    self._log_fast(msg_id, t_us)
+                else:
+                    for msg in self._stream_messages(msg_id):
+                        self._log_msg(msg, t_us)
                 due = due + iv_us if due + iv_us > t_us else t_us + iv_us
                 self.log_due[msg_id] = due
             if nxt is None or due < nxt:
@@ -1236,49 +1439,84 @@ class GcsLink:
             self.send(self._param_value(idx))
             n_param += 1
             sent += 1
-        for svc in (self.logs, self.ftp):             # streamed answers, paced
-            if svc.busy and sent < self.max_tx:
-                out = svc.take(now_s, self.max_tx - sent)
-                self._service_out(out)
-                sent += len(out)
+        if self.logs.busy or self.ftp.busy:
+            for svc in (self.logs, self.ftp):             # streamed answers, paced
+                if svc.busy and sent < self.max_tx:
+                    out = svc.take(now_s, self.max_tx - sent)
+                    self._service_out(out)
+                    sent += len(out)
         sent = self._streams(self.default, now_s, sent)
-        for link in list(self.links.values()):
-            sent = self._streams(link, now_s, sent)
+        if self.links:
+            for link in list(self.links.values()):
+                sent = self._streams(link, now_s, sent)
         self.wall_due = self._next_wall_due()
         return sent
 
     def _next_wall_due(self) -> float:
         """The earliest wall-clock time the heartbeat or an enabled stream of any schedule is
         due (a stream left due by ``max_tx`` makes it the past: the next call walks again)."""
-        due = self.next_heartbeat
-        for link in (self.default, *self.links.values()):
-            next_due = link.next_due
-            for msg_id, iv in link.intervals.items():
-                if iv >= 0.0 and next_due[msg_id] < due:
-                    due = next_due[msg_id]
+        due = self._link_due(self.default, self.next_heartbeat)
+        if self.links:
+            for link in self.links.values():
+                due = self._link_due(link, due)
+        return due
+
+    @staticmethod
+    def _link_due(link: _Streams, due: float) -> float:
+        """The earlier of ``due`` and the next due time of ``link``'s enabled streams (an index
+        loop: no iterator object per call)."""
+        next_due, intervals = link.next_due, link.intervals
+        i, n = 0, len(STREAM_IDS)
+        while i < n:
+            msg_id = STREAM_IDS[i]
+            i += 1
+            if intervals[msg_id] >= 0.0 and next_due[msg_id] < due:
+                due = next_due[msg_id]
         return due
 
     def _streams(self, link: _Streams, now_s: float, sent: int) -> int:
-        """Send the streamed messages of one schedule that are due; returns ``sent`` updated."""
-        for msg_id, iv in link.intervals.items():
+        """Send the streamed messages of one schedule that are due; returns ``sent`` updated.
+        FAST_STREAMS on the default schedule, unsigned, go through the compiled framing
+        (``_frame_stream``, ``_send_frame``)."""
+        fast = (link is self.default and not link.mav.signing.sign_outgoing
+                and self._fast_ok())
+        i, n_ids = 0, len(STREAM_IDS)
+        while i < n_ids:                    # (an index loop: no iterator object per walk)
+            msg_id = STREAM_IDS[i]
+            i += 1
             if sent >= self.max_tx:
                 break
+            iv = link.intervals[msg_id]
             if iv < 0 or now_s < link.next_due[msg_id]:
                 continue
             if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
                 n_items = len(self.v.named_values())
                 step = iv / n_items
                 cursor = link.nv_cursor
-                link.nv_cursor += 1
+                # wrapped at a multiple of the count (which is fixed): ``cursor % n_items``
+                # unchanged, the cursor a small int (CPython's cached ints: none made per message)
+                link.nv_cursor = (cursor + 1) % (n_items * max(1, 256 // n_items))
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
-                step = iv / len(self._debug_vectors())
+                n_vec = self._n_debug_vectors()
+                step = iv / n_vec
                 cursor = link.dv_cursor
-                link.dv_cursor += 1
+                link.dv_cursor = (cursor + 1) % DV_CURSOR_WRAP
             else:
                 step = iv
                 cursor = 0
             nd = link.next_due[msg_id] + step
             link.next_due[msg_id] = nd if nd > now_s else now_s + step
+            if fast and msg_id in FAST_STREAMS:
+                mav = link.mav
+                k = (cursor % n_vec if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
+                     else cursor % n_items if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT
+                     else 0)
+                n = self._frame_stream(msg_id, k, -1, 0, mav.seq, self.time_us())
+                if n:
+                    mav.seq = (mav.seq + 1) % 256       # as _pack
+                    self._send_frame(n)
+                    sent += 1
+                    continue
             msg = self._build(msg_id, cursor)
             if msg is not None:
                 self._send_on(link, msg)

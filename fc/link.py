@@ -26,7 +26,7 @@ from fc.frame_calls import (FAST_IO, HOT_DATAGRAMS, HOT_EMPTY_READS, HOT_FRAMES,
                             HOT_OUTPUTS, IO_LEN, IO_N, RX_NONE, RX_OTHER, RX_REJECTED,
                             SOCKADDR_IN_B, ArrayAddress, address_of, decode_sensor_p,
                             recv_sensor_p, send_servo_p, servo_frame_p, surfaces_pwm_p)
-from hyfc_wire.codec import mavlink, mavlink_dev, new_codec, reset_parser
+from hyfc_wire.codec import development_dialect, mavlink, new_codec, reset_parser
 from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
                                      GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
                                      GR_VN, SERVO_FRAME_MAX_B, decode_sensor, pwm_map,
@@ -53,6 +53,10 @@ __all__ = [
     "G_T_S", "G_LAT_DEG", "G_LON_DEG", "G_ALT_M", "G_VN", "G_VE", "G_VD", "G_FIX", "G_SATS",
     "G_HACC_M", "G_VACC_M", "G_SACC_M_S", "G_N",
 ]
+
+#: the development dialect (standard modes, PARAM_ERROR: the ground-station link's), loaded
+#: here, by the fc only (hyfc_wire/codec.py ``development_dialect``)
+mavlink_dev = development_dialect()
 
 
 def decode_datagram(mav: mavlink.MAVLink, data: bytes) -> tuple[list, int]:

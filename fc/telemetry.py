@@ -22,6 +22,8 @@ import hyfc_wire.layout as _wire_layout
 from fc.control.carrays import ArrayAddress, address_of, f8p, i8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
+from fc.gcs_frames import (DV_CMD, DV_DELTA, DV_EST, DV_GUID, NV_NAME_B, debug_vect_p,
+                           named_value_p)
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
 from fc.internals_log import InternalsLog
@@ -183,6 +185,17 @@ class Telemetry:
     _emem: np.ndarray | None = None     # the estimator's buffer (state and masks)
     _delta: np.ndarray | None = None    # out.delta_rad
     _tgt: np.ndarray | None = None      # the guidance's targets
+    # the DEBUG_VECTs' arrays by address (frame_debug_vector)
+    _cmd_dv_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, 3))
+    _est_dv_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, 3))
+    _gstatus: np.ndarray | None = None
+    _gstatus_mv: memoryview | None = None
+    # NAMED_VALUE_FLOAT's names (zero-padded, uint8[n, NV_NAME_B]) and values (float64[n]) as
+    # of the last refresh(), for frame_named_value; their addresses
+    _nv_names: np.ndarray = field(default_factory=lambda: np.zeros((0, NV_NAME_B), np.uint8))
+    _nv_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    _nv_names_p: int = 0
+    _nv_values_p: int = 0
 
     def __post_init__(self) -> None:
         st = getattr(self.law, "status", None) if self.status_names else _NO_STATUS
@@ -245,6 +258,18 @@ class Telemetry:
         for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
             nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
         self._named = nv
+        # the same as arrays for the compiled framing (frame_named_value)
+        if len(nv) != len(self._nv_values):
+            self._nv_names = np.zeros((len(nv), NV_NAME_B), np.uint8)
+            self._nv_values = np.zeros(len(nv))
+            for i, (name, _) in enumerate(nv):
+                self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
+            self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
+            self._nv_values_p = address_of(self._nv_values, np.float64, len(nv))
+        k = 0
+        for _, value in nv:
+            self._nv_values[k] = value
+            k += 1
 
     def debug_vectors(self) -> list:
         """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
@@ -261,6 +286,43 @@ class Telemetry:
             vec.append((b"GUID", (float(self.guid.limits), self.guid.throttle(),
                                   math.degrees(self.guid.g.status[GS_GAM_C]))))
         return vec
+
+    def debug_vector_count(self) -> int:
+        """How many vectors :meth:`debug_vectors` gives now (GUID in the guidance modes)."""
+        return 4 if self.modes.guidance_active else 3
+
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+                           sysid: int, compid: int, time_us: int) -> int:
+        """:meth:`debug_vectors`' vector ``k`` as a DEBUG_VECT framed by the compiled kernel
+        (fc/gcs_frames.py ``debug_vect_p``, its arguments) from the arrays it is made of: no
+        Python object but the floats of GUID. Bytes written, or 0 (the caller then builds it
+        with the codec from :meth:`debug_vectors`)."""
+        if k == 0:
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_CMD,
+                                self._cmd_dv_at.of(self.out.cmd_active), True, 0.0, 0.0, 0.0)
+        if k == 1:
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_EST,
+                                self._est_dv_at.of(self.est.est), True, 0.0, 0.0, 0.0)
+        if k == 2:
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+                                DV_DELTA, self._delta_p, True, 0.0, 0.0, 0.0)
+        g = self.guid
+        st = g.g.status
+        if st is not self._gstatus:             # (bound once: a read of it gives a float)
+            self._gstatus, self._gstatus_mv = st, memoryview(st)
+        return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_GUID, 0,
+                            False, float(g.limits), g.throttle(),
+                            math.degrees(self._gstatus_mv[GS_GAM_C]))
+
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+                          sysid: int, compid: int, time_us: int) -> int:
+        """:meth:`named_values`' ``k``-th pair as NAMED_VALUE_FLOAT framed by the compiled
+        kernel (fc/gcs_frames.py ``named_value_p``, its arguments) from the arrays
+        :meth:`refresh` keeps beside the list. Bytes written, or 0."""
+        if not 0 <= k < len(self._nv_values):
+            return 0
+        return named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+                             self._nv_names_p, self._nv_values_p, k)
 
     def throttle_percent(self) -> int:
         """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""

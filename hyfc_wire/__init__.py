@@ -12,4 +12,5 @@ Modules (import the one you need; this package file imports none of them):
 - ``udp``: ``HOST:PORT`` parsing and the non-blocking UDP endpoint
 - ``timeline``: the ``[[command]]`` / ``[[target]]`` timeline reader (one reader, one meaning)
 - ``numba_cache``: drop numba on-disk caches that are older than their dependencies
+- ``rawnpz``: a raw row-major float64 log to ``.npz`` in bounded memory (both processes' logs)
 """

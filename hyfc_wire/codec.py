@@ -10,12 +10,19 @@ import os
 
 os.environ["MAVLINK20"] = "1"          # before pymavlink is imported anywhere
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
-# The standard-modes messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345)
-# are in development.xml only (pymavlink 2.4.50): their classes are packed by the
-# ardupilotmega codec (a message packs with its own CRC extra), nothing else is used from it.
-from pymavlink.dialects.v20 import development as mavlink_dev  # noqa: E402
 
-__all__ = ["mavlink", "mavlink_dev", "new_codec", "reset_parser"]
+__all__ = ["mavlink", "development_dialect", "new_codec", "reset_parser"]
+
+
+def development_dialect():
+    """pymavlink's ``development`` dialect, imported on first call: the standard-modes
+    messages (AVAILABLE_MODES 435, CURRENT_MODE 436) and PARAM_ERROR (345) are in
+    development.xml only (pymavlink 2.4.50); their classes are packed by the ardupilotmega
+    codec (a message packs with its own CRC extra), nothing else is used from it. Only the fc's
+    ground-station link uses them (fc/link.py ``mavlink_dev``): the plant, which imports this
+    module too, never loads the dialect (5 MB of its RSS)."""
+    from pymavlink.dialects.v20 import development
+    return development
 
 
 class _NullFile:

@@ -39,8 +39,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fc.params import wire_number
-
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
@@ -181,9 +179,11 @@ class ScriptedGcs:
         sends, a ``--gcs`` output, and answer whoever the vehicle's messages come from).
     dialect : the pymavlink v20 dialect of the codec (default ``ardupilotmega``; e.g.
         ``development`` for the standard-modes messages AVAILABLE_MODES and CURRENT_MODE).
+    log_keep : messages the log keeps at least (default LOG_KEEP; it holds up to twice as
+        many, each a pymavlink message object of about 0.5-1 KB).
 
     Every message the vehicle (system 1) sends is logged in arrival order with its monotonic
-    receive time (the newest LOG_KEEP at least). :meth:`wait` reads the log either as a
+    receive time (the newest ``log_keep`` at least). :meth:`wait` reads the log either as a
     stream (the next unread message, as pymavlink's ``recv_match``) or from a receive time
     (``since``), :meth:`messages` lists a receive-time window; :meth:`command`,
     :meth:`param_get`, :meth:`param_set`, :meth:`send_mission` and :meth:`download_mission`
@@ -199,7 +199,10 @@ class ScriptedGcs:
     def __init__(self, host: str = "127.0.0.1", port: int = 0, sysid: int = GCS_SYSID,
                  compid: int = GCS_COMPID, key: bytes | None = None, heartbeat: bool = False,
                  record: bool = True, vehicle: tuple[str, int] | None = None,
-                 dialect=mavlink):
+                 dialect=mavlink, log_keep: int = LOG_KEEP):
+        if log_keep < 1:
+            raise ValueError(f"log_keep must be >= 1, not {log_keep}")
+        self.log_keep = log_keep
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((host, port))
         self.sock.settimeout(0.1)
@@ -275,9 +278,9 @@ class ScriptedGcs:
             self.texts.append((now, m.severity, m.text))
         if self.record or t not in RECORD_SKIP:
             self._log.append((now, m))
-            if len(self._log) > 2 * LOG_KEEP:
-                del self._log[:LOG_KEEP]
-                self._log_base += LOG_KEEP
+            if len(self._log) > 2 * self.log_keep:
+                del self._log[:self.log_keep]
+                self._log_base += self.log_keep
 
     def _handle(self, m) -> None:
         t = m.get_type()
@@ -501,6 +504,7 @@ class ScriptedGcs:
             m = self.param_set(name, value, min(1.0, timeout_s))
             if m is None:
                 continue
+            from fc.params import wire_number   # (here: the runner does not load the table)
             got = wire_number(m.param_value, m.param_type)
             if abs(got - value) > 1e-5 * max(1.0, abs(value)):
                 raise GcsError(f"vehicle refused {name} = {value} (kept {got})")

@@ -21,7 +21,6 @@ import numpy as np
 
 from hyfc_wire import timeline
 
-from tools.sitl import metrics
 
 TIMELINE_FILE = "timeline.toml"
 CHANNELS = ("alpha", "beta", "mu")
@@ -134,6 +133,7 @@ def surface_entry(truth: dict, internals: dict | None, limit_rad: float) -> dict
         if "armed" in internals and "mode" in internals:      # the law flies (fc/modes.py):
             active = (internals["armed"] > 0.5) & np.isin(internals["mode"], LAW_MODES)
             flag = np.where(active, flag, 0.0)
+    from tools.sitl import metrics      # (imported when a run is over: not while it runs)
     return metrics.surface_figures(truth["t_s"], truth["delta_rad"], cmd, limit_rad,
                                    flag, flag_t)
 
@@ -246,6 +246,7 @@ def surface_limit_rad(vdir: Path, default_deg: float = 20.0) -> float:
 def variant_summary(vdir: Path, requested_duration_s: float | None = None,
                     surface_limit: float | None = None) -> tuple[dict, dict]:
     """(summary entry, plot data) of one variant directory (docs/metrics.md)."""
+    from tools.sitl import metrics      # (imported when a run is over: not while it runs)
     vdir = Path(vdir)
     surface_limit_rad_ = surface_limit if surface_limit is not None else surface_limit_rad(vdir)
     truth = truth_series(load_truth(vdir))

@@ -29,6 +29,11 @@ MISSION_PROGRESS_FILE = "mission_progress.json"
 READY_TIMEOUT_S = 180.0
 #: the controller's data-loss failsafe timeout in lockstep runs (s; see write_params)
 LOCKSTEP_FS_TIMEOUT_S = 30.0
+#: messages the main job's ground station keeps in its log (tools/sitl/gcs.py ``log_keep``):
+#: it only waits on the log for the mission upload (MISSION) and the realtime script's
+#: answers, never on old messages. The default keeps 10,000 to 20,000 messages of about
+#: 0.8 KB each after a few minutes: the runner was 63 MB of the 1-hour cruise's 422 MB
+GCS_LOG_KEEP = 1000
 
 
 @dataclass
@@ -260,7 +265,7 @@ def run_variant(cfg: RunConfig, variant: str, vdir: Path, commands: list[dict],
     driver = None
     try:
         from tools.sitl.gcs import ScriptedGcs
-        gcs = ScriptedGcs(heartbeat=True, record=False)
+        gcs = ScriptedGcs(heartbeat=True, record=False, log_keep=GCS_LOG_KEEP)
         fc_argv = cfg.fc_argv0() + ["--mode", cfg.mode,
                    "--plant-bind", f"127.0.0.1:{plant_port}",
                    "--gcs-bind", f"127.0.0.1:{gcs_bind_port}",

@@ -1,0 +1,256 @@
+"""fc/gcs_frames.py - the ground station's high-rate streams framed without Python objects (issue 24).
+
+The ground-station link (fc/gcs.py) streams ATTITUDE, AOA_SSA, VFR_HUD, SERVO_OUTPUT_RAW and
+the DEBUG_VECTs at 4-10 Hz each, to its outputs and into the .tlog. Built as pymavlink
+message objects and packed by the codec, each cost about 30 Python object allocations (the
+message, its field values, numpy scalars of the state read, the packed bytes): most of the fc's
+allocations per frame in steady state (``python -m tools.bench --only allocs``). Here each is
+one compiled call that reads the vehicle's preallocated state arrays by address
+(fc/control/carrays.py) and frames the message into a preallocated buffer, the bytes the codec
+gives for the same values (field values computed as ``GcsLink._build`` computes them; payload,
+trailing-zero truncation, header and CRC as ``hyfc_wire.frame_kernels`` frames the fc's
+answer); :func:`send_frame_p` sends it to each output with libc ``sendto``.
+
+Every framing kernel returns the bytes written, or 0 when a value is one the codec's struct
+would refuse (a finite float beyond float32, a heading or throttle that does not fit): the
+caller then takes the codec's path, which refuses it as before (counted, not sent).
+tests/unit/fc/test_gcs_frames.py compares the bytes with the codec's.
+
+``log_epoch_us`` >= 0 prefixes the frame with the .tlog's big-endian u64 stamp ``log_epoch_us
++ log_t_us`` (8 bytes), as ``GcsLink._tlog_write`` writes it (the sum made here: no Python int
+for it); -1 writes the bare frame (a datagram). The buffer at ``tx`` holds FRAME_MAX_B bytes.
+"""
+from __future__ import annotations
+
+import socket
+import sys
+
+import numpy as np
+from numba import carray, njit, types
+
+import fc.control.carrays as _carrays
+import hyfc_wire.codec as _codec
+import hyfc_wire.frame_kernels as _frame_kernels
+import hyfc_wire.layout as _wire_layout
+from fc.control.carrays import f8p, i8p, u8p
+from hyfc_wire.codec import mavlink
+from hyfc_wire.frame_kernels import _frame_at, _put_f32, _put_u
+from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_P,
+                              M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW)
+from hyfc_wire.numba_cache import drop_stale
+
+drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout.__file__,
+                      _codec.__file__])
+
+__all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T", "DV_NAMES",
+           "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
+           "sim_t_p", "named_value_p", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
+
+_HDR = 10
+
+
+def _spec(cls) -> tuple[int, int, int]:
+    """(message id, CRC_EXTRA, payload size) of a codec message class."""
+    return cls.id, cls.crc_extra, cls.unpacker.size
+
+
+ID_ATT, X_ATT, N_ATT = _spec(mavlink.MAVLink_attitude_message)
+ID_AOA, X_AOA, N_AOA = _spec(mavlink.MAVLink_aoa_ssa_message)
+ID_HUD, X_HUD, N_HUD = _spec(mavlink.MAVLink_vfr_hud_message)
+ID_SERVO, X_SERVO, N_SERVO = _spec(mavlink.MAVLink_servo_output_raw_message)
+ID_DV, X_DV, N_DV = _spec(mavlink.MAVLink_debug_vect_message)
+ID_NV, X_NV, N_NV = _spec(mavlink.MAVLink_named_value_float_message)
+#: the longest frame written here, with the .tlog stamp (bytes)
+FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV) + 2
+#: NAMED_VALUE_FLOAT.name is char[10]: a name table is uint8[n, NV_NAME_B]
+NV_NAME_B = 10
+_RAD = 180.0 / np.pi           # CPython's math.degrees multiplies by 180 / pi
+_U32 = 1 << 32
+_DV_NAME_B = 10                # DEBUG_VECT.name is char[10]
+
+#: the DEBUG_VECTs (fc/telemetry.py ``debug_vectors`` and GcsLink's SIM_T), by index
+DV_CMD, DV_EST, DV_DELTA, DV_GUID, DV_SIM_T = 0, 1, 2, 3, 4
+DV_NAMES = (b"CMD_DEG", b"EST_DEG", b"DELTA_DEG", b"GUID", b"SIM_T")
+_DV_NAME_TABLE = np.zeros((len(DV_NAMES), _DV_NAME_B), np.int64)
+for _i, _name in enumerate(DV_NAMES):
+    _DV_NAME_TABLE[_i, :len(_name)] = np.frombuffer(_name, np.uint8)
+SOCKADDR_IN_B = 16             # sizeof(struct sockaddr_in)
+_sendto = types.ExternalFunction("sendto", types.intp(
+    types.intc, types.CPointer(types.uint8), types.uintp, types.intc, types.CPointer(types.uint8),
+    types.uint32))
+
+
+@njit(cache=True)
+def _stamp_at(out, log_epoch_us, log_t_us):
+    """The .tlog's big-endian u64 stamp (``log_epoch_us + log_t_us``) at ``out[0:8]`` when
+    ``log_epoch_us`` >= 0; the frame's position (8, or 0 without a stamp)."""
+    if log_epoch_us < 0:
+        return 0
+    stamp = log_epoch_us + log_t_us
+    for k in range(8):
+        out[k] = (stamp >> (8 * (7 - k))) & 0xFF
+    return 8
+
+
+@njit(cache=True)
+def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
+    """ATTITUDE (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32, roll .. yawspeed
+    = meas[M_ROLL .. M_R]) into the uint8 buffer at ``tx`` from the float64 ``meas`` at
+    ``meas`` (M_*); bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    m = carray(f8p(meas), (M_R + 1,))
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, (time_us // 1000) % _U32, 4)
+    ok = _put_f32(out, p + 4, m[M_ROLL])
+    ok &= _put_f32(out, p + 8, m[M_PITCH])
+    ok &= _put_f32(out, p + 12, m[M_YAW])
+    ok &= _put_f32(out, p + 16, m[M_P])
+    ok &= _put_f32(out, p + 20, m[M_Q])
+    ok &= _put_f32(out, p + 24, m[M_R])
+    if not ok:
+        return 0
+    return _frame_at(out, pos, N_ATT, seq, sysid, compid, ID_ATT, X_ATT)
+
+
+@njit(cache=True)
+def aoa_ssa_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
+    """AOA_SSA (time_usec = the time base, AOA and SSA in deg of meas[M_AOA], meas[M_SSA]);
+    bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    m = carray(f8p(meas), (M_SSA + 1,))
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, time_us, 8)
+    ok = _put_f32(out, p + 8, m[M_AOA] * _RAD)
+    ok &= _put_f32(out, p + 12, m[M_SSA] * _RAD)
+    if not ok:
+        return 0
+    return _frame_at(out, pos, N_AOA, seq, sysid, compid, ID_AOA, X_AOA)
+
+
+@njit(cache=True)
+def vfr_hud_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, meas, throttle_pct):
+    """VFR_HUD (airspeed, groundspeed, alt, climb of meas; heading = round(deg of
+    meas[M_HEADING]) mod 360, half to even, 0 when not finite; throttle ``throttle_pct``);
+    bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    m = carray(f8p(meas), (max(M_AIRSPEED, M_ALT, M_CLIMB, M_GROUNDSPEED, M_HEADING) + 1,))
+    if throttle_pct < 0 or throttle_pct > 0xFFFF:
+        return 0
+    h = m[M_HEADING]
+    hdg = 0
+    if np.isfinite(h):
+        d = np.rint(h * _RAD)           # Python's round: to nearest, half to even
+        if abs(d) > 2.0 ** 62:
+            return 0                    # (an int64 would not hold it: the codec's path)
+        hdg = np.int64(d) % 360
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    ok = _put_f32(out, p, m[M_AIRSPEED])
+    ok &= _put_f32(out, p + 4, m[M_GROUNDSPEED])
+    ok &= _put_f32(out, p + 8, m[M_ALT])
+    ok &= _put_f32(out, p + 12, m[M_CLIMB])
+    if not ok:
+        return 0
+    _put_u(out, p + 16, hdg, 2)
+    _put_u(out, p + 18, throttle_pct, 2)
+    return _frame_at(out, pos, N_HUD, seq, sysid, compid, ID_HUD, X_HUD)
+
+
+@njit(cache=True)
+def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, pwm):
+    """SERVO_OUTPUT_RAW (time_usec = the time base mod 2^32, port 0, servo1..4 = the int64[4]
+    at ``pwm``, the others 0); bytes written or 0 (a PWM value beyond u16)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    w = carray(i8p(pwm), (4,))
+    for c in range(4):
+        if w[c] < 0 or w[c] > 0xFFFF:
+            return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, time_us % _U32, 4)
+    for c in range(4):
+        _put_u(out, p + 4 + 2 * c, w[c], 2)
+    for i in range(p + 12, p + N_SERVO):            # servo5..8, port, servo9..16
+        out[i] = 0
+    return _frame_at(out, pos, N_SERVO, seq, sysid, compid, ID_SERVO, X_SERVO)
+
+
+@njit(cache=True)
+def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, which, src, deg, x, y, z):
+    """DEBUG_VECT ``DV_NAMES[which]``: x, y, z = the float64[3] at ``src`` (in deg of rad when
+    ``deg``) when ``src`` is not 0, else ``x``, ``y``, ``z``; bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    if src != 0:
+        v = carray(f8p(src), (3,))
+        if deg:
+            x, y, z = v[0] * _RAD, v[1] * _RAD, v[2] * _RAD
+        else:
+            x, y, z = v[0], v[1], v[2]
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, time_us, 8)
+    ok = _put_f32(out, p + 8, x)
+    ok &= _put_f32(out, p + 12, y)
+    ok &= _put_f32(out, p + 16, z)
+    if not ok:
+        return 0
+    for i in range(_DV_NAME_B):
+        out[p + 20 + i] = _DV_NAME_TABLE[which, i]
+    return _frame_at(out, pos, N_DV, seq, sysid, compid, ID_DV, X_DV)
+
+
+@njit(cache=True)
+def sim_t_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, t_s, frames):
+    """DEBUG_VECT SIM_T (``GcsLink._debug_vectors``): x = ``t_s`` (sim time of the newest plant
+    frame, s) when the int64 count at ``frames`` (the plant link's frames, ``LinkCounters.hot``)
+    is not 0, else NaN; y = z = 0. Bytes written or 0."""
+    x = t_s if carray(i8p(frames), (1,))[0] else np.nan
+    return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_SIM_T, 0,
+                        False, x, 0.0, 0.0)
+
+
+@njit(cache=True)
+def named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, names, values, k):
+    """NAMED_VALUE_FLOAT ``k`` (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32)
+    of the name table at ``names`` (uint8[n, NV_NAME_B], zero-padded) and the float64[n] at
+    ``values``; bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    name = carray(u8p(names + k * NV_NAME_B), (NV_NAME_B,))
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, (time_us // 1000) % _U32, 4)
+    if not _put_f32(out, p + 4, carray(f8p(values + 8 * k), (1,))[0]):
+        return 0
+    for i in range(NV_NAME_B):
+        out[p + 8 + i] = name[i]
+    return _frame_at(out, pos, N_NV, seq, sysid, compid, ID_NV, X_NV)
+
+
+@njit(cache=True)
+def send_frame_p(fd, tx, n, dests, n_dests):
+    """``n`` bytes at ``tx`` sent on the UDP socket ``fd`` to each of the ``n_dests``
+    sockaddr_in at ``dests`` (uint8[n_dests, 16]) with libc ``sendto``; the number of sends
+    that failed."""
+    failed = 0
+    for k in range(n_dests):
+        if _sendto(fd, u8p(tx), n, 0, u8p(dests + k * SOCKADDR_IN_B), SOCKADDR_IN_B) < 0:
+            failed += 1
+    return failed
+
+
+def sockaddr_in(host: str, port: int) -> np.ndarray | None:
+    """``(host, port)`` as sockaddr_in bytes (uint8[16]), or None when ``host`` is not an IPv4
+    address (the caller keeps ``socket``'s send for it)."""
+    try:
+        addr = socket.inet_aton(host)
+    except (OSError, TypeError):
+        return None
+    if socket.inet_ntoa(addr) != host or not 0 <= int(port) <= 0xFFFF:
+        return None                     # a name or a short form: socket resolves it
+    sa = np.zeros(SOCKADDR_IN_B, np.uint8)
+    sa[0:2] = np.frombuffer(socket.AF_INET.to_bytes(2, sys.byteorder), np.uint8)
+    sa[2:4] = np.frombuffer(int(port).to_bytes(2, "big"), np.uint8)
+    sa[4:8] = np.frombuffer(addr, np.uint8)
+    return sa

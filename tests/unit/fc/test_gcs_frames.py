@@ -1,0 +1,263 @@
+"""fc/gcs_frames.py: the compiled stream frames are the codec's bytes for the same values.
+
+Each kernel against ``GcsLink._build``'s message for the same state, packed by the codec (as
+the ground-station link sends it) and with the .tlog's stamp (as ``_tlog_write`` writes it);
+a value the codec refuses makes the kernel return 0.
+"""
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fc import gcs_frames as F
+from fc.control.carrays import address_of
+from hyfc_wire.codec import new_codec
+from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N,
+                              M_P, M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW)
+
+SYSID, COMPID = 1, 1
+EPOCH_US = 1_764_000_000_000_000
+finite = st.floats(-1e6, 1e6, allow_nan=False)
+any_float = st.floats(allow_nan=True, allow_infinity=True)
+stamps = st.integers(0, 2**62)
+
+
+class Buf:
+    def __init__(self):
+        self.a = np.zeros(F.FRAME_MAX_B, np.uint8)
+        self.p = address_of(self.a, np.uint8, F.FRAME_MAX_B)
+
+    def bytes(self, n):
+        return bytes(self.a[:n])
+
+
+def _codec(seq):
+    c = new_codec(SYSID, COMPID)
+    c.seq = seq
+    return c
+
+
+def _want(msg, seq, t_us=None):
+    """The codec's frame (None if it refuses the values), with the .tlog stamp if ``t_us``."""
+    try:
+        frame = msg.pack(_codec(seq))
+    except (struct.error, ValueError, OverflowError):
+        return None
+    return frame if t_us is None else struct.pack(">Q", EPOCH_US + t_us) + frame
+
+
+def _check(got_n, buf, want, may_decline=False):
+    """0 where the codec refuses the values; else its bytes (or 0 where ``may_decline``: the
+    caller then takes the codec's path, which gives them)."""
+    if want is None or (may_decline and got_n == 0):
+        assert got_n == 0
+    else:
+        assert buf.bytes(got_n) == want
+
+
+@settings(max_examples=200, deadline=None)
+@given(vals=st.lists(st.one_of(finite, any_float), min_size=M_N, max_size=M_N),
+       us=stamps, seq=st.integers(0, 255), log=st.booleans(),
+       thr=st.integers(0, 100))
+def test_state_messages_are_the_codecs(vals, us, seq, log, thr):
+    # GIVEN a measurement vector (any floats, also non-finite and beyond float32)
+    meas = np.array(vals, np.float64)
+    mp = address_of(meas, np.float64, M_N)
+    b = Buf()
+    c = _codec(seq)
+    t_us = us if log else None
+    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ms = (us // 1000) & 0xFFFFFFFF
+    # THEN ATTITUDE, AOA_SSA and VFR_HUD are the codec's frames of _build's values
+    m = meas
+    _check(F.attitude_p(b.p, ep, tl, seq, SYSID, COMPID, us, mp), b,
+           _want(c.attitude_encode(ms, m[M_ROLL], m[M_PITCH], m[M_YAW], m[M_P], m[M_Q], m[M_R]),
+                 seq, t_us))
+    _check(F.aoa_ssa_p(b.p, ep, tl, seq, SYSID, COMPID, us, mp), b,
+           _want(c.aoa_ssa_encode(us, math.degrees(m[M_AOA]), math.degrees(m[M_SSA])), seq, t_us))
+    deg = math.degrees(m[M_HEADING])
+    if math.isfinite(m[M_HEADING]) and not math.isfinite(deg):
+        # (_build raises here: round() of an infinite float; the kernel declines)
+        assert F.vfr_hud_p(b.p, ep, tl, seq, SYSID, COMPID, mp, thr) == 0
+        return
+    hdg = int(round(deg)) % 360 if math.isfinite(m[M_HEADING]) else 0
+    _check(F.vfr_hud_p(b.p, ep, tl, seq, SYSID, COMPID, mp, thr), b,
+           _want(c.vfr_hud_encode(m[M_AIRSPEED], m[M_GROUNDSPEED], hdg, thr, m[M_ALT],
+                                  m[M_CLIMB]), seq, t_us),
+           may_decline=abs(math.degrees(m[M_HEADING])) > 2.0 ** 62)
+
+
+@pytest.mark.parametrize("heading_deg", [-0.5, 0.5, 1.5, 2.5, -1.5, 359.5, -359.5, 719.5,
+                                         -180.0, 1e15])
+def test_vfr_hud_heading_rounds_as_python(heading_deg):
+    # GIVEN headings on the rounding boundaries and far beyond a turn
+    meas = np.zeros(M_N)
+    meas[M_HEADING] = math.radians(heading_deg)
+    b = Buf()
+    n = F.vfr_hud_p(b.p, -1, 0, 3, SYSID, COMPID, address_of(meas, np.float64, M_N), 55)
+    hdg = int(round(math.degrees(meas[M_HEADING]))) % 360
+    # THEN the heading field is Python's round half to even, mod 360
+    assert b.bytes(n) == _want(_codec(3).vfr_hud_encode(0.0, 0.0, hdg, 55, 0.0, 0.0), 3)
+
+
+@settings(max_examples=100, deadline=None)
+@given(pwm=st.lists(st.integers(-5, 70000), min_size=4, max_size=4), us=stamps,
+       seq=st.integers(0, 255), log=st.booleans())
+def test_servo_output_raw_is_the_codecs(pwm, us, seq, log):
+    p = np.array(pwm, np.int64)
+    b = Buf()
+    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    n = F.servo_raw_p(b.p, ep, tl, seq, SYSID, COMPID, us, address_of(p, np.int64, 4))
+    want = _want(_codec(seq).servo_output_raw_encode(us & 0xFFFFFFFF, 0, *pwm, 0, 0, 0, 0), seq,
+                 us if log else None)
+    _check(n, b, want)
+
+
+@settings(max_examples=200, deadline=None)
+@given(v=st.lists(st.one_of(finite, any_float), min_size=3, max_size=3), us=stamps,
+       seq=st.integers(0, 255), which=st.integers(0, len(F.DV_NAMES) - 1),
+       deg=st.booleans(), by_address=st.booleans(), log=st.booleans())
+def test_debug_vect_is_the_codecs(v, us, seq, which, deg, by_address, log):
+    src = np.array(v, np.float64)
+    b = Buf()
+    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    if by_address:
+        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, us, which,
+                           address_of(src, np.float64, 3), deg, 0.0, 0.0, 0.0)
+        xyz = [math.degrees(x) for x in src] if deg else list(src)
+    else:
+        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, us, which, 0, False, *v)
+        xyz = v
+    want = _want(_codec(seq).debug_vect_encode(F.DV_NAMES[which], us, *xyz), seq,
+                 us if log else None)
+    _check(n, b, want)
+
+
+def test_sockaddr_in_only_for_ipv4_literals():
+    assert F.sockaddr_in("127.0.0.1", 14550) is not None
+    assert F.sockaddr_in("localhost", 14550) is None
+    assert F.sockaddr_in("::1", 14550) is None
+
+
+@pytest.mark.parametrize("frames", [0, 1, 5000])
+def test_sim_t_is_nan_before_the_first_frame(frames):
+    hot = np.array([frames], np.int64)
+    b = Buf()
+    n = F.sim_t_p(b.p, -1, 0, 7, SYSID, COMPID, 2_000_000, 2.0, address_of(hot, np.int64, 1))
+    t = 2.0 if frames else math.nan
+    assert b.bytes(n) == _want(_codec(7).debug_vect_encode(b"SIM_T", 2_000_000, t, 0.0, 0.0), 7)
+
+
+def _vehicle_frames(data: bytes, skip=(1, 251)) -> list[bytes]:
+    """The MAVLink 2 frames of a datagram or of .tlog bytes (``stamped``: an 8-byte stamp
+    before each), less SYS_STATUS and NAMED_VALUE_FLOAT (their load and timing fields are
+    measured on the wall clock)."""
+    out, i = [], 0
+    while i < len(data):
+        n = data[i + 1]
+        f = data[i:i + 12 + n + (13 if data[i + 2] & 1 else 0)]
+        i += len(f)
+        if f[7] | (f[8] << 8) | (f[9] << 16) not in skip:
+            out.append(f)
+    return out
+
+
+def _unstamp(tlog: bytes) -> bytes:
+    out, i = bytearray(), 0
+    while i < len(tlog):
+        i += 8
+        n = 12 + tlog[i + 1] + (13 if tlog[i + 2] & 1 else 0)
+        out += tlog[i:i + n]
+        i += n
+    return bytes(out)
+
+
+@pytest.mark.parametrize("mode", ["COORDINATED", "CRUISE"])
+def test_a_flight_streams_the_codecs_bytes(mode, monkeypatch):
+    # GIVEN a recorded flight replayed twice into a fresh controller (the loop clock the sensor
+    # time, tools/bench/allocs.py), once with the compiled stream framing and once with the
+    # codec's (``fast`` False), the .tlog kept in memory with the same epoch
+    from tools.bench import allocs
+    from tools.bench.profile import record
+    flight = record(allocs.WARM_FRAMES + 1300, mode)
+    runs = []
+    for fast in (True, False):
+        rep = allocs._Replay(flight, mode)
+        try:
+            gcs = rep.rig.fc.gcs
+            gcs.epoch_us = EPOCH_US
+            monkeypatch.setattr(gcs, "flush", lambda: None)
+            if not fast:
+                gcs.fast = False
+            sent = []
+            for _ in range(len(flight)):
+                rep.step(rep.feed())
+                while True:
+                    try:
+                        sent += _vehicle_frames(rep.rig.sink.recv(65536))
+                    except BlockingIOError:
+                        break
+                rep.rig.plant.setblocking(False)
+                while True:
+                    try:
+                        rep.rig.plant.recv(65536)
+                    except BlockingIOError:
+                        break
+            assert gcs.fast is fast
+            runs.append((sent, _vehicle_frames(_unstamp(bytes(gcs._tlog_buf)))))
+        finally:
+            rep.close()
+    # THEN the ground station received the same frames, and the .tlog holds the same ones
+    (sent_fast, log_fast), (sent_codec, log_codec) = runs
+    assert len(sent_fast) > 200 and len(log_fast) > 200
+    assert sent_fast == sent_codec
+    assert log_fast == log_codec
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(st.one_of(finite, any_float), min_size=1, max_size=6),
+       names=st.lists(st.binary(min_size=1, max_size=10).filter(lambda b: b[-1:] != b"\0"),
+                      min_size=6, max_size=6),
+       us=stamps, seq=st.integers(0, 255), log=st.booleans(), data=st.data())
+def test_named_value_float_is_the_codecs(values, names, us, seq, log, data):
+    # GIVEN a name table (zero-padded rows) and values, as fc/telemetry.py keeps them
+    n = len(values)
+    table = np.zeros((n, F.NV_NAME_B), np.uint8)
+    for i in range(n):
+        table[i, :len(names[i])] = np.frombuffer(names[i], np.uint8)
+    vals = np.array(values, np.float64)
+    k = data.draw(st.integers(0, n - 1))
+    b = Buf()
+    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    got = F.named_value_p(b.p, ep, tl, seq, SYSID, COMPID, us,
+                          address_of(table, np.uint8, table.size), address_of(vals, np.float64, n),
+                          k)
+    # THEN the frame is the codec's NAMED_VALUE_FLOAT (time_boot_ms of the time base)
+    want = _want(_codec(seq).named_value_float_encode((us // 1000) & 0xFFFFFFFF, names[k],
+                                                      values[k]), seq, us if log else None)
+    _check(got, b, want)
+
+
+@pytest.mark.parametrize("timing", ["lockstep", "realtime"])
+def test_the_compiled_framing_is_taken_in_both_timing_modes(tmp_path, timing):
+    # GIVEN a controller built as python -m fc builds it, in each timing mode (real time: the
+    # time base moves on between two reads of it)
+    import logging
+
+    from fc.app import FcConfig, FlightController
+    log = logging.getLogger("test_gcs_frames")
+    log.addHandler(logging.NullHandler())
+    log.propagate = False
+    cfg = FcConfig(mode=timing, plant_bind=("127.0.0.1", 0), gcs=[], gcs_bind=("127.0.0.1", 0),
+                   out=str(tmp_path))
+    fc = FlightController(cfg, log)
+    try:
+        # THEN its start-up check found the kernels' frames equal to the codec's
+        assert fc.gcs.fast is True
+    finally:
+        fc.close()
