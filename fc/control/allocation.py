@@ -149,7 +149,7 @@ def prioritised(a, o, e_coup, m0, m1, m2, w0, w1, w2, lim, d0, d1, d2):
 
 
 @njit(cache=True, error_model="numpy")
-def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
+def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st, w_yaw_scale=1.0):
     """delta = g_Gamma^-1 M_c (Eq. 46), Eq. 47 surface coordination, position saturation.
 
     mc0..mc2: M_c (N m); e_coup: the coupling degree E of Eq. 15. Writes delta[0:3] (rad),
@@ -211,7 +211,8 @@ def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st):
             d0, d1, d2 = prioritised(nm, NM_GFD, e_int, mc0, mc1, mc2,
                                      par[P_ALLOC_W] / (ixx * ixx),
                                      par[P_ALLOC_W + 1] / (iyy * iyy),
-                                     par[P_ALLOC_W + 2] / (izz * izz), limit_rad, d0, d1, d2)
+                                     w_yaw_scale * par[P_ALLOC_W + 2] / (izz * izz), limit_rad,
+                                     d0, d1, d2)
             u0 = d0
             u1 = d1 - e_int * d2
             u2 = d2

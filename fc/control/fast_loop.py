@@ -24,17 +24,18 @@ from fc.control.kinematics import gs, gs_t
 from fc.control.layout import (
     E_ALPHA, E_BETA, E_MU, E_N, E_P, E_Q, E_R, NM_E, NM_GCO, NM_GFD, NM_MACH, NM_QBAR, NM_XI,
     S_CO_FALLBACK, S_D_HAT, S_DELTA_CMD, S_DELTA_MODEL, S_E2, S_E_COUP, S_FROZEN,
-    S_INPUT_BAD, S_LAMBDA, S_M_C, S_MACH, S_OMEGA_CF, S_QBAR, S_RHO_F,
+    S_INPUT_BAD, S_LAMBDA, S_M_C, S_MACH, S_OMEGA_CF, S_QBAR, S_RHO_F, S_SAT,
     TH_F_N, TH_F_PITCH, TH_F_YAW,
     X_AF1, X_AF2, X_CF, X_CF_DOT, X_DCMD, X_DM, X_EF, X_FF1, X_FF2, X_FKIN, X_LIM, X_OMC, X_RHO_F,
-    X_SAT, X_SIGMA, X_WF1, X_WF2,
+    X_SAT, X_SIGMA, X_WF1, X_WF2, X_YAW_T,
 )
 from fc.control.linalg3 import clip, matvec3, wrap_pi
 from fc.control.nominal import eval_model
 from fc.control.observer import dob_estimate, dob_gain, dob_update
 from fc.control.options import DOB_MOMENT_GCO, DOB_MOMENT_MC, option, switch_on
 from fc.control.params import (
-    P_CO_E, P_DOB_ACHIEVED, P_DOB_C, P_DOB_ENABLE, P_FLT_ANG_CF, P_FLT_ANG_HZ, P_FLT_RATE_HZ,
+    P_ALLOC_YAW_MAX, P_ALLOC_YAW_T, P_CO_E, P_DOB_ACHIEVED, P_DOB_C, P_DOB_ENABLE, P_FLT_ANG_CF,
+    P_FLT_ANG_HZ, P_FLT_RATE_HZ,
     P_FST_CF_WN, P_FST_CF_ZETA, P_FST_GAMMA, P_FST_KAPPA, P_FST_LEAK, P_FST_TH_BND,
     P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, P_PAPER_LITERAL, P_SLW_AW,
 )
@@ -181,7 +182,18 @@ def fast_kernel(est, dt, par, x, nm, st, tab, atm, grid, delta_out):
     coordinated_factors(ef, par, st, S_LAMBDA)
     fallback = coordinated_matrix(par, nm, st, S_LAMBDA)
     e_coup = par[P_CO_E] if par[P_CO_E] > 0.0 else nm[NM_E]
-    sat = allocate(par, nm, mc0, mc1, mc2, e_coup, delta_out, st)
+    # yaw escalation (ALLOC_YAW_T): while the rudder alone is asked beyond its limit and the
+    # elevons have authority to spare, the re-solve's yaw weight grows with the time on it
+    # (docs/control_law.md s. 13, "Yaw escalation": at Mach 15 / 27 km the fixed weight left the
+    # sideslip beyond what the rudder holds and the bank ran off)
+    w_yaw_scale = 1.0
+    if par[P_ALLOC_YAW_T] > 0.0:
+        w_yaw_scale = min(1.0 + x[X_YAW_T] / par[P_ALLOC_YAW_T], par[P_ALLOC_YAW_MAX])
+    sat = allocate(par, nm, mc0, mc1, mc2, e_coup, delta_out, st, w_yaw_scale)
+    if st[S_SAT + 2] > 0.0 and st[S_SAT] == 0.0 and st[S_SAT + 1] == 0.0:
+        x[X_YAW_T] += dt
+    else:
+        x[X_YAW_T] = max(x[X_YAW_T] - dt, 0.0)
     rate_limit_command(par, nm, x, e_coup, dt, delta_out, st)
     x[X_SAT] = sat
     for i in range(3):

@@ -133,7 +133,9 @@ X_FF1 = X_EF + E_N   # the observer's model acceleration through the same filter
 X_FF2 = X_FF1 + 3    # stage 2, 3
 X_FKIN = X_FF2 + 3   # f1 + Psi^T theta_hat of the last slow step (rad/s), 3: the complementary
                      # attitude filter's model term (FLT_ANG_CF)
-X_N = X_FKIN + 3
+X_YAW_T = X_FKIN + 3 # time the rudder alone has been asked beyond its limit (s), 1: the
+                     # allocation's yaw escalation (ALLOC_YAW_T)
+X_N = X_YAW_T + 1
 
 # --- Status record (st array) ------------------------------------------------------------------
 S_SIGMA = 0          # 3

@@ -281,6 +281,12 @@ LAW_PARAMS = LAW_PARAMS + _schedule_params() + (
        "ALLOC_MODE 2: weight of the pitch axis's angular-acceleration shortfall (relative)."),
     _p("ALLOC_W_YAW", 300, 0.001, 1000, "-", "ACT",
        "ALLOC_MODE 2: weight of the yaw axis's angular-acceleration shortfall (relative)."),
+    _p("ALLOC_YAW_T", 1, 0, 100, "s", "ACT",
+       "ALLOC_MODE 2: yaw escalation: the yaw weight x (1 + t / ALLOC_YAW_T), t the time (s) "
+       "the rudder alone has been asked beyond its limit, the elevons within theirs (counted "
+       "down at the same rate otherwise); 0 off."),
+    _p("ALLOC_YAW_MAX", 10, 1, 100, "-", "ACT",
+       "ALLOC_MODE 2: the yaw escalation's largest factor."),
 )
 
 PARAM_INDEX: dict[str, int] = {p.name: i for i, p in enumerate(LAW_PARAMS)}
@@ -317,6 +323,8 @@ P_ACT_MAX = PARAM_INDEX["ACT_MAX"]
 P_ACT_RATE = PARAM_INDEX["ACT_RATE"]
 P_ACT_TAU = PARAM_INDEX["ACT_TAU"]
 P_ALLOC_MODE = PARAM_INDEX["ALLOC_MODE"]
+P_ALLOC_YAW_T = PARAM_INDEX["ALLOC_YAW_T"]
+P_ALLOC_YAW_MAX = PARAM_INDEX["ALLOC_YAW_MAX"]
 P_ALLOC_W = PARAM_INDEX["ALLOC_W_ROLL"]   # roll, pitch, yaw consecutive
 P_REF_PF_EN = PARAM_INDEX["REF_PF_EN"]
 P_REF_PF_WN = PARAM_INDEX["REF_PF_WN"]

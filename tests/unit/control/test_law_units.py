@@ -291,6 +291,51 @@ def test_prioritised_allocation_serves_the_yaw_axis_first():
     assert out["prio"] < out["equal"] and out["prio"] < out["scale"], out
 
 
+def test_yaw_escalation_scale_is_the_yaw_weight_times_the_scale():
+    """allocate's w_yaw_scale (the yaw escalation, ALLOC_YAW_T) multiplies ALLOC_W_YAW in the
+    re-solve: scale 3 allocates as ALLOC_W_YAW x 3 does, and leaves a smaller yaw shortfall
+    than scale 1."""
+    law, _ = _alloc_setup(coordinated=True, surf=0)
+    Gf = law.nm[L.NM_GFD:L.NM_GFD + 9].reshape(3, 3)
+    mc = np.array([2.0e7, -1.0e7, 8.0e6])
+    one, three, ref = np.zeros(3), np.zeros(3), np.zeros(3)
+    K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, one, law.status, 1.0)
+    K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, three, law.status, 3.0)
+    law.set_param("ALLOC_W_YAW", 3 * law.get_param("ALLOC_W_YAW"))
+    K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], 0.7, ref, law.status, 1.0)
+    np.testing.assert_allclose(three, ref, rtol=1e-12, atol=1e-15)
+    assert abs((Gf @ three - mc)[2]) < abs((Gf @ one - mc)[2])
+
+
+@pytest.mark.parametrize("r_rad_s", [0.05, 0.5], ids=["rudder-alone", "all-surfaces"])
+def test_yaw_escalation_time_counts_only_while_the_rudder_alone_is_short(r_rad_s):
+    """The fast loop's escalation time x[X_YAW_T] grows by the fast step while the rudder alone
+    is asked beyond its limit (the elevons within theirs), and counts down to 0 otherwise;
+    the re-solve's yaw weight is ALLOC_W_YAW x min(1 + t / ALLOC_YAW_T, ALLOC_YAW_MAX)."""
+    law = AttitudeLaw({})
+    assert law.get_param("ALLOC_YAW_T") > 0.0
+    law.reset(paper_est(alpha_deg=3, beta_deg=2))
+    cmd = np.radians([3.0, 2.0, 0.0])
+    law.cycle(paper_est(alpha_deg=3, beta_deg=2), cmd, 0.01, 0.002)
+    est = paper_est(alpha_deg=3, beta_deg=2, r=r_rad_s)
+    seen = set()
+    for k in range(60):
+        if k == 40:
+            est = paper_est(alpha_deg=3, beta_deg=2)      # the demand gone: counts down
+        before = law.x[L.X_YAW_T]
+        law.fast_step(est, 0.002)
+        flags = tuple(law.status[L.S_SAT:L.S_SAT + 3])
+        seen.add(flags)
+        if flags == (0.0, 0.0, 1.0):
+            assert law.x[L.X_YAW_T] == pytest.approx(before + 0.002)
+        else:
+            assert law.x[L.X_YAW_T] == pytest.approx(max(before - 0.002, 0.0))
+    # both rules were exercised: the rudder alone short, and (the larger demand, once the
+    # rate filter has passed it) every surface short
+    assert (0.0, 0.0, 1.0) in seen, seen
+    assert ((1.0, 1.0, 1.0) in seen) == (r_rad_s == 0.5), seen
+
+
 @pytest.mark.parametrize("mc", [(1.2e7, -6.0e6, 4.8e6), (6.0e5, -1.2e6, 1.8e7)],
                          ids=["roll", "yaw"])
 def test_prioritised_allocation_with_the_interconnect_stays_within_limits(mc):
