@@ -61,10 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
 def attitude(a: argparse.Namespace) -> int:
     from tools.sitl.closed_loop import simulate
     from tools.sitl.closed_loop.reports import markdown_table, perturbed_comparison, summary_line
-    ov = {}
-    for s in a.set:
-        name, _, val = s.partition("=")
-        ov[name.strip()] = float(val)
+    from fc.control.params import parse_sets
+    try:
+        ov = parse_sets(a.set)
+    except ValueError as exc:
+        raise SystemExit(f"python -m tools.fly: --set: {exc}") from None
     variants = (True, False) if a.variant == "both" else (a.variant == "coordinated",)
     if a.perturbed:
         print(perturbed_comparison(a.perturbed, command_shaping=a.shaping, law_overrides=ov,

@@ -71,6 +71,22 @@ def checked_value(prm: Param, value: float) -> float:
     return min(max(v, prm.min), prm.max)
 
 
+def parse_sets(items) -> dict[str, float]:
+    """``NAME=VALUE`` strings (the tools' ``--set``) -> {name: value}, each checked against the
+    law's table (a known name, a value that ``checked_value`` accepts). Raises ValueError
+    naming the bad item."""
+    out = {}
+    for item in items:
+        name, eq, value = str(item).partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise ValueError(f"{item!r}: expected NAME=VALUE")
+        if name not in PARAM_INDEX:
+            raise ValueError(f"{name!r}: not a law parameter (docs/params.md)")
+        out[name] = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value.strip())
+    return out
+
+
 def _p(name, default, lo, hi, unit, group, text, si_scale=1.0, integer=False):
     """One parameter record (the tables' shorthand; the guidance's table uses it too)."""
     return Param(name, float(default), float(lo), float(hi), unit, group, text,

@@ -430,20 +430,10 @@ def summary(rows: list[dict]) -> str:
 
 
 def parse_sets(items) -> dict:
-    """``NAME=VALUE`` strings -> {name: value}, each checked against the law's parameter table
-    (fc.control.params.checked_value: known name, a number within its range). Raises
-    ValueError naming the bad item."""
-    from fc.control.params import LAW_PARAMS, PARAM_INDEX, checked_value
-    out = {}
-    for item in items:
-        name, eq, value = str(item).partition("=")
-        name = name.strip()
-        if not eq or not name:
-            raise ValueError(f"{item!r}: expected NAME=VALUE")
-        if name not in PARAM_INDEX:
-            raise ValueError(f"{name!r}: not a law parameter (docs/params.md)")
-        out[name] = checked_value(LAW_PARAMS[PARAM_INDEX[name]], value.strip())
-    return out
+    """``NAME=VALUE`` strings -> {name: value}, checked against the law's parameter table
+    (``fc.control.params.parse_sets``). Raises ValueError naming the bad item."""
+    from fc.control.params import parse_sets as _parse
+    return _parse(items)
 
 
 def main(argv=None) -> int:

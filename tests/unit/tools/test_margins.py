@@ -187,3 +187,23 @@ def test_trim_verdict_says_where_the_airframe_cannot_hold_the_initial_state(tmp_
     (tmp_path / "margins.json").write_text(json.dumps(j))
     row = M.grid_table([tmp_path]).splitlines()[2]
     assert "not stable" in row and "largest initial sideslip it trims is +3.4" in row
+
+
+@pytest.mark.parametrize("bad", ["FOO=1", "ALLOC_W_YAW=abc", "ALLOC_W_YAW", "ALLOC_W_YAW=1e9"])
+def test_a_bad_set_is_refused_before_anything_flies(bad, tmp_path, capsys):
+    """--set is checked against the law's table (fc.control.params.parse_sets): an unknown
+    name, a non-number, a missing value or one outside the range ends with a usage error that
+    names it, and no run directory is written."""
+    out = tmp_path / "m"
+    with pytest.raises(SystemExit) as e:
+        M.main(["--set", bad, "--point", "8,26", "--out", str(out)])
+    assert e.value.code == 2
+    assert "--set" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_fly_refuses_a_bad_set():
+    from tools import fly
+    with pytest.raises(SystemExit) as e:
+        fly.main(["attitude", "--set", "NOT_A_PARAM=1", "--duration", "0.1"])
+    assert "NOT_A_PARAM" in str(e.value.code)

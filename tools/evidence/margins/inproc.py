@@ -644,7 +644,11 @@ def main(argv=None) -> int:
     if a.cmd == "table":
         print(grid_table(a.dirs))
         return 0
-    ov = {s.partition("=")[0].strip(): float(s.partition("=")[2]) for s in a.set}
+    from fc.control.params import parse_sets
+    try:
+        ov = parse_sets(a.set)
+    except ValueError as exc:
+        ap.error(f"--set: {exc}")
     a.out.mkdir(parents=True, exist_ok=True)
     if a.cmd == "wire":
         sc = margin_scenario(disturbance=a.disturbance, sensor_noise=a.noise)
