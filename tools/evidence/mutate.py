@@ -83,6 +83,8 @@ DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_an
                  "test_law_units.py::test_surface_coordination_eq47",
                  "test_law_units.py::test_prioritised_allocation_holds_the_worst_surface_and_reoptimises_the_rest",
                  "test_law_units.py::test_prioritised_allocation_serves_the_yaw_axis_first",
+                 "test_law_units.py::test_yaw_escalation_scale_is_the_yaw_weight_times_the_scale",
+                 "test_law_units.py::test_yaw_escalation_time_counts_only_while_the_rudder_alone_is_short",
                  "test_law_units.py::test_prioritised_allocation_with_the_interconnect_stays_within_limits",
                  "test_law_units.py::test_prioritised_allocator_properties_hypothesis",
                  "test_law_units.py::test_prioritised_on_small_hand_made_matrices",
@@ -117,6 +119,10 @@ NAMED = (
           "gamma1 = 0.5 * par[P_SLW_GAMMA]", "Eq. 30: Gamma1 halved"),
     Named("fc/control/slow_loop.py", "slow_kernel", "(nm[NM_PSI + i] * sigma_row",
           "(-nm[NM_PSI + i] * sigma_row", "Eq. 30: sign of the adaptation flipped"),
+    Named("fc/control/fast_loop.py", "fast_kernel",
+          "if st[S_SAT + 2] > 0.0 and st[S_SAT] == 0.0 and st[S_SAT + 1] == 0.0:",
+          "if st[S_SAT + 2] > 0.0:",
+          "yaw escalation counting whenever the rudder is short (the elevons' gate dropped)"),
 )
 
 #: --quick: the named mutants plus the first sign flip of each of these functions: a few
