@@ -85,6 +85,7 @@ DEFAULT_TESTS = ("test_law_equations.py", "test_law_units.py::test_gs_inverse_an
                  "test_law_units.py::test_prioritised_allocation_serves_the_yaw_axis_first",
                  "test_law_units.py::test_yaw_escalation_scale_is_the_yaw_weight_times_the_scale",
                  "test_law_units.py::test_yaw_escalation_time_counts_only_while_the_rudder_alone_is_short",
+                 "test_law_units.py::test_yaw_escalation_weighs_the_re_solve_by_the_time_on_the_limit",
                  "test_law_units.py::test_prioritised_allocation_with_the_interconnect_stays_within_limits",
                  "test_law_units.py::test_prioritised_allocator_properties_hypothesis",
                  "test_law_units.py::test_prioritised_on_small_hand_made_matrices",

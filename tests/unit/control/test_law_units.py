@@ -336,6 +336,43 @@ def test_yaw_escalation_time_counts_only_while_the_rudder_alone_is_short(r_rad_s
     assert ((1.0, 1.0, 1.0) in seen) == (r_rad_s == 0.5), seen
 
 
+@pytest.mark.parametrize("yaw_t_s,yaw_max", [(0.05, 10.0), (0.004, 3.0), (0.0, 10.0)],
+                         ids=["growing", "capped", "off"])
+def test_yaw_escalation_weighs_the_re_solve_by_the_time_on_the_limit(yaw_t_s, yaw_max):
+    """Each fast step's surface command is allocate(..., w_yaw_scale) with w_yaw_scale =
+    min(1 + t / ALLOC_YAW_T, ALLOC_YAW_MAX), t the escalation time before the step, then the
+    rate-aware limit: rebuilt here from the step's own M_c and E, and it differs from the
+    command that the unescalated weight gives. ALLOC_YAW_T 0: the weight stays ALLOC_W_YAW
+    although the time is counted."""
+    law = AttitudeLaw({"ALLOC_YAW_T": yaw_t_s, "ALLOC_YAW_MAX": yaw_max})
+    law.reset(paper_est(alpha_deg=3, beta_deg=2))
+    law.cycle(paper_est(alpha_deg=3, beta_deg=2), np.radians([3.0, 2.0, 0.0]), 0.01, 0.002)
+    est = paper_est(alpha_deg=3, beta_deg=2, r=0.05)
+    checked = differed = 0
+    for _ in range(40):
+        before = law.x.copy()
+        law.fast_step(est, 0.002)
+        if tuple(law.status[L.S_SAT:L.S_SAT + 3]) != (0.0, 0.0, 1.0) or before[L.X_YAW_T] == 0:
+            continue
+        mc = law.status[L.S_M_C:L.S_M_C + 3]
+        e = float(law.status[L.S_E_COUP])
+        scale = min(1.0 + before[L.X_YAW_T] / yaw_t_s, yaw_max) if yaw_t_s > 0 else 1.0
+        out = {}
+        for tag, sc in (("escalated", scale), ("plain", 1.0)):
+            d = np.zeros(3)
+            st = law.status.copy()
+            xx = before.copy()
+            K.allocate(law.par, law.nm, mc[0], mc[1], mc[2], e, d, st, sc)
+            K.rate_limit_command(law.par, law.nm, xx, e, 0.002, d, st)
+            out[tag] = d
+        np.testing.assert_allclose(law.x[L.X_DCMD:L.X_DCMD + 3], out["escalated"], rtol=1e-12,
+                                   atol=1e-15)
+        checked += 1
+        differed += not np.allclose(out["escalated"], out["plain"], rtol=1e-9, atol=1e-12)
+    assert checked >= 10, checked
+    assert (differed >= checked // 2) if yaw_t_s > 0 else differed == 0, (checked, differed)
+
+
 @pytest.mark.parametrize("mc", [(1.2e7, -6.0e6, 4.8e6), (6.0e5, -1.2e6, 1.8e7)],
                          ids=["roll", "yaw"])
 def test_prioritised_allocation_with_the_interconnect_stays_within_limits(mc):
