@@ -64,12 +64,17 @@ def test_the_mach_factor_keeps_the_yaw_downward_gain_margin_at_mach_15():
     Cn_beta -0.064) the yaw loop with its gain about trim cut to 0.5 (-6 dB; tools.evidence.margins's
     gain_ac, the paper's case from a 2 deg initial sideslip) stays stable with the rate-command
     limit's Mach factor, and diverges without it (SCH_OMCF_n = 1, the schedule before: the
-    rudder command runs to its limit and the sideslip grows; measured -5.1 dB there)."""
+    rudder command runs to its limit and the sideslip grows; measured -5.1 dB there). The
+    allocation's yaw escalation (ALLOC_YAW_T, added later) also rescues that flight on its own,
+    since the rudder alone sits on its limit there; so the comparison turns it off: the Mach
+    factor alone keeps the loop stable, and without both it diverges."""
     from tools.evidence.margins import inproc as M
     sc = M.margin_scenario(point=(15.0, 28e3), initial_beta_deg=2.0)
     cut = M.make_inj("gain_ac", "yaw", gain=0.5)
     assert M.stable(M.fly(sc, cut, coordinated=False))
+    assert M.stable(M.fly(sc, cut, coordinated=False, law_overrides={"ALLOC_YAW_T": 0}))
     before = {f"SCH_OMCF_{i}": 1.0 for i in range(1, 7)}
+    before["ALLOC_YAW_T"] = 0
     assert not M.stable(M.fly(sc, cut, coordinated=False, law_overrides=before))
 
 
