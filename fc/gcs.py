@@ -42,7 +42,7 @@ from fc import gcs_frames as GF
 from fc.control.carrays import ArrayAddress, address_of
 from fc.frame_calls import FAST_IO, HOT_FRAMES
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
+                     G_N, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
                      UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
 from fc.gcs_ftp import FtpService
 from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
@@ -93,7 +93,19 @@ STREAM_IDS = tuple(STREAM_DEFAULTS_S)
 #: are built as the codec's message objects (``_build``).
 FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_VFR_HUD, ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,
-                          ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT})
+                          ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT,
+                          ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+#: FAST_STREAMS framed from the GNSS sample and home: the codec's path until home is set (it
+#: sets home at the first fix, ``_gnss``; GLOBAL_POSITION_INT and LOCAL_POSITION_NED are not
+#: sent before)
+GNSS_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+#: the GNSS_STREAMS about home: none is sent while home is not set. ``service`` looks for the
+#: first fix (``_gnss``) before the streams, so a walk that finds home unset skips them without
+#: building them (``_build`` would look again and return None)
+HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
 #: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
 #: (and 8, 10, 12, 15, 16): ``cursor % n`` is unchanged and the cursor stays a small int
 #: (CPython caches the ints up to 256: no int object per message)
@@ -367,6 +379,11 @@ class GcsLink:
         self._meas_at = ArrayAddress(np.float64, M_N)
         self._pwm_at = ArrayAddress(np.int64, 4)
         self._frames_at = ArrayAddress(np.int64, HOT_FRAMES + 1)
+        self._gps_at = ArrayAddress(np.float64, G_N)
+        # ``home`` as the GNSS kernels read it (GF.HOME_*), copied when ``home`` is rebound
+        self._home_arr = np.zeros(GF.HOME_N)
+        self._home_p = address_of(self._home_arr, np.float64, GF.HOME_N)
+        self._home_src: tuple | None = None
         self._fd = self.endpoint.fileno()
         # the default schedule's destinations (``_default_addrs``): the IPv4 ones as
         # sockaddr_in rows for the compiled send, the others sent by ``socket``; rebuilt when
@@ -394,6 +411,7 @@ class GcsLink:
                 self._meas_at.of(self.v.meas)
                 self._pwm_at.of(self.v.pwm_us)
                 self._frames_at.of(self.v.plant.counters.hot)
+                self._gps_at.of(self.v.plant.gps)
             except (ValueError, AttributeError, TypeError):
                 self.fast = False
                 return False
@@ -406,6 +424,11 @@ class GcsLink:
     def _fast_self_check(self) -> bool:
         """The kernels' frames of the vehicle's state now equal the codec's (as ``_build``
         makes them), each with and without the .tlog stamp."""
+        home = self.home
+        if home is None:
+            # the GNSS messages checked (and their kernels loaded) about a stand-in home, taken
+            # back after: ``_gnss`` sets no home while one is set
+            self.home = (0.0, 0.0, 0.0)
         try:
             c = new_codec(self.v.sysid, self.v.compid)
             us = self.time_us()
@@ -428,6 +451,8 @@ class GcsLink:
             return True
         except Exception:  # noqa: BLE001 - any surprise: the codec's path
             return False
+        finally:
+            self.home = home
 
     def _n_debug_vectors(self) -> int:
         """How many DEBUG_VECTs a stream period has (the vehicle's, then SIM_T)."""
@@ -470,7 +495,35 @@ class GcsLink:
             return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
                               v.meas_stamp_us * 1e-6,
                               self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
+        if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
+            # (declined at a 3D fix while home is not set: the codec's path sets it)
+            return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                    us, self._gps_at.of(v.plant.gps), v.meas_stamp_us,
+                                    self.home is not None)
+        if self.home is None:
+            return 0                    # the codec's path (it sets home at the first fix)
+        if self.home is not self._home_src:
+            self._set_home_arr()
+        if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+            return GF.global_position_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+                                            v.compid, us, self._gps_at.of(v.plant.gps),
+                                            self._meas_at.of(v.meas), self._home_p)
+        if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
+            return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+                                           v.compid, us, self._gps_at.of(v.plant.gps),
+                                           self._home_p)
         return 0
+
+    def _set_home_arr(self) -> None:
+        """``home`` into the GNSS kernels' array, with its latitude's cosine as ``local_ned``
+        computes it."""
+        lat, lon, alt = self.home
+        h = self._home_arr
+        h[GF.HOME_LAT_DEG] = lat
+        h[GF.HOME_LON_DEG] = lon
+        h[GF.HOME_ALT_M] = alt
+        h[GF.HOME_COS_LAT] = math.cos(math.radians(lat))
+        self._home_src = self.home
 
     def _refresh_dests(self) -> None:
         """The default schedule's destinations (``_default_addrs``) as sockaddr_in rows."""
@@ -511,6 +564,8 @@ class GcsLink:
             count = len(self.v.named_values())
         elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             count = self._n_debug_vectors()
+        elif self.home is None and msg_id in HOME_STREAMS:
+            return                      # (HOME_STREAMS: none before home)
         else:
             count = 1
         k = 0
@@ -1507,6 +1562,8 @@ class GcsLink:
             nd = link.next_due[msg_id] + step
             link.next_due[msg_id] = nd if nd > now_s else now_s + step
             if fast and msg_id in FAST_STREAMS:
+                if self.home is None and msg_id in HOME_STREAMS:
+                    continue                            # (HOME_STREAMS: none before home)
                 mav = link.mav
                 k = (cursor % n_vec if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                      else cursor % n_items if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT

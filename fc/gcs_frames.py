@@ -22,6 +22,7 @@ for it); -1 writes the bare frame (a datagram). The buffer at ``tx`` holds FRAME
 """
 from __future__ import annotations
 
+import math
 import socket
 import sys
 
@@ -30,21 +31,27 @@ from numba import carray, njit, types
 
 import fc.control.carrays as _carrays
 import hyfc_wire.codec as _codec
+import hyfc_wire.earth as _earth
 import hyfc_wire.frame_kernels as _frame_kernels
 import hyfc_wire.layout as _wire_layout
 from fc.control.carrays import f8p, i8p, u8p
 from hyfc_wire.codec import mavlink
+from hyfc_wire.earth import EARTH_RADIUS_M
 from hyfc_wire.frame_kernels import _frame_at, _put_f32, _put_u
-from hyfc_wire.layout import (M_AIRSPEED, M_ALT, M_AOA, M_CLIMB, M_GROUNDSPEED, M_HEADING, M_P,
-                              M_PITCH, M_Q, M_R, M_ROLL, M_SSA, M_YAW)
+from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
+                              G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_ALT, M_AOA,
+                              M_CLIMB, M_GROUNDSPEED, M_HEADING, M_N, M_P, M_PITCH, M_Q, M_R,
+                              M_ROLL, M_SSA, M_YAW)
 from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout.__file__,
-                      _codec.__file__])
+                      _codec.__file__, _earth.__file__])
 
 __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T", "DV_NAMES",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
-           "sim_t_p", "named_value_p", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
+           "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
+           "local_position_ned_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
+           "HOME_N", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
 
 _HDR = 10
 
@@ -60,11 +67,28 @@ ID_HUD, X_HUD, N_HUD = _spec(mavlink.MAVLink_vfr_hud_message)
 ID_SERVO, X_SERVO, N_SERVO = _spec(mavlink.MAVLink_servo_output_raw_message)
 ID_DV, X_DV, N_DV = _spec(mavlink.MAVLink_debug_vect_message)
 ID_NV, X_NV, N_NV = _spec(mavlink.MAVLink_named_value_float_message)
+ID_GPS, X_GPS, N_GPS = _spec(mavlink.MAVLink_gps_raw_int_message)
+ID_GPI, X_GPI, N_GPI = _spec(mavlink.MAVLink_global_position_int_message)
+ID_LPN, X_LPN, N_LPN = _spec(mavlink.MAVLink_local_position_ned_message)
 #: the longest frame written here, with the .tlog stamp (bytes)
-FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV) + 2
+FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN) + 2
+#: home (``GcsLink.home``) as the GNSS kernels read it: float64[HOME_N]
+HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 0, 1, 2
+HOME_COS_LAT = 3               # math.cos(math.radians(lat)): LOCAL_POSITION_NED's east scale
+HOME_N = 4
+#: GNSS_STALE_S of fc/gcs.py (a sample older than this, plant time, reports NO_FIX)
+GNSS_STALE_S = 1.0
+_FIX_NONE = mavlink.GPS_FIX_TYPE_NO_FIX
+_FIX_3D = mavlink.GPS_FIX_TYPE_3D_FIX
+_I32_MIN, _I32_MAX = -(1 << 31), (1 << 31) - 1
+#: a value this close to a rounding boundary (x.5) after an operation whose last bit may differ
+#: from CPython's (``math.hypot``: its own algorithm, here a square root) is declined
+_ROUND_MARGIN = 1e-6
 #: NAMED_VALUE_FLOAT.name is char[10]: a name table is uint8[n, NV_NAME_B]
 NV_NAME_B = 10
 _RAD = 180.0 / np.pi           # CPython's math.degrees multiplies by 180 / pi
+_RADIAN = np.pi / 180.0        # and math.radians by pi / 180
+_EARTH_R = EARTH_RADIUS_M
 _U32 = 1 << 32
 _DV_NAME_B = 10                # DEBUG_VECT.name is char[10]
 
@@ -93,6 +117,20 @@ def _stamp_at(out, log_epoch_us, log_t_us):
 
 
 @njit(cache=True)
+def _put_ms_six_f32(out, p, time_us, a, b, c, d, e, f):
+    """The payload of ATTITUDE and LOCAL_POSITION_NED at ``out[p:]``: time_boot_ms (the time
+    base / 1000 mod 2^32) and six float32; False if the struct would refuse one."""
+    _put_u(out, p, (time_us // 1000) % _U32, 4)
+    ok = _put_f32(out, p + 4, a)
+    ok &= _put_f32(out, p + 8, b)
+    ok &= _put_f32(out, p + 12, c)
+    ok &= _put_f32(out, p + 16, d)
+    ok &= _put_f32(out, p + 20, e)
+    ok &= _put_f32(out, p + 24, f)
+    return ok
+
+
+@njit(cache=True)
 def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
     """ATTITUDE (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32, roll .. yawspeed
     = meas[M_ROLL .. M_R]) into the uint8 buffer at ``tx`` from the float64 ``meas`` at
@@ -100,15 +138,8 @@ def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
     out = carray(u8p(tx), (FRAME_MAX_B,))
     m = carray(f8p(meas), (M_R + 1,))
     pos = _stamp_at(out, log_epoch_us, log_t_us)
-    p = pos + _HDR
-    _put_u(out, p, (time_us // 1000) % _U32, 4)
-    ok = _put_f32(out, p + 4, m[M_ROLL])
-    ok &= _put_f32(out, p + 8, m[M_PITCH])
-    ok &= _put_f32(out, p + 12, m[M_YAW])
-    ok &= _put_f32(out, p + 16, m[M_P])
-    ok &= _put_f32(out, p + 20, m[M_Q])
-    ok &= _put_f32(out, p + 24, m[M_R])
-    if not ok:
+    if not _put_ms_six_f32(out, pos + _HDR, time_us, m[M_ROLL], m[M_PITCH], m[M_YAW], m[M_P],
+                           m[M_Q], m[M_R]):
         return 0
     return _frame_at(out, pos, N_ATT, seq, sysid, compid, ID_ATT, X_ATT)
 
@@ -226,6 +257,176 @@ def named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, names
     for i in range(NV_NAME_B):
         out[p + 8 + i] = name[i]
     return _frame_at(out, pos, N_NV, seq, sysid, compid, ID_NV, X_NV)
+
+
+@njit(cache=True)
+def _round_i(x):
+    """``int(round(x))`` (Python's round: half to even) of a finite ``x``; (ok, value), not ok
+    when it would not fit an int64 (the caller declines)."""
+    d = np.rint(x)
+    if not abs(d) < 2.0 ** 62:
+        return False, np.int64(0)
+    return True, np.int64(d)
+
+
+@njit(cache=True)
+def _u32_field(x):
+    """fc/gcs.py ``_u32``: a non-negative finite value rounded and saturated to u32, else 0."""
+    if not (np.isfinite(x) and x > 0.0):
+        return np.int64(0)
+    if x >= 4294967295.0:
+        return np.int64(0xFFFFFFFF)
+    return min(np.int64(np.rint(x)), np.int64(0xFFFFFFFF))
+
+
+@njit(cache=True)
+def _cm_s_i16(v):
+    """fc/gcs_streams.py ``cm_s_i16``: m/s as int16 cm/s, 32767 when not finite or beyond."""
+    if not np.isfinite(v) or abs(v) > 1e6:
+        return np.int64(32767)
+    cm = np.int64(np.rint(v * 100.0))
+    return cm if -32768 <= cm < 32767 else np.int64(32767)
+
+
+@njit(cache=True)
+def _gnss_fix(g, stamp_us):
+    """``GcsLink._gnss``'s fix: the sample's own, NO_FIX once older than GNSS_STALE_S of
+    plant time (the newest frame's stamp ``stamp_us``, us)."""
+    fix = np.int64(g[G_FIX])
+    if fix and stamp_us * 1e-6 - g[G_T_S] > GNSS_STALE_S:
+        fix = np.int64(_FIX_NONE)
+    return fix
+
+
+@njit(cache=True)
+def _put_lat_lon_alt(out, p, g):
+    """lat, lon (degE7) and alt (mm) of the GNSS sample as three i32 at ``out[p:]``; False
+    when one does not fit (the codec's struct would refuse it)."""
+    ok1, lat = _round_i(g[G_LAT_DEG] * 1e7)
+    ok2, lon = _round_i(g[G_LON_DEG] * 1e7)
+    ok3, alt = _round_i(g[G_ALT_M] * 1000.0)
+    if not (ok1 and ok2 and ok3):
+        return False
+    for v in (lat, lon, alt):
+        if v < _I32_MIN or v > _I32_MAX:
+            return False
+    _put_u(out, p, lat, 4)
+    _put_u(out, p + 4, lon, 4)
+    _put_u(out, p + 8, alt, 4)
+    return True
+
+
+@njit(cache=True)
+def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, stamp_us,
+                  home_set):
+    """GPS_RAW_INT (``GcsLink._build``) of the GNSS sample float64[G_N] at ``gps`` (layout
+    G_*), the newest frame stamped ``stamp_us``: fix as ``_gnss``, vel = ``cm_s_u16`` of the
+    horizontal speed, cog = round(deg of atan2(ve, vn) x 100) mod 36000 when fixed and moving
+    (else 65535), accuracies as ``_u32`` of mm. Bytes written, or 0: a value the codec would
+    refuse, a speed within _ROUND_MARGIN of a cm/s rounding boundary (``math.hypot`` is
+    CPython's own algorithm, here a square root, and may differ in the last bit), or a 3D fix
+    while home is not set (not ``home_set``: the codec's path sets it, ``GcsLink._gnss``)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    g = carray(f8p(gps), (G_N,))
+    fix = _gnss_fix(g, stamp_us)
+    if not home_set and fix >= _FIX_3D:
+        return 0
+    sats = np.int64(g[G_SATS])
+    if fix < 0 or fix > 0xFF or sats < 0 or sats > 0xFF:
+        return 0
+    vn, ve = g[G_VN], g[G_VE]
+    if not (np.isfinite(vn) and np.isfinite(ve)):
+        return 0
+    moving = vn != 0.0 or ve != 0.0             # hypot(vn, ve) > 0
+    vel = np.int64(65535)
+    if abs(vn) < 1e6 and abs(ve) < 1e6:         # else above 655.35 m/s anyway: unknown
+        x = np.sqrt(vn * vn + ve * ve) * 100.0
+        if abs(x - np.floor(x) - 0.5) < _ROUND_MARGIN:
+            return 0
+        cm = np.int64(np.rint(x))
+        if cm < 65535:
+            vel = cm
+    cog = np.int64(65535)
+    if fix and moving:
+        x = math.atan2(ve, vn) * _RAD * 100.0
+        if abs(x - np.floor(x) - 0.5) < _ROUND_MARGIN:
+            return 0                            # (atan2: libm's in both, declined all the same)
+        cog = np.int64(np.rint(x)) % 36000
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, time_us, 8)
+    if not _put_lat_lon_alt(out, p + 8, g):
+        return 0
+    _put_u(out, p + 20, 65535, 2)               # eph
+    _put_u(out, p + 22, 65535, 2)               # epv
+    _put_u(out, p + 24, vel, 2)
+    _put_u(out, p + 26, cog, 2)
+    out[p + 28] = fix
+    out[p + 29] = sats
+    _put_u(out, p + 30, 0, 4)                   # alt_ellipsoid
+    _put_u(out, p + 34, _u32_field(g[G_HACC_M] * 1000.0), 4)
+    _put_u(out, p + 38, _u32_field(g[G_VACC_M] * 1000.0), 4)
+    _put_u(out, p + 42, _u32_field(g[G_SACC_M_S] * 1000.0), 4)
+    _put_u(out, p + 46, 0, 6)                   # hdg_acc, yaw
+    return _frame_at(out, pos, N_GPS, seq, sysid, compid, ID_GPS, X_GPS)
+
+
+@njit(cache=True)
+def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, meas,
+                          home):
+    """GLOBAL_POSITION_INT (``GcsLink._build``) of the GNSS sample at ``gps``, the heading of
+    float64[M_N] ``meas`` and the float64[HOME_N] ``home``: relative_alt = round((alt -
+    home alt) x 1000), velocities as ``cm_s_i16``, hdg = round(deg x 100) mod 36000 (65535
+    when not finite). Bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    g = carray(f8p(gps), (G_N,))
+    m = carray(f8p(meas), (M_N,))
+    h = carray(f8p(home), (HOME_N,))
+    hdg = np.int64(65535)
+    if np.isfinite(m[M_HEADING]):
+        ok, d = _round_i(m[M_HEADING] * _RAD * 100.0)
+        if not ok:
+            return 0
+        hdg = d % 36000
+    ok, rel = _round_i((g[G_ALT_M] - h[HOME_ALT_M]) * 1000.0)
+    if not ok or rel < _I32_MIN or rel > _I32_MAX:
+        return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    p = pos + _HDR
+    _put_u(out, p, (time_us // 1000) % _U32, 4)
+    if not _put_lat_lon_alt(out, p + 4, g):
+        return 0
+    _put_u(out, p + 16, rel, 4)
+    _put_u(out, p + 20, _cm_s_i16(g[G_VN]), 2)
+    _put_u(out, p + 22, _cm_s_i16(g[G_VE]), 2)
+    _put_u(out, p + 24, _cm_s_i16(g[G_VD]), 2)
+    _put_u(out, p + 26, hdg, 2)
+    return _frame_at(out, pos, N_GPI, seq, sysid, compid, ID_GPI, X_GPI)
+
+
+@njit(cache=True)
+def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, home):
+    """LOCAL_POSITION_NED (``GcsLink._build``, fc/gcs_streams.py ``local_ned``) of the GNSS
+    sample at ``gps`` about the float64[HOME_N] ``home`` (its cosine of latitude computed by
+    the caller with ``math.cos``); vx, vy, vz the sample's. Bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    g = carray(f8p(gps), (G_N,))
+    h = carray(f8p(home), (HOME_N,))
+    a = g[G_LON_DEG] - h[HOME_LON_DEG] + 180.0
+    r = np.fmod(a, 360.0)                       # Python's float %: the sign of the divisor
+    if r != 0.0:
+        if r < 0.0:
+            r += 360.0
+    else:
+        r = 0.0
+    dlon = r - 180.0
+    x = _EARTH_R * ((g[G_LAT_DEG] - h[HOME_LAT_DEG]) * _RADIAN)
+    y = _EARTH_R * h[HOME_COS_LAT] * (dlon * _RADIAN)
+    z = -(g[G_ALT_M] - h[HOME_ALT_M])
+    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    if not _put_ms_six_f32(out, pos + _HDR, time_us, x, y, z, g[G_VN], g[G_VE], g[G_VD]):
+        return 0
+    return _frame_at(out, pos, N_LPN, seq, sysid, compid, ID_LPN, X_LPN)
 
 
 @njit(cache=True)

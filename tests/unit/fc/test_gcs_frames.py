@@ -261,3 +261,118 @@ def test_the_compiled_framing_is_taken_in_both_timing_modes(tmp_path, timing):
         assert fc.gcs.fast is True
     finally:
         fc.close()
+
+
+class _GnssState:
+    """What ``GcsLink._build`` reads for the GNSS messages: the vehicle's sample, meas, the
+    newest frame's stamp, home (set: no side effect in ``_gnss``) and the codec."""
+
+    def __init__(self, gps, meas, stamp_us, home, seq):
+        from types import MethodType, SimpleNamespace
+
+        from fc.gcs import GcsLink
+        self.v = SimpleNamespace(plant=SimpleNamespace(gps=gps), meas=meas,
+                                 meas_stamp_us=stamp_us)
+        self.home = home
+        self.mav = _codec(seq)
+        self._gnss = MethodType(GcsLink._gnss, self)
+        self._build = MethodType(GcsLink._build, self)
+
+
+def _home_array(home):
+    h = np.zeros(F.HOME_N)
+    h[F.HOME_LAT_DEG], h[F.HOME_LON_DEG], h[F.HOME_ALT_M] = home
+    h[F.HOME_COS_LAT] = math.cos(math.radians(home[0]))
+    return h
+
+
+def _near_half(x):
+    return math.isfinite(x) and abs(x - math.floor(x) - 0.5) < 1e-6
+
+
+lat_e7 = st.integers(-900_000_000, 900_000_000)
+lon_e7 = st.integers(-1_800_000_000, 1_800_000_000)
+alt_m = st.floats(-2e6, 2e6, allow_nan=False)
+# speeds on and near the cm/s rounding boundaries, and any finite ones
+speed = st.one_of(finite, st.integers(-70000, 70000).map(lambda c: (c + 0.5) / 100.0),
+                  st.floats(-1e300, 1e300, allow_nan=False))
+
+
+@settings(max_examples=300, deadline=None)
+@given(lat=lat_e7, lon=lon_e7, alt=alt_m, vel=st.lists(speed, min_size=3, max_size=3),
+       fix=st.integers(0, 6), sats=st.integers(0, 255),
+       acc=st.lists(st.one_of(finite, st.floats(0, 1e10)), min_size=3, max_size=3),
+       age_s=st.floats(0.0, 3.0), home=st.tuples(lat_e7, lon_e7, alt_m),
+       heading=st.one_of(finite, any_float), us=stamps, seq=st.integers(0, 255),
+       log=st.booleans())
+def test_gnss_messages_are_the_codecs(lat, lon, alt, vel, fix, sats, acc, age_s, home, heading,
+                                      us, seq, log):
+    # GIVEN a GNSS sample as fc/link.py keeps it (degE7 x 1e-7, finite), an age, a home and a
+    # heading (any float)
+    from fc.gcs import GNSS_STALE_S
+    from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N,
+                                  G_SACC_M_S, G_SATS, G_T_S, G_VACC_M, G_VD, G_VE, G_VN)
+    assert F.GNSS_STALE_S == GNSS_STALE_S
+    stamp_us = 50_000_000
+    g = np.zeros(G_N)
+    g[G_T_S] = stamp_us * 1e-6 - age_s
+    g[G_LAT_DEG], g[G_LON_DEG], g[G_ALT_M] = lat * 1e-7, lon * 1e-7, alt
+    g[G_VN], g[G_VE], g[G_VD] = vel
+    g[G_FIX], g[G_SATS] = fix, sats
+    g[G_HACC_M], g[G_VACC_M], g[G_SACC_M_S] = acc
+    meas = np.zeros(M_N)
+    meas[M_HEADING] = heading
+    home_t = (home[0] * 1e-7, home[1] * 1e-7, home[2])
+    state = _GnssState(g, meas, stamp_us, home_t, seq)
+    b = Buf()
+    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    gp = address_of(g, np.float64, G_N)
+    hp = address_of(_home_array(home_t), np.float64, F.HOME_N)
+    from fc.link import mavlink as ML
+    # THEN GPS_RAW_INT is the codec's frame of _build's message; the kernel may decline only
+    # a horizontal speed or course on a rounding boundary (math.hypot is CPython's own)
+    spd = math.hypot(g[G_VN], g[G_VE])
+    cog_x = math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0
+    _check(F.gps_raw_int_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp, stamp_us, True), b,
+           _want(state._build(ML.MAVLINK_MSG_ID_GPS_RAW_INT, 0, us), seq, us if log else None),
+           may_decline=_near_half(spd * 100.0) or _near_half(cog_x))
+    # AND GLOBAL_POSITION_INT and LOCAL_POSITION_NED are the codec's frames (a heading beyond
+    # an int64 of centidegrees declined)
+    big = math.isfinite(heading) and not abs(heading * F._RAD * 100.0) < 2.0 ** 62
+    try:
+        want = _want(state._build(ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 0, us), seq,
+                     us if log else None)
+    except (OverflowError, ValueError):
+        want = None                 # (round() of an infinite float: _build raises)
+    _check(F.global_position_int_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp,
+                                   address_of(meas, np.float64, M_N), hp), b, want,
+           may_decline=big)
+    _check(F.local_position_ned_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp, hp), b,
+           _want(state._build(ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 0, us), seq,
+                 us if log else None))
+
+
+@pytest.mark.parametrize("vn,ve", [(0.0, 0.0), (3.0, 4.0), (-1.0, 0.0), (-1.0, -0.0),
+                                   (0.0, -2.0), (1e-300, 0.0), (700.0, 0.0), (0.005, 0.0),
+                                   (-0.015, 0.0), (2200.0, 10.0)])
+def test_gps_raw_int_course_and_speed_edges(vn, ve):
+    # GIVEN a 3D fix at rest, on the axes (signed zeros), tiny, on a cm/s boundary, too fast
+    from fc.link import mavlink as ML
+    from hyfc_wire.layout import G_FIX, G_N, G_SATS, G_T_S, G_VE, G_VN
+    g = np.zeros(G_N)
+    g[G_T_S], g[G_FIX], g[G_SATS], g[G_VN], g[G_VE] = 1.0, 3, 12, vn, ve
+    state = _GnssState(g, np.zeros(M_N), 1_500_000, (0.0, 0.0, 0.0), 9)
+    b = Buf()
+    n = F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000,
+                        address_of(g, np.float64, G_N), 1_500_000, True)
+    want = _want(state._build(ML.MAVLINK_MSG_ID_GPS_RAW_INT, 0, 1_500_000), 9)
+    # THEN the frame is the codec's, or declined exactly on a cm/s rounding boundary
+    if _near_half(math.hypot(vn, ve) * 100.0):
+        assert n == 0
+        return
+    assert b.bytes(n) == want
+    # AND with home not set, a 3D fix is declined (the codec's path sets home), an older one
+    # (stale: NO_FIX) is framed
+    gp = address_of(g, np.float64, G_N)
+    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000, gp, 1_500_000, False) == 0
+    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000, gp, 2_500_000, False) > 0
