@@ -40,7 +40,7 @@ drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout._
                       _pwm.__file__, _codec.__file__])
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
-           "surfaces_throttle_pwm_p", "blend3_p", "recv_sensor_p", "send_servo_p", "FAST_IO",
+           "surfaces_throttle_pwm_p", "blend3_p", "count_p", "recv_sensor_p", "send_servo_p", "FAST_IO",
            "RX_NONE", "RX_OTHER", "RX_REJECTED", "HOT_DATAGRAMS", "HOT_FRAMES", "HOT_OUTPUTS",
            "HOT_EMPTY_READS", "HOT_N", "IO_LEN", "IO_N", "SOCKADDR_IN_B", "f8p", "i8p", "u4p",
            "u8p"]
@@ -114,6 +114,13 @@ def blend3_p(dst, src, k):
     s = carray(f8p(src), (3,))
     for i in range(3):
         d[i] += k * (s[i] - d[i])
+
+
+@njit(cache=True)
+def count_p(counter):
+    """``counter += 1`` on the int64 at ``counter`` (a count kept beyond CPython's cached
+    small ints without an int object per step)."""
+    carray(i8p(counter), (1,))[0] += 1
 
 
 @njit(cache=True)
