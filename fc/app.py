@@ -440,6 +440,18 @@ class FlightController:
         """Plant time of the newest frame, us."""
         return self.intake.stamp_us
 
+    @property
+    def meas_stamp_at(self) -> int:
+        """The address of the int64 cell holding ``meas_stamp_us`` (compiled readers), valid
+        while not ``meas_stamp_big``."""
+        return self.intake.stamp_at
+
+    @property
+    def meas_stamp_big(self) -> bool:
+        """Whether ``meas_stamp_us`` is beyond the cell at ``meas_stamp_at`` (a faulty plant's
+        u64 stamp)."""
+        return self.intake.stamp_big
+
     def health_failed_bits(self) -> int:
         bits = self.mode_ctl.health_failed_bits()
         if self.disk.failing:

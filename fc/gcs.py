@@ -308,8 +308,12 @@ class GcsLink:
         self.log_framer = LeanFramer(vehicle.sysid, vehicle.compid)   # unsigned, codec's bytes
         self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
         self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
-        self._log_next = 0
-        self._log_last_us = 0
+        # the .tlog schedule's last time base seen and next due time (us): int64[2] (GF.LOG_*)
+        # checked by a compiled call on frames where nothing is due (``_service_log``), or
+        # Python ints in ``_log_big`` while one is beyond the cells' range
+        self._log_st = np.zeros(GF.LOG_N, np.int64)
+        self._log_st_p = address_of(self._log_st, np.int64, GF.LOG_N)
+        self._log_big: list[int] | None = None
         self.io = io
         self._init_fast_frames()
         # the protocol services (one module each): log download of this .tlog, read-only FTP
@@ -376,6 +380,8 @@ class GcsLink:
         self._tx_p = address_of(self._tx, np.uint8, GF.FRAME_MAX_B)
         mv = memoryview(self._tx)
         self._tx_views = tuple(mv[:n] for n in range(GF.FRAME_MAX_B + 1))
+        self._tb = np.zeros(1, np.int64)        # the time base for the kernels (``_time_at``)
+        self._tb_p = address_of(self._tb, np.int64, 1)
         self._meas_at = ArrayAddress(np.float64, M_N)
         self._pwm_at = ArrayAddress(np.int64, 4)
         self._frames_at = ArrayAddress(np.int64, HOT_FRAMES + 1)
@@ -393,6 +399,10 @@ class GcsLink:
         self._n_dests = 0
         self._slow_dests: tuple = ()
         self._dests_dirty = True
+        # the int64 cell of the newest frame's stamp (the time base in lockstep), if the
+        # vehicle keeps one (fc/intake.py ``stamp_at``): bound by ``warm_up`` (the vehicle
+        # complete then); while None, the stamp is read as an int
+        self._stamp_at: int | None = None
         self._dv_frame = getattr(self.v, "frame_debug_vector", None)
         self._dv_count = getattr(self.v, "debug_vector_count", None)
         self._nv_frame = getattr(self.v, "frame_named_value", None)
@@ -402,11 +412,15 @@ class GcsLink:
         """Decide the compiled stream framing now, loading its kernels (the fc calls this at
         the end of its construction, before READY, so the first frames do not load them and
         ``hyfc-precompile`` compiles them): True when FAST_STREAMS use it."""
+        scratch = np.zeros(GF.LOG_N, np.int64)
+        GF.log_due_p(address_of(scratch, np.int64, GF.LOG_N),
+                     address_of(scratch, np.int64, GF.LOG_N))      # (loaded now)
         return self._fast_ok()
 
     def _fast_ok(self) -> bool:
         """Whether FAST_STREAMS go through the compiled framing (``fast``, decided once)."""
         if self.fast is None:
+            self._stamp_at = getattr(self.v, "meas_stamp_at", None)
             try:
                 self._meas_at.of(self.v.meas)
                 self._pwm_at.of(self.v.pwm_us)
@@ -438,6 +452,11 @@ class GcsLink:
                 for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                                else len(self.v.named_values())
                                if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1):
+                    if self._stamp_at is None and (
+                            msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT
+                            or (msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
+                                and k == self._n_debug_vectors() - 1)):
+                        continue            # (no stamp cell: these take the codec's path)
                     msg = self._build(msg_id, k, us)    # (real time: the base moves on)
                     c.seq = 17
                     want = msg.pack(c)
@@ -462,43 +481,67 @@ class GcsLink:
 
     def _frame_stream(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
                       us: int) -> int:
-        """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at time base
-        ``us`` with sequence ``seq`` into ``_tx`` (with the .tlog stamp ``log_epoch_us +
-        log_t_us`` when ``log_epoch_us`` >= 0): the bytes written, or 0 when the kernel
-        declines (the caller takes the codec's path)."""
+        """:meth:`_frame_at` at the time base ``us`` (us; 0 framed when beyond int64)."""
+        if not 0 <= us <= _I64_MAX:
+            return 0
+        self._tb[0] = us
+        return self._frame_at(msg_id, k, log_epoch_us, log_t_us, seq, self._tb_p)
+
+    def _time_at(self) -> int:
+        """The address of an int64 cell holding the time base now (``time_us``): in lockstep
+        the newest frame's stamp cell (no Python int for it), else ``_tb`` set to it; 0 when
+        it is beyond int64 (the kernels decline)."""
+        if self.sim_time and self._stamp_at is not None and not self.v.meas_stamp_big:
+            return self._stamp_at
+        us = self.time_us()
+        if not 0 <= us <= _I64_MAX:
+            return 0
+        self._tb[0] = us
+        return self._tb_p
+
+    def _frame_at(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
+                  time_at: int) -> int:
+        """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at the time base
+        in the int64 cell at ``time_at`` with sequence ``seq`` into ``_tx`` (with the .tlog
+        stamp ``log_epoch_us + log_t_us`` when ``log_epoch_us`` >= 0): the bytes written, or
+        0 when the kernel declines or ``time_at`` is 0 (the caller takes the codec's path)."""
         v = self.v
-        if us > _I64_MAX:
+        if not time_at:
             return 0
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
-            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                                 self._meas_at.of(v.meas))
+            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                 time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
-            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                                self._meas_at.of(v.meas))
+            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                                time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
             return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
                                 self._meas_at.of(v.meas), v.throttle_percent())
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
             return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
-                                  us, self._pwm_at.of(v.pwm_us))
+                                  time_at, self._pwm_at.of(v.pwm_us))
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             if self._nv_frame is None:
                 return 0
             return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
-                                  us)
+                                  time_at)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             if self._dv_frame is None:
                 return 0
             if k < self._dv_count():
                 return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
-                                      v.compid, us)
-            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                              v.meas_stamp_us * 1e-6,
+                                      v.compid, time_at)
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0                # (the stamp as a Python int: the codec's path)
+            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+                              time_at, self._stamp_at,
                               self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
         if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
             # (declined at a 3D fix while home is not set: the codec's path sets it)
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0
             return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
-                                    us, self._gps_at.of(v.plant.gps), v.meas_stamp_us,
+                                    time_at, self._gps_at.of(v.plant.gps), self._stamp_at,
                                     self.home is not None)
         if self.home is None:
             return 0                    # the codec's path (it sets home at the first fix)
@@ -506,11 +549,11 @@ class GcsLink:
             self._set_home_arr()
         if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             return GF.global_position_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
-                                            v.compid, us, self._gps_at.of(v.plant.gps),
+                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
                                             self._meas_at.of(v.meas), self._home_p)
         if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
             return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
-                                           v.compid, us, self._gps_at.of(v.plant.gps),
+                                           v.compid, time_at, self._gps_at.of(v.plant.gps),
                                            self._home_p)
         return 0
 
@@ -559,7 +602,7 @@ class GcsLink:
         ``_stream_messages`` + ``_log_msg`` write them; one the kernel declines is built and
         written by the codec's path."""
         mav = self.log_mav
-        us = self.time_us()
+        time_at = self._time_at()
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             count = len(self.v.named_values())
         elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
@@ -570,7 +613,7 @@ class GcsLink:
             count = 1
         k = 0
         while k < count:
-            n = self._frame_stream(msg_id, k, self.epoch_us, t_us, mav.seq, us)
+            n = self._frame_at(msg_id, k, self.epoch_us, t_us, mav.seq, time_at)
             if n:
                 self._tlog_buf += self._tx_views[n]
                 mav.seq = (mav.seq + 1) % 256
@@ -1417,31 +1460,42 @@ class GcsLink:
     def _service_log(self) -> None:
         """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
         lockstep): due messages are written with the log's codec, stamped with the time base.
-        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames."""
+        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames. In
+        lockstep, a frame on which nothing is due is told by a compiled call on the newest
+        stamp's cell (no Python int for the time base)."""
         if self.tlog is None:
             return
+        if (self.sim_time and self._log_big is None and self._stamp_at is not None
+                and not self.v.meas_stamp_big
+                and not GF.log_due_p(self._stamp_at, self._log_st_p)):
+            return
+        last, nxt = self._log_big or self._log_st.tolist()
         t_us = self.time_us()
-        if t_us < self._log_last_us:        # the plant restarted: the schedule starts over
+        if t_us < last:                     # the plant restarted: the schedule starts over
             for k in self.log_due:
                 self.log_due[k] = t_us
-            self._log_next = t_us
-        self._log_last_us = t_us
-        if t_us < self._log_next:
-            return
-        nxt = None
-        for msg_id, iv_us in self._log_iv_us.items():
-            due = self.log_due[msg_id]
-            if t_us >= due:
-                if msg_id in FAST_STREAMS and self._fast_ok():
-                    self._log_fast(msg_id, t_us)
-                else:
-                    for msg in self._stream_messages(msg_id):
-                        self._log_msg(msg, t_us)
-                due = due + iv_us if due + iv_us > t_us else t_us + iv_us
-                self.log_due[msg_id] = due
-            if nxt is None or due < nxt:
-                nxt = due
-        self._log_next = nxt
+            nxt = t_us
+        last = t_us
+        if t_us >= nxt:
+            nxt = None
+            for msg_id, iv_us in self._log_iv_us.items():
+                due = self.log_due[msg_id]
+                if t_us >= due:
+                    if msg_id in FAST_STREAMS and self._fast_ok():
+                        self._log_fast(msg_id, t_us)
+                    else:
+                        for msg in self._stream_messages(msg_id):
+                            self._log_msg(msg, t_us)
+                    due = due + iv_us if due + iv_us > t_us else t_us + iv_us
+                    self.log_due[msg_id] = due
+                if nxt is None or due < nxt:
+                    nxt = due
+        if -GF.LOG_SAFE_US < last < GF.LOG_SAFE_US and -GF.LOG_SAFE_US < nxt < GF.LOG_SAFE_US:
+            self._log_st[GF.LOG_LAST] = last
+            self._log_st[GF.LOG_NEXT] = nxt
+            self._log_big = None
+        else:
+            self._log_big = [last, nxt]
 
     def service(self, now_s: float) -> int:
         """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
@@ -1568,7 +1622,7 @@ class GcsLink:
                 k = (cursor % n_vec if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                      else cursor % n_items if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT
                      else 0)
-                n = self._frame_stream(msg_id, k, -1, 0, mav.seq, self.time_us())
+                n = self._frame_at(msg_id, k, -1, 0, mav.seq, self._time_at())
                 if n:
                     mav.seq = (mav.seq + 1) % 256       # as _pack
                     self._send_frame(n)

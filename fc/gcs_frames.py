@@ -16,8 +16,9 @@ would refuse (a finite float beyond float32, a heading or throttle that does not
 caller then takes the codec's path, which refuses it as before (counted, not sent).
 tests/unit/fc/test_gcs_frames.py compares the bytes with the codec's.
 
-``log_epoch_us`` >= 0 prefixes the frame with the .tlog's big-endian u64 stamp ``log_epoch_us
-+ log_t_us`` (8 bytes), as ``GcsLink._tlog_write`` writes it (the sum made here: no Python int
+The time base (the messages' time fields) is read from the int64 cell at ``time_at`` (the
+newest frame's stamp in lockstep: no Python int for it). ``log_epoch_us`` >= 0 prefixes the
+frame with the .tlog's big-endian u64 stamp ``log_epoch_us + log_t_us`` (8 bytes), as ``GcsLink._tlog_write`` writes it (the sum made here: no Python int
 for it); -1 writes the bare frame (a datagram). The buffer at ``tx`` holds FRAME_MAX_B bytes.
 """
 from __future__ import annotations
@@ -51,7 +52,7 @@ __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
            "local_position_ned_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
-           "HOME_N", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
+           "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_N", "LOG_SAFE_US", "log_due_p", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
 
 _HDR = 10
 
@@ -131,10 +132,11 @@ def _put_ms_six_f32(out, p, time_us, a, b, c, d, e, f):
 
 
 @njit(cache=True)
-def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
+def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
     """ATTITUDE (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32, roll .. yawspeed
     = meas[M_ROLL .. M_R]) into the uint8 buffer at ``tx`` from the float64 ``meas`` at
     ``meas`` (M_*); bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     m = carray(f8p(meas), (M_R + 1,))
     pos = _stamp_at(out, log_epoch_us, log_t_us)
@@ -145,9 +147,10 @@ def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
 
 
 @njit(cache=True)
-def aoa_ssa_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, meas):
+def aoa_ssa_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
     """AOA_SSA (time_usec = the time base, AOA and SSA in deg of meas[M_AOA], meas[M_SSA]);
     bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     m = carray(f8p(meas), (M_SSA + 1,))
     pos = _stamp_at(out, log_epoch_us, log_t_us)
@@ -190,9 +193,10 @@ def vfr_hud_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, meas, throttle_pct
 
 
 @njit(cache=True)
-def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, pwm):
+def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, pwm):
     """SERVO_OUTPUT_RAW (time_usec = the time base mod 2^32, port 0, servo1..4 = the int64[4]
     at ``pwm``, the others 0); bytes written or 0 (a PWM value beyond u16)."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     w = carray(i8p(pwm), (4,))
     for c in range(4):
@@ -209,9 +213,10 @@ def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, pwm):
 
 
 @njit(cache=True)
-def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, which, src, deg, x, y, z):
+def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, which, src, deg, x, y, z):
     """DEBUG_VECT ``DV_NAMES[which]``: x, y, z = the float64[3] at ``src`` (in deg of rad when
     ``deg``) when ``src`` is not 0, else ``x``, ``y``, ``z``; bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     if src != 0:
         v = carray(f8p(src), (3,))
@@ -233,20 +238,22 @@ def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, which,
 
 
 @njit(cache=True)
-def sim_t_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, t_s, frames):
-    """DEBUG_VECT SIM_T (``GcsLink._debug_vectors``): x = ``t_s`` (sim time of the newest plant
-    frame, s) when the int64 count at ``frames`` (the plant link's frames, ``LinkCounters.hot``)
-    is not 0, else NaN; y = z = 0. Bytes written or 0."""
-    x = t_s if carray(i8p(frames), (1,))[0] else np.nan
-    return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_SIM_T, 0,
+def sim_t_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, stamp, frames):
+    """DEBUG_VECT SIM_T (``GcsLink._debug_vectors``): x = the newest plant frame's stamp in the
+    int64 cell at ``stamp`` (us) x 1e-6 (its sim time, s) when the int64 count at ``frames``
+    (the plant link's frames, ``LinkCounters.hot``) is not 0, else NaN; y = z = 0. Bytes
+    written or 0."""
+    x = carray(i8p(stamp), (1,))[0] * 1e-6 if carray(i8p(frames), (1,))[0] else np.nan
+    return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_SIM_T, 0,
                         False, x, 0.0, 0.0)
 
 
 @njit(cache=True)
-def named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, names, values, k):
+def named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, names, values, k):
     """NAMED_VALUE_FLOAT ``k`` (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32)
     of the name table at ``names`` (uint8[n, NV_NAME_B], zero-padded) and the float64[n] at
     ``values``; bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     name = carray(u8p(names + k * NV_NAME_B), (NV_NAME_B,))
     pos = _stamp_at(out, log_epoch_us, log_t_us)
@@ -317,18 +324,19 @@ def _put_lat_lon_alt(out, p, g):
 
 
 @njit(cache=True)
-def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, stamp_us,
+def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, stamp,
                   home_set):
     """GPS_RAW_INT (``GcsLink._build``) of the GNSS sample float64[G_N] at ``gps`` (layout
-    G_*), the newest frame stamped ``stamp_us``: fix as ``_gnss``, vel = ``cm_s_u16`` of the
+    G_*), the newest frame's stamp (us) in the int64 cell at ``stamp``: fix as ``_gnss``, vel = ``cm_s_u16`` of the
     horizontal speed, cog = round(deg of atan2(ve, vn) x 100) mod 36000 when fixed and moving
     (else 65535), accuracies as ``_u32`` of mm. Bytes written, or 0: a value the codec would
     refuse, a speed within _ROUND_MARGIN of a cm/s rounding boundary (``math.hypot`` is
     CPython's own algorithm, here a square root, and may differ in the last bit), or a 3D fix
     while home is not set (not ``home_set``: the codec's path sets it, ``GcsLink._gnss``)."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     g = carray(f8p(gps), (G_N,))
-    fix = _gnss_fix(g, stamp_us)
+    fix = _gnss_fix(g, carray(i8p(stamp), (1,))[0])
     if not home_set and fix >= _FIX_3D:
         return 0
     sats = np.int64(g[G_SATS])
@@ -372,12 +380,13 @@ def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, 
 
 
 @njit(cache=True)
-def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, meas,
+def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, meas,
                           home):
     """GLOBAL_POSITION_INT (``GcsLink._build``) of the GNSS sample at ``gps``, the heading of
     float64[M_N] ``meas`` and the float64[HOME_N] ``home``: relative_alt = round((alt -
     home alt) x 1000), velocities as ``cm_s_i16``, hdg = round(deg x 100) mod 36000 (65535
     when not finite). Bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     g = carray(f8p(gps), (G_N,))
     m = carray(f8p(meas), (M_N,))
@@ -405,10 +414,11 @@ def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_u
 
 
 @njit(cache=True)
-def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, gps, home):
+def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, home):
     """LOCAL_POSITION_NED (``GcsLink._build``, fc/gcs_streams.py ``local_ned``) of the GNSS
     sample at ``gps`` about the float64[HOME_N] ``home`` (its cosine of latitude computed by
     the caller with ``math.cos``); vx, vy, vz the sample's. Bytes written or 0."""
+    time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     g = carray(f8p(gps), (G_N,))
     h = carray(f8p(home), (HOME_N,))
@@ -427,6 +437,25 @@ def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us
     if not _put_ms_six_f32(out, pos + _HDR, time_us, x, y, z, g[G_VN], g[G_VE], g[G_VD]):
         return 0
     return _frame_at(out, pos, N_LPN, seq, sysid, compid, ID_LPN, X_LPN)
+
+
+#: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_N]): the last time base seen
+#: and the next due time (us); values within +-LOG_SAFE_US only (else Python ints)
+LOG_LAST, LOG_NEXT, LOG_N = 0, 1, 2
+LOG_SAFE_US = 1 << 62
+
+
+@njit(cache=True)
+def log_due_p(stamp, st):
+    """``GcsLink._service_log``'s check on the time base in the int64 cell at ``stamp``: False
+    when nothing is due (the last time base seen stepped to it), True when a stream is due or
+    the time base went back (the walk then runs in Python, the state untouched)."""
+    t = carray(i8p(stamp), (1,))[0]
+    s = carray(i8p(st), (LOG_N,))
+    if t < s[LOG_LAST]:
+        return True
+    s[LOG_LAST] = t
+    return t >= s[LOG_NEXT]
 
 
 @njit(cache=True)

@@ -26,6 +26,7 @@ from fc.gcs_frames import (DV_CMD, DV_DELTA, DV_EST, DV_GUID, NV_NAME_B, debug_v
                            named_value_p)
 from fc.guidance.layout import GS_GAM_C
 from fc.guided import GuidanceRunner
+from fc.frame_calls import int64_at
 from fc.internals_log import InternalsLog
 from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
@@ -80,13 +81,17 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd,
-               delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
+def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, stamp_at, mode, armed, healthy,
+               emem, cmd, delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
     """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row
     ``cursor[1]`` (fc/internals_log.py ``CUR_ROW`` of the int64 cursor) of the float64[:, ncol]
     at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
-    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status).
-    (Fewer than 20 arguments: CPython takes the call's argument tuple from its free list.)"""
+    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status). The
+    stamp is the int64 cell at ``stamp_at`` (as a float) when ``stamp_at`` is not 0, else the
+    float ``stamp_us``. (Fewer than 20 arguments: CPython takes the call's argument tuple from
+    its free list.)"""
+    if stamp_at != 0:
+        stamp_us = np.float64(carray(i8p(stamp_at), (1,))[0])
     d = carray(i8p(dims), (3,))
     ncol, status_n, n_status = d[0], d[1], d[2]
     i = carray(i8p(cursor), (2,))[1]
@@ -292,36 +297,37 @@ class Telemetry:
         return 4 if self.modes.guidance_active else 3
 
     def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                           sysid: int, compid: int, time_us: int) -> int:
+                           sysid: int, compid: int, time_at: int) -> int:
         """:meth:`debug_vectors`' vector ``k`` as a DEBUG_VECT framed by the compiled kernel
-        (fc/gcs_frames.py ``debug_vect_p``, its arguments) from the arrays it is made of: no
+        (fc/gcs_frames.py ``debug_vect_p``, its arguments: the time base in the int64
+        cell at ``time_at``) from the arrays it is made of: no
         Python object but the floats of GUID. Bytes written, or 0 (the caller then builds it
         with the codec from :meth:`debug_vectors`)."""
         if k == 0:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_CMD,
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_CMD,
                                 self._cmd_dv_at.of(self.out.cmd_active), True, 0.0, 0.0, 0.0)
         if k == 1:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_EST,
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_EST,
                                 self._est_dv_at.of(self.est.est), True, 0.0, 0.0, 0.0)
         if k == 2:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at,
                                 DV_DELTA, self._delta_p, True, 0.0, 0.0, 0.0)
         g = self.guid
         st = g.g.status
         if st is not self._gstatus:             # (bound once: a read of it gives a float)
             self._gstatus, self._gstatus_mv = st, memoryview(st)
-        return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_GUID, 0,
+        return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_GUID, 0,
                             False, float(g.limits), g.throttle(),
                             math.degrees(self._gstatus_mv[GS_GAM_C]))
 
     def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                          sysid: int, compid: int, time_us: int) -> int:
+                          sysid: int, compid: int, time_at: int) -> int:
         """:meth:`named_values`' ``k``-th pair as NAMED_VALUE_FLOAT framed by the compiled
         kernel (fc/gcs_frames.py ``named_value_p``, its arguments) from the arrays
         :meth:`refresh` keeps beside the list. Bytes written, or 0."""
         if not 0 <= k < len(self._nv_values):
             return 0
-        return named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+        return named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at,
                              self._nv_names_p, self._nv_values_p, k)
 
     def throttle_percent(self) -> int:
@@ -347,33 +353,47 @@ class Telemetry:
                  "guid_tgt_V_m_s"]
         return cols
 
+    def log_row_at(self, ilog: InternalsLog, meas: np.ndarray, stamp_at: int,
+                   lateness_ns: float, exec_ns: float, wall_s: float) -> None:
+        """:meth:`log_row` of the frame whose stamp is in the int64 cell at ``stamp_at`` (below
+        fc/frame_calls.py STAMP_CELL_MAX_US): read by the compiled calls, no int per row."""
+        if self._status is None:
+            self.log_row(ilog, meas, int64_at(stamp_at), lateness_ns, exec_ns, wall_s)
+        elif ilog.take_row_at(stamp_at):
+            self._fill_p(ilog, meas, 0.0, stamp_at, lateness_ns, exec_ns, wall_s)
+
+    def _fill_p(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: float, stamp_at: int,
+                lateness_ns: float, exec_ns: float, wall_s: float) -> None:
+        """The row ``ilog`` took, filled by ``fill_row_p`` (the stamp: ``fill_row_p``'s)."""
+        modes = self.modes
+        fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas),
+                   wall_s, stamp_us, stamp_at, int(modes.mode), modes.armed, self.est.healthy,
+                   self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
+                   float(lateness_ns), float(exec_ns), self._status_p,
+                   self.guid.throttle() if modes.guidance_active else math.nan,
+                   self.guid.limits, self._tgt_p)
+
     def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: float,
                 exec_ns: float, wall_s: float) -> None:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
         frame's arrival, in real time the wake-up. ``lateness_ns``, ``exec_ns``: int or float
         (the kernel takes floats: one specialisation, the same values)."""
-        modes = self.modes
-        st = self._status
-        if st is not None:
+        if self._status is not None:
             # by address (fc/control/carrays.py): no array object nor numba record per row,
             # and the row as an index (no address int per row)
             if ilog.take_row(stamp_us):
-                fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas), wall_s,
-                           float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
-                           self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
-                           float(lateness_ns), float(exec_ns), self._status_p,
-                           self.guid.throttle() if modes.guidance_active else math.nan,
-                           self.guid.limits, self._tgt_p)
+                self._fill_p(ilog, meas, float(stamp_us), 0, lateness_ns, exec_ns, wall_s)
             return
         r = ilog.row(stamp_us)
         if r is None:
             return
+        modes = self.modes
         # the parts' arrays are bound once (__post_init__; they update them in place)
         # the stamp as a float: a u64 stamp beyond the int64 range (the plant's to send) would
         # not convert to the kernel's integer argument
         fill_row(r, meas, wall_s, float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
                  self._emem, self.out.cmd_active, self._delta, lateness_ns, exec_ns,
-                 st if st is not None else np.ascontiguousarray(self.law.status, np.float64),
+                 np.ascontiguousarray(self.law.status, np.float64),
                  self._n_status, self.guid.throttle() if modes.guidance_active else math.nan,
                  self.guid.limits, self._tgt)

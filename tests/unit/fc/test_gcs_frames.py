@@ -27,6 +27,16 @@ any_float = st.floats(allow_nan=True, allow_infinity=True)
 stamps = st.integers(0, 2**62)
 
 
+_T = np.zeros(1, np.int64)
+_T_P = address_of(_T, np.int64, 1)
+
+
+def _at(us):
+    """The time base ``us`` in an int64 cell (the kernels read it there): its address."""
+    _T[0] = us
+    return _T_P
+
+
 class Buf:
     def __init__(self):
         self.a = np.zeros(F.FRAME_MAX_B, np.uint8)
@@ -75,10 +85,10 @@ def test_state_messages_are_the_codecs(vals, us, seq, log, thr):
     ms = (us // 1000) & 0xFFFFFFFF
     # THEN ATTITUDE, AOA_SSA and VFR_HUD are the codec's frames of _build's values
     m = meas
-    _check(F.attitude_p(b.p, ep, tl, seq, SYSID, COMPID, us, mp), b,
+    _check(F.attitude_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), mp), b,
            _want(c.attitude_encode(ms, m[M_ROLL], m[M_PITCH], m[M_YAW], m[M_P], m[M_Q], m[M_R]),
                  seq, t_us))
-    _check(F.aoa_ssa_p(b.p, ep, tl, seq, SYSID, COMPID, us, mp), b,
+    _check(F.aoa_ssa_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), mp), b,
            _want(c.aoa_ssa_encode(us, math.degrees(m[M_AOA]), math.degrees(m[M_SSA])), seq, t_us))
     deg = math.degrees(m[M_HEADING])
     if math.isfinite(m[M_HEADING]) and not math.isfinite(deg):
@@ -112,7 +122,7 @@ def test_servo_output_raw_is_the_codecs(pwm, us, seq, log):
     p = np.array(pwm, np.int64)
     b = Buf()
     ep, tl = (EPOCH_US, us) if log else (-1, 0)
-    n = F.servo_raw_p(b.p, ep, tl, seq, SYSID, COMPID, us, address_of(p, np.int64, 4))
+    n = F.servo_raw_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), address_of(p, np.int64, 4))
     want = _want(_codec(seq).servo_output_raw_encode(us & 0xFFFFFFFF, 0, *pwm, 0, 0, 0, 0), seq,
                  us if log else None)
     _check(n, b, want)
@@ -127,11 +137,11 @@ def test_debug_vect_is_the_codecs(v, us, seq, which, deg, by_address, log):
     b = Buf()
     ep, tl = (EPOCH_US, us) if log else (-1, 0)
     if by_address:
-        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, us, which,
+        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), which,
                            address_of(src, np.float64, 3), deg, 0.0, 0.0, 0.0)
         xyz = [math.degrees(x) for x in src] if deg else list(src)
     else:
-        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, us, which, 0, False, *v)
+        n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), which, 0, False, *v)
         xyz = v
     want = _want(_codec(seq).debug_vect_encode(F.DV_NAMES[which], us, *xyz), seq,
                  us if log else None)
@@ -147,8 +157,10 @@ def test_sockaddr_in_only_for_ipv4_literals():
 @pytest.mark.parametrize("frames", [0, 1, 5000])
 def test_sim_t_is_nan_before_the_first_frame(frames):
     hot = np.array([frames], np.int64)
+    stamp = np.array([2_000_000], np.int64)           # the newest frame's stamp cell (us)
     b = Buf()
-    n = F.sim_t_p(b.p, -1, 0, 7, SYSID, COMPID, 2_000_000, 2.0, address_of(hot, np.int64, 1))
+    n = F.sim_t_p(b.p, -1, 0, 7, SYSID, COMPID, _at(2_000_000), address_of(stamp, np.int64, 1),
+                  address_of(hot, np.int64, 1))
     t = 2.0 if frames else math.nan
     assert b.bytes(n) == _want(_codec(7).debug_vect_encode(b"SIM_T", 2_000_000, t, 0.0, 0.0), 7)
 
@@ -234,7 +246,7 @@ def test_named_value_float_is_the_codecs(values, names, us, seq, log, data):
     k = data.draw(st.integers(0, n - 1))
     b = Buf()
     ep, tl = (EPOCH_US, us) if log else (-1, 0)
-    got = F.named_value_p(b.p, ep, tl, seq, SYSID, COMPID, us,
+    got = F.named_value_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us),
                           address_of(table, np.uint8, table.size), address_of(vals, np.float64, n),
                           k)
     # THEN the frame is the codec's NAMED_VALUE_FLOAT (time_boot_ms of the time base)
@@ -333,7 +345,9 @@ def test_gnss_messages_are_the_codecs(lat, lon, alt, vel, fix, sats, acc, age_s,
     # a horizontal speed or course on a rounding boundary (math.hypot is CPython's own)
     spd = math.hypot(g[G_VN], g[G_VE])
     cog_x = math.degrees(math.atan2(g[G_VE], g[G_VN])) * 100.0
-    _check(F.gps_raw_int_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp, stamp_us, True), b,
+    stamp_cell = np.array([stamp_us], np.int64)     # the newest frame's stamp (kept alive)
+    cell = address_of(stamp_cell, np.int64, 1)
+    _check(F.gps_raw_int_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), gp, cell, True), b,
            _want(state._build(ML.MAVLINK_MSG_ID_GPS_RAW_INT, 0, us), seq, us if log else None),
            may_decline=_near_half(spd * 100.0) or _near_half(cog_x))
     # AND GLOBAL_POSITION_INT and LOCAL_POSITION_NED are the codec's frames (a heading beyond
@@ -344,10 +358,10 @@ def test_gnss_messages_are_the_codecs(lat, lon, alt, vel, fix, sats, acc, age_s,
                      us if log else None)
     except (OverflowError, ValueError):
         want = None                 # (round() of an infinite float: _build raises)
-    _check(F.global_position_int_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp,
+    _check(F.global_position_int_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), gp,
                                    address_of(meas, np.float64, M_N), hp), b, want,
            may_decline=big)
-    _check(F.local_position_ned_p(b.p, ep, tl, seq, SYSID, COMPID, us, gp, hp), b,
+    _check(F.local_position_ned_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), gp, hp), b,
            _want(state._build(ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 0, us), seq,
                  us if log else None))
 
@@ -363,8 +377,10 @@ def test_gps_raw_int_course_and_speed_edges(vn, ve):
     g[G_T_S], g[G_FIX], g[G_SATS], g[G_VN], g[G_VE] = 1.0, 3, 12, vn, ve
     state = _GnssState(g, np.zeros(M_N), 1_500_000, (0.0, 0.0, 0.0), 9)
     b = Buf()
-    n = F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000,
-                        address_of(g, np.float64, G_N), 1_500_000, True)
+    cells = np.array([1_500_000, 2_500_000], np.int64)       # newest frame's stamps (us)
+    now, later = address_of(cells, np.int64, 2), address_of(cells, np.int64, 2) + 8
+    n = F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, _at(1_500_000),
+                        address_of(g, np.float64, G_N), now, True)
     want = _want(state._build(ML.MAVLINK_MSG_ID_GPS_RAW_INT, 0, 1_500_000), 9)
     # THEN the frame is the codec's, or declined exactly on a cm/s rounding boundary
     if _near_half(math.hypot(vn, ve) * 100.0):
@@ -374,5 +390,5 @@ def test_gps_raw_int_course_and_speed_edges(vn, ve):
     # AND with home not set, a 3D fix is declined (the codec's path sets home), an older one
     # (stale: NO_FIX) is framed
     gp = address_of(g, np.float64, G_N)
-    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000, gp, 1_500_000, False) == 0
-    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, 1_500_000, gp, 2_500_000, False) > 0
+    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, _at(1_500_000), gp, now, False) == 0
+    assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, _at(1_500_000), gp, later, False) > 0

@@ -94,13 +94,13 @@ def test_a_per_frame_leak_is_seen(flights, monkeypatch):
     # GIVEN a controller whose frame keeps one small object per frame (an injected leak)
     from fc.loops import RunLoops
     kept = []
-    real = RunLoops.lockstep_frame
+    real = RunLoops.lockstep_exchange
 
-    def leaking(self, stamp, now_s):
-        kept.append([stamp])
-        return real(self, stamp, now_s)
+    def leaking(self, code, now_s):
+        kept.append([now_s])
+        return real(self, code, now_s)
 
-    monkeypatch.setattr(RunLoops, "lockstep_frame", leaking)
+    monkeypatch.setattr(RunLoops, "lockstep_exchange", leaking)
     before, after = allocs.block_growth(flights["COORDINATED"], "COORDINATED",
                                         [500, 500 + SPAN_FRAMES])
     # THEN the growth test's measure exceeds its allowance (so that test can fail)
@@ -112,13 +112,13 @@ def test_allocation_counters_count_what_the_frame_allocates(flights, monkeypatch
     n = allocs.WARM_FRAMES + 300
     base = allocs.count_allocations(flights["COORDINATED"][:n], "COORDINATED")
     from fc.loops import RunLoops
-    real = RunLoops.lockstep_frame
+    real = RunLoops.lockstep_exchange
 
-    def allocating(self, stamp, now_s):
+    def allocating(self, code, now_s):
         _ = [object() for _ in range(10)]
-        return real(self, stamp, now_s)
+        return real(self, code, now_s)
 
-    monkeypatch.setattr(RunLoops, "lockstep_frame", allocating)
+    monkeypatch.setattr(RunLoops, "lockstep_exchange", allocating)
     more = allocs.count_allocations(flights["COORDINATED"][:n], "COORDINATED")
     # THEN both counts are finite, and the extra objects show in the Python count only
     assert base["frames"] == more["frames"] == 300
