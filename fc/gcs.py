@@ -111,6 +111,7 @@ HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
 #: (CPython caches the ints up to 256: no int object per message)
 DV_CURSOR_WRAP = 240
 _I64_MAX = (1 << 63) - 1
+_U64_MASK = (1 << 64) - 1
 #: GUIDED's target commands (``_guided_command``) -> the name in STATUSTEXT.
 GUIDED_COMMANDS = {
     ML.MAV_CMD_GUIDED_CHANGE_SPEED: "GUIDED_CHANGE_SPEED",
@@ -624,11 +625,13 @@ class GcsLink:
             k += 1
 
     def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
-        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64)."""
+        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64, mod
+        2^64: a faulty plant's stamp near 2^64 raised here and stopped the fc; the compiled
+        framing's int64 sum wraps the same way)."""
         if self.tlog is not None:
             if t_us is None:
                 t_us = self.time_us()
-            self._tlog_buf += struct.pack(">Q", self.epoch_us + t_us)
+            self._tlog_buf += struct.pack(">Q", (self.epoch_us + t_us) & _U64_MASK)
             self._tlog_buf += buf
 
     def _log_msg(self, msg, t_us: int | None = None) -> None:
