@@ -40,7 +40,7 @@ import numpy as np
 
 from fc import gcs_frames as GF
 from fc.control.carrays import ArrayAddress, address_of
-from fc.frame_calls import FAST_IO, HOT_FRAMES
+from fc.frame_calls import FAST_IO, HOT_FRAMES, int64_at
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
                      G_N, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
                      UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
@@ -307,13 +307,21 @@ class GcsLink:
         # paced by the time base (sim time in lockstep), not by the wall clock
         self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
         self.log_framer = LeanFramer(vehicle.sysid, vehicle.compid)   # unsigned, codec's bytes
-        self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
-        self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
-        # the .tlog schedule's last time base seen and next due time (us): int64[2] (GF.LOG_*)
-        # checked by a compiled call on frames where nothing is due (``_service_log``), or
-        # Python ints in ``_log_big`` while one is beyond the cells' range
-        self._log_st = np.zeros(GF.LOG_N, np.int64)
-        self._log_st_p = address_of(self._log_st, np.int64, GF.LOG_N)
+        #: the .tlog's streams, their intervals (us of the time base) and, in ``_log_st``,
+        #: their next due times (GF.LOG_*: stepped by ``GF.log_walk_p``)
+        self._log_ids = tuple(LOG_STREAMS_S)
+        self._log_iv = np.array([int(round(iv * 1e6)) for iv in LOG_STREAMS_S.values()],
+                                np.int64)
+        self._log_iv_p = address_of(self._log_iv, np.int64, len(self._log_ids))
+        self._log_flags = np.zeros(len(self._log_ids), np.int64)      # due in this walk
+        self._log_flags_p = address_of(self._log_flags, np.int64, len(self._log_ids))
+        self._log_tb = np.zeros(1, np.int64)       # the walk's time base (real time)
+        self._log_tb_p = address_of(self._log_tb, np.int64, 1)
+        # the .tlog schedule (GF.LOG_*: last time base seen, next due time, each stream's):
+        # int64 stepped by a compiled call (``_service_log``), or Python ints in ``_log_big``
+        # while one is beyond the cells' range
+        self._log_st = np.zeros(GF.LOG_DUE + len(self._log_ids), np.int64)
+        self._log_st_p = address_of(self._log_st, np.int64, self._log_st.size)
         self._log_big: list[int] | None = None
         self.io = io
         self._init_fast_frames()
@@ -413,9 +421,9 @@ class GcsLink:
         """Decide the compiled stream framing now, loading its kernels (the fc calls this at
         the end of its construction, before READY, so the first frames do not load them and
         ``hyfc-precompile`` compiles them): True when FAST_STREAMS use it."""
-        scratch = np.zeros(GF.LOG_N, np.int64)
-        GF.log_due_p(address_of(scratch, np.int64, GF.LOG_N),
-                     address_of(scratch, np.int64, GF.LOG_N))      # (loaded now)
+        scratch = np.zeros(GF.LOG_DUE + 1, np.int64)                  # (loaded now)
+        sp = address_of(scratch, np.int64, GF.LOG_DUE + 1)
+        GF.log_walk_p(sp, sp, sp, 1, sp)
         return self._fast_ok()
 
     def _fast_ok(self) -> bool:
@@ -482,11 +490,13 @@ class GcsLink:
 
     def _frame_stream(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
                       us: int) -> int:
-        """:meth:`_frame_at` at the time base ``us`` (us; 0 framed when beyond int64)."""
-        if not 0 <= us <= _I64_MAX:
+        """:meth:`_frame_at` at the time base ``us``, the .tlog's stamp at ``log_t_us`` (us;
+        0 framed when one is beyond int64)."""
+        if not (0 <= us <= _I64_MAX and 0 <= log_t_us <= _I64_MAX):
             return 0
         self._tb[0] = us
-        return self._frame_at(msg_id, k, log_epoch_us, log_t_us, seq, self._tb_p)
+        self._log_tb[0] = log_t_us
+        return self._frame_at(msg_id, k, log_epoch_us, self._log_tb_p, seq, self._tb_p)
 
     def _time_at(self) -> int:
         """The address of an int64 cell holding the time base now (``time_us``): in lockstep
@@ -500,48 +510,49 @@ class GcsLink:
         self._tb[0] = us
         return self._tb_p
 
-    def _frame_at(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
+    def _frame_at(self, msg_id: int, k: int, log_epoch_us: int, log_t_at: int, seq: int,
                   time_at: int) -> int:
         """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at the time base
         in the int64 cell at ``time_at`` with sequence ``seq`` into ``_tx`` (with the .tlog
-        stamp ``log_epoch_us + log_t_us`` when ``log_epoch_us`` >= 0): the bytes written, or
-        0 when the kernel declines or ``time_at`` is 0 (the caller takes the codec's path)."""
+        stamp ``log_epoch_us`` + the int64 at ``log_t_at`` when ``log_epoch_us`` >= 0): the
+        bytes written, or 0 when the kernel declines or ``time_at`` is 0 (the caller takes the
+        codec's path)."""
         v = self.v
         if not time_at:
             return 0
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
-            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                  time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
-            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                 time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
-            return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                 self._meas_at.of(v.meas), v.throttle_percent())
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
-            return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                   time_at, self._pwm_at.of(v.pwm_us))
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             if self._nv_frame is None:
                 return 0
-            return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                   time_at)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             if self._dv_frame is None:
                 return 0
             if k < self._dv_count():
-                return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+                return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
                                       v.compid, time_at)
             if self._stamp_at is None or v.meas_stamp_big:
                 return 0                # (the stamp as a Python int: the codec's path)
-            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                               time_at, self._stamp_at,
                               self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
         if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
             # (declined at a 3D fix while home is not set: the codec's path sets it)
             if self._stamp_at is None or v.meas_stamp_big:
                 return 0
-            return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                     time_at, self._gps_at.of(v.plant.gps), self._stamp_at,
                                     self.home is not None)
         if self.home is None:
@@ -549,11 +560,11 @@ class GcsLink:
         if self.home is not self._home_src:
             self._set_home_arr()
         if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
-            return GF.global_position_int_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+            return GF.global_position_int_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
                                             v.compid, time_at, self._gps_at.of(v.plant.gps),
                                             self._meas_at.of(v.meas), self._home_p)
         if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
-            return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
+            return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
                                            self._home_p)
         return 0
@@ -597,11 +608,11 @@ class GcsLink:
             for addr in self._slow_dests:
                 self.endpoint.send(self._tx_views[n], addr)
 
-    def _log_fast(self, msg_id: int, t_us: int) -> None:
+    def _log_fast(self, msg_id: int, t_at: int) -> None:
         """The .tlog's messages of one stream period of ``msg_id`` (FAST_STREAMS: every named
-        value and every vector, in order) framed by the kernels and stamped ``t_us``, as
-        ``_stream_messages`` + ``_log_msg`` write them; one the kernel declines is built and
-        written by the codec's path."""
+        value and every vector, in order) framed by the kernels and stamped with the time base
+        at the int64 cell ``t_at``, as ``_stream_messages`` + ``_log_msg`` write them; one the
+        kernel declines is built and written by the codec's path."""
         mav = self.log_mav
         time_at = self._time_at()
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
@@ -614,14 +625,14 @@ class GcsLink:
             count = 1
         k = 0
         while k < count:
-            n = self._frame_at(msg_id, k, self.epoch_us, t_us, mav.seq, time_at)
+            n = self._frame_at(msg_id, k, self.epoch_us, t_at, mav.seq, time_at)
             if n:
                 self._tlog_buf += self._tx_views[n]
                 mav.seq = (mav.seq + 1) % 256
             else:
                 msg = self._build(msg_id, k)
                 if msg is not None:
-                    self._log_msg(msg, t_us)
+                    self._log_msg(msg, int64_at(t_at))
             k += 1
 
     def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
@@ -1463,42 +1474,76 @@ class GcsLink:
     def _service_log(self) -> None:
         """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
         lockstep): due messages are written with the log's codec, stamped with the time base.
-        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames. In
-        lockstep, a frame on which nothing is due is told by a compiled call on the newest
-        stamp's cell (no Python int for the time base)."""
+        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames. The
+        schedule is stepped by a compiled call on the time base's cell (lockstep: the newest
+        frame's stamp; no Python int for it, nothing made on the frames where nothing is due);
+        a time base or schedule beyond the cells' range is stepped on Python ints."""
         if self.tlog is None:
             return
-        if (self.sim_time and self._log_big is None and self._stamp_at is not None
-                and not self.v.meas_stamp_big
-                and not GF.log_due_p(self._stamp_at, self._log_st_p)):
+        t_at = self._log_time_at() if self._log_big is None else 0
+        if not t_at:
+            self._service_log_py()
             return
-        last, nxt = self._log_big or self._log_st.tolist()
+        if not GF.log_walk_p(t_at, self._log_st_p, self._log_iv_p, len(self._log_ids),
+                             self._log_flags_p):
+            return
+        ids, flags = self._log_ids, self._log_flags
+        i, n = 0, len(ids)
+        while i < n:                        # (an index loop: no iterator object)
+            if flags.item(i):
+                self._log_period(ids[i], t_at)
+            i += 1
+
+    def _log_time_at(self) -> int:
+        """The address of an int64 cell holding the time base for the .tlog's walk (the
+        newest frame's stamp cell in lockstep, else ``_log_tb``), 0 beyond the cells' range."""
+        if self.sim_time and self._stamp_at is not None and not self.v.meas_stamp_big:
+            return self._stamp_at
+        us = self.time_us()
+        if not -GF.LOG_SAFE_US < us < GF.LOG_SAFE_US:
+            return 0
+        self._log_tb[0] = us
+        return self._log_tb_p
+
+    def _log_period(self, msg_id: int, t_at: int) -> None:
+        """Write one stream period of ``msg_id`` to the .tlog, stamped with the time base at
+        the int64 cell ``t_at``."""
+        if msg_id in FAST_STREAMS and self._fast_ok():
+            self._log_fast(msg_id, t_at)
+        else:
+            t_us = int64_at(t_at)
+            for msg in self._stream_messages(msg_id):
+                self._log_msg(msg, t_us)
+
+    def _service_log_py(self) -> None:
+        """``_service_log``'s walk on Python ints (the schedule in ``_log_big`` or the time
+        base beyond the cells' range): the same steps as ``GF.log_walk_p``, the messages built
+        by the codec."""
+        k = self._log_big or self._log_st.tolist()
         t_us = self.time_us()
-        if t_us < last:                     # the plant restarted: the schedule starts over
-            for k in self.log_due:
-                self.log_due[k] = t_us
-            nxt = t_us
-        last = t_us
-        if t_us >= nxt:
+        n = len(self._log_ids)
+        if t_us < k[GF.LOG_LAST]:           # the plant restarted: the schedule starts over
+            k[GF.LOG_DUE:] = [t_us] * n
+            k[GF.LOG_NEXT] = t_us
+        k[GF.LOG_LAST] = t_us
+        if t_us >= k[GF.LOG_NEXT]:
             nxt = None
-            for msg_id, iv_us in self._log_iv_us.items():
-                due = self.log_due[msg_id]
+            for i, msg_id in enumerate(self._log_ids):
+                due = k[GF.LOG_DUE + i]
                 if t_us >= due:
-                    if msg_id in FAST_STREAMS and self._fast_ok():
-                        self._log_fast(msg_id, t_us)
-                    else:
-                        for msg in self._stream_messages(msg_id):
-                            self._log_msg(msg, t_us)
+                    for msg in self._stream_messages(msg_id):
+                        self._log_msg(msg, t_us)
+                    iv_us = int(self._log_iv[i])
                     due = due + iv_us if due + iv_us > t_us else t_us + iv_us
-                    self.log_due[msg_id] = due
+                    k[GF.LOG_DUE + i] = due
                 if nxt is None or due < nxt:
                     nxt = due
-        if -GF.LOG_SAFE_US < last < GF.LOG_SAFE_US and -GF.LOG_SAFE_US < nxt < GF.LOG_SAFE_US:
-            self._log_st[GF.LOG_LAST] = last
-            self._log_st[GF.LOG_NEXT] = nxt
+            k[GF.LOG_NEXT] = nxt
+        if all(-GF.LOG_SAFE_US < v < GF.LOG_SAFE_US for v in k):
+            self._log_st[:] = k
             self._log_big = None
         else:
-            self._log_big = [last, nxt]
+            self._log_big = k
 
     def service(self, now_s: float) -> int:
         """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
@@ -1607,7 +1652,9 @@ class GcsLink:
                 cursor = link.nv_cursor
                 # wrapped at a multiple of the count (which is fixed): ``cursor % n_items``
                 # unchanged, the cursor a small int (CPython's cached ints: none made per message)
-                link.nv_cursor = (cursor + 1) % (n_items * max(1, 256 // n_items))
+                # (``max`` made an argument iterator: a block per message)
+                wrap = 256 // n_items
+                link.nv_cursor = (cursor + 1) % (n_items * (wrap if wrap > 1 else 1))
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
                 n_vec = self._n_debug_vectors()
                 step = iv / n_vec

@@ -18,7 +18,8 @@ tests/unit/fc/test_gcs_frames.py compares the bytes with the codec's.
 
 The time base (the messages' time fields) is read from the int64 cell at ``time_at`` (the
 newest frame's stamp in lockstep: no Python int for it). ``log_epoch_us`` >= 0 prefixes the
-frame with the .tlog's big-endian u64 stamp ``log_epoch_us + log_t_us`` (8 bytes), as ``GcsLink._tlog_write`` writes it (the sum made here: no Python int
+frame with the .tlog's big-endian u64 stamp: ``log_epoch_us`` + the time base at the int64 cell
+``log_t_at`` (8 bytes), as ``GcsLink._tlog_write`` writes it (the sum made here: no Python int
 for it); -1 writes the bare frame (a datagram). The buffer at ``tx`` holds FRAME_MAX_B bytes.
 """
 from __future__ import annotations
@@ -52,7 +53,8 @@ __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
            "local_position_ned_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
-           "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_N", "LOG_SAFE_US", "log_due_p", "send_frame_p", "sockaddr_in", "SOCKADDR_IN_B"]
+           "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_DUE", "LOG_SAFE_US", "log_walk_p", "send_frame_p",
+           "sockaddr_in", "SOCKADDR_IN_B"]
 
 _HDR = 10
 
@@ -106,12 +108,13 @@ _sendto = types.ExternalFunction("sendto", types.intp(
 
 
 @njit(cache=True)
-def _stamp_at(out, log_epoch_us, log_t_us):
-    """The .tlog's big-endian u64 stamp (``log_epoch_us + log_t_us``) at ``out[0:8]`` when
-    ``log_epoch_us`` >= 0; the frame's position (8, or 0 without a stamp)."""
+def _stamp_at(out, log_epoch_us, log_t_at):
+    """The .tlog's big-endian u64 stamp (``log_epoch_us`` + the int64 at ``log_t_at``, mod
+    2^64) at ``out[0:8]`` when ``log_epoch_us`` >= 0; the frame's position (8, or 0 without a
+    stamp)."""
     if log_epoch_us < 0:
         return 0
-    stamp = log_epoch_us + log_t_us
+    stamp = log_epoch_us + carray(i8p(log_t_at), (1,))[0]
     for k in range(8):
         out[k] = (stamp >> (8 * (7 - k))) & 0xFF
     return 8
@@ -132,14 +135,14 @@ def _put_ms_six_f32(out, p, time_us, a, b, c, d, e, f):
 
 
 @njit(cache=True)
-def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
+def attitude_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, meas):
     """ATTITUDE (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32, roll .. yawspeed
     = meas[M_ROLL .. M_R]) into the uint8 buffer at ``tx`` from the float64 ``meas`` at
     ``meas`` (M_*); bytes written or 0."""
     time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     m = carray(f8p(meas), (M_R + 1,))
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     if not _put_ms_six_f32(out, pos + _HDR, time_us, m[M_ROLL], m[M_PITCH], m[M_YAW], m[M_P],
                            m[M_Q], m[M_R]):
         return 0
@@ -147,13 +150,13 @@ def attitude_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
 
 
 @njit(cache=True)
-def aoa_ssa_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
+def aoa_ssa_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, meas):
     """AOA_SSA (time_usec = the time base, AOA and SSA in deg of meas[M_AOA], meas[M_SSA]);
     bytes written or 0."""
     time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     m = carray(f8p(meas), (M_SSA + 1,))
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, time_us, 8)
     ok = _put_f32(out, p + 8, m[M_AOA] * _RAD)
@@ -164,7 +167,7 @@ def aoa_ssa_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, meas):
 
 
 @njit(cache=True)
-def vfr_hud_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, meas, throttle_pct):
+def vfr_hud_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, meas, throttle_pct):
     """VFR_HUD (airspeed, groundspeed, alt, climb of meas; heading = round(deg of
     meas[M_HEADING]) mod 360, half to even, 0 when not finite; throttle ``throttle_pct``);
     bytes written or 0."""
@@ -179,7 +182,7 @@ def vfr_hud_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, meas, throttle_pct
         if abs(d) > 2.0 ** 62:
             return 0                    # (an int64 would not hold it: the codec's path)
         hdg = np.int64(d) % 360
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     ok = _put_f32(out, p, m[M_AIRSPEED])
     ok &= _put_f32(out, p + 4, m[M_GROUNDSPEED])
@@ -193,7 +196,7 @@ def vfr_hud_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, meas, throttle_pct
 
 
 @njit(cache=True)
-def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, pwm):
+def servo_raw_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, pwm):
     """SERVO_OUTPUT_RAW (time_usec = the time base mod 2^32, port 0, servo1..4 = the int64[4]
     at ``pwm``, the others 0); bytes written or 0 (a PWM value beyond u16)."""
     time_us = carray(i8p(time_at), (1,))[0]
@@ -202,7 +205,7 @@ def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, pwm):
     for c in range(4):
         if w[c] < 0 or w[c] > 0xFFFF:
             return 0
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, time_us % _U32, 4)
     for c in range(4):
@@ -213,7 +216,7 @@ def servo_raw_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, pwm):
 
 
 @njit(cache=True)
-def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, which, src, deg, x, y, z):
+def debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, which, src, deg, x, y, z):
     """DEBUG_VECT ``DV_NAMES[which]``: x, y, z = the float64[3] at ``src`` (in deg of rad when
     ``deg``) when ``src`` is not 0, else ``x``, ``y``, ``z``; bytes written or 0."""
     time_us = carray(i8p(time_at), (1,))[0]
@@ -224,7 +227,7 @@ def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, which,
             x, y, z = v[0] * _RAD, v[1] * _RAD, v[2] * _RAD
         else:
             x, y, z = v[0], v[1], v[2]
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, time_us, 8)
     ok = _put_f32(out, p + 8, x)
@@ -238,25 +241,25 @@ def debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, which,
 
 
 @njit(cache=True)
-def sim_t_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, stamp, frames):
+def sim_t_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, stamp, frames):
     """DEBUG_VECT SIM_T (``GcsLink._debug_vectors``): x = the newest plant frame's stamp in the
     int64 cell at ``stamp`` (us) x 1e-6 (its sim time, s) when the int64 count at ``frames``
     (the plant link's frames, ``LinkCounters.hot``) is not 0, else NaN; y = z = 0. Bytes
     written or 0."""
     x = carray(i8p(stamp), (1,))[0] * 1e-6 if carray(i8p(frames), (1,))[0] else np.nan
-    return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_SIM_T, 0,
+    return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_SIM_T, 0,
                         False, x, 0.0, 0.0)
 
 
 @njit(cache=True)
-def named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, names, values, k):
+def named_value_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, names, values, k):
     """NAMED_VALUE_FLOAT ``k`` (``GcsLink._build``: time_boot_ms = time base / 1000 mod 2^32)
     of the name table at ``names`` (uint8[n, NV_NAME_B], zero-padded) and the float64[n] at
     ``values``; bytes written or 0."""
     time_us = carray(i8p(time_at), (1,))[0]
     out = carray(u8p(tx), (FRAME_MAX_B,))
     name = carray(u8p(names + k * NV_NAME_B), (NV_NAME_B,))
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, (time_us // 1000) % _U32, 4)
     if not _put_f32(out, p + 4, carray(f8p(values + 8 * k), (1,))[0]):
@@ -324,7 +327,7 @@ def _put_lat_lon_alt(out, p, g):
 
 
 @njit(cache=True)
-def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, stamp,
+def gps_raw_int_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, gps, stamp,
                   home_set):
     """GPS_RAW_INT (``GcsLink._build``) of the GNSS sample float64[G_N] at ``gps`` (layout
     G_*), the newest frame's stamp (us) in the int64 cell at ``stamp``: fix as ``_gnss``, vel = ``cm_s_u16`` of the
@@ -360,7 +363,7 @@ def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, 
         if abs(x - np.floor(x) - 0.5) < _ROUND_MARGIN:
             return 0                            # (atan2: libm's in both, declined all the same)
         cog = np.int64(np.rint(x)) % 36000
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, time_us, 8)
     if not _put_lat_lon_alt(out, p + 8, g):
@@ -380,7 +383,7 @@ def gps_raw_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, 
 
 
 @njit(cache=True)
-def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, meas,
+def global_position_int_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, gps, meas,
                           home):
     """GLOBAL_POSITION_INT (``GcsLink._build``) of the GNSS sample at ``gps``, the heading of
     float64[M_N] ``meas`` and the float64[HOME_N] ``home``: relative_alt = round((alt -
@@ -400,7 +403,7 @@ def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_a
     ok, rel = _round_i((g[G_ALT_M] - h[HOME_ALT_M]) * 1000.0)
     if not ok or rel < _I32_MIN or rel > _I32_MAX:
         return 0
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     p = pos + _HDR
     _put_u(out, p, (time_us // 1000) % _U32, 4)
     if not _put_lat_lon_alt(out, p + 4, g):
@@ -414,7 +417,7 @@ def global_position_int_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_a
 
 
 @njit(cache=True)
-def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, gps, home):
+def local_position_ned_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, gps, home):
     """LOCAL_POSITION_NED (``GcsLink._build``, fc/gcs_streams.py ``local_ned``) of the GNSS
     sample at ``gps`` about the float64[HOME_N] ``home`` (its cosine of latitude computed by
     the caller with ``math.cos``); vx, vy, vz the sample's. Bytes written or 0."""
@@ -433,29 +436,51 @@ def local_position_ned_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at
     x = _EARTH_R * ((g[G_LAT_DEG] - h[HOME_LAT_DEG]) * _RADIAN)
     y = _EARTH_R * h[HOME_COS_LAT] * (dlon * _RADIAN)
     z = -(g[G_ALT_M] - h[HOME_ALT_M])
-    pos = _stamp_at(out, log_epoch_us, log_t_us)
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
     if not _put_ms_six_f32(out, pos + _HDR, time_us, x, y, z, g[G_VN], g[G_VE], g[G_VD]):
         return 0
     return _frame_at(out, pos, N_LPN, seq, sysid, compid, ID_LPN, X_LPN)
 
 
-#: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_N]): the last time base seen
-#: and the next due time (us); values within +-LOG_SAFE_US only (else Python ints)
-LOG_LAST, LOG_NEXT, LOG_N = 0, 1, 2
+#: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_DUE + n streams]): the last time
+#: base seen, the next due time of any stream, each stream's next due time (us); values within
+#: +-LOG_SAFE_US only (else Python ints, ``GcsLink._log_big``)
+LOG_LAST, LOG_NEXT, LOG_DUE = 0, 1, 2
 LOG_SAFE_US = 1 << 62
 
 
 @njit(cache=True)
-def log_due_p(stamp, st):
-    """``GcsLink._service_log``'s check on the time base in the int64 cell at ``stamp``: False
-    when nothing is due (the last time base seen stepped to it), True when a stream is due or
-    the time base went back (the walk then runs in Python, the state untouched)."""
-    t = carray(i8p(stamp), (1,))[0]
-    s = carray(i8p(st), (LOG_N,))
-    if t < s[LOG_LAST]:
-        return True
+def log_walk_p(time_at, st, iv, n, due_flags):
+    """``GcsLink._service_log``'s schedule at the time base in the int64 cell at ``time_at``:
+    plant time gone back restarts it (every stream due now); the streams due (int64
+    ``due_flags[i]`` = 1, stream ``i`` of the n intervals int64[n] at ``iv``, us) are stepped
+    to their next due time (the next multiple of the interval, or a whole interval from now
+    when behind). Returns how many are due (0 on most frames: nothing to write)."""
+    t = carray(i8p(time_at), (1,))[0]
+    s = carray(i8p(st), (LOG_DUE + n,))
+    step = carray(i8p(iv), (n,))
+    flags = carray(i8p(due_flags), (n,))
+    if t < s[LOG_LAST]:                     # the plant restarted: the schedule starts over
+        for i in range(n):
+            s[LOG_DUE + i] = t
+        s[LOG_NEXT] = t
     s[LOG_LAST] = t
-    return t >= s[LOG_NEXT]
+    if t < s[LOG_NEXT]:
+        return 0
+    count = 0
+    nxt = s[LOG_DUE]
+    for i in range(n):
+        d = s[LOG_DUE + i]
+        flags[i] = 0
+        if t >= d:
+            flags[i] = 1
+            count += 1
+            d = d + step[i] if d + step[i] > t else t + step[i]
+            s[LOG_DUE + i] = d
+        if i == 0 or d < nxt:
+            nxt = d
+    s[LOG_NEXT] = nxt
+    return count
 
 
 @njit(cache=True)

@@ -296,7 +296,7 @@ class Telemetry:
         """How many vectors :meth:`debug_vectors` gives now (GUID in the guidance modes)."""
         return 4 if self.modes.guidance_active else 3
 
-    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
                            sysid: int, compid: int, time_at: int) -> int:
         """:meth:`debug_vectors`' vector ``k`` as a DEBUG_VECT framed by the compiled kernel
         (fc/gcs_frames.py ``debug_vect_p``, its arguments: the time base in the int64
@@ -304,30 +304,30 @@ class Telemetry:
         Python object but the floats of GUID. Bytes written, or 0 (the caller then builds it
         with the codec from :meth:`debug_vectors`)."""
         if k == 0:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_CMD,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_CMD,
                                 self._cmd_dv_at.of(self.out.cmd_active), True, 0.0, 0.0, 0.0)
         if k == 1:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_EST,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_EST,
                                 self._est_dv_at.of(self.est.est), True, 0.0, 0.0, 0.0)
         if k == 2:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at,
                                 DV_DELTA, self._delta_p, True, 0.0, 0.0, 0.0)
         g = self.guid
         st = g.g.status
         if st is not self._gstatus:             # (bound once: a read of it gives a float)
             self._gstatus, self._gstatus_mv = st, memoryview(st)
-        return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at, DV_GUID, 0,
+        return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_GUID, 0,
                             False, float(g.limits), g.throttle(),
                             math.degrees(self._gstatus_mv[GS_GAM_C]))
 
-    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
                           sysid: int, compid: int, time_at: int) -> int:
         """:meth:`named_values`' ``k``-th pair as NAMED_VALUE_FLOAT framed by the compiled
         kernel (fc/gcs_frames.py ``named_value_p``, its arguments) from the arrays
         :meth:`refresh` keeps beside the list. Bytes written, or 0."""
         if not 0 <= k < len(self._nv_values):
             return 0
-        return named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_at,
+        return named_value_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at,
                              self._nv_names_p, self._nv_values_p, k)
 
     def throttle_percent(self) -> int:

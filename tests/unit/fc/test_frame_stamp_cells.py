@@ -153,3 +153,54 @@ def test_a_u64_stamp_takes_the_python_path_and_the_cells_come_back():
         assert tlog and struct.unpack(">Q", tlog[:8])[0] >= fc.gcs.epoch_us
     finally:
         rig.close()
+
+
+def _walk_rule(state: dict, t_us: int, iv: list[int]) -> list[int]:
+    """``GcsLink._service_log``'s schedule as it was on Python ints: the streams due at
+    ``t_us`` (indices), their due times stepped."""
+    due = state["due"]
+    if t_us < state["last"]:
+        due[:] = [t_us] * len(iv)
+        state["next"] = t_us
+    state["last"] = t_us
+    if t_us < state["next"]:
+        return []
+    out, nxt = [], None
+    for i, step in enumerate(iv):
+        d = due[i]
+        if t_us >= d:
+            out.append(i)
+            d = d + step if d + step > t_us else t_us + step
+            due[i] = d
+        if nxt is None or d < nxt:
+            nxt = d
+    state["next"] = nxt
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(steps=st.lists(st.one_of(st.integers(0, 300_000), st.integers(-2_000_000, -1)),
+                      min_size=1, max_size=120), t0=st.integers(0, 10**9))
+def test_the_tlog_schedule_walk_is_the_python_rules(steps, t0):
+    # GIVEN the .tlog's streams and intervals, and time bases stepping forward and back
+    from fc import gcs_frames as GF
+    from fc.gcs import LOG_STREAMS_S
+    iv = [int(round(v * 1e6)) for v in LOG_STREAMS_S.values()]
+    n = len(iv)
+    ivs = np.array(iv, np.int64)
+    state_arr = np.zeros(GF.LOG_DUE + n, np.int64)
+    flags = np.zeros(n, np.int64)
+    cell = np.zeros(1, np.int64)
+    p = [address_of(a, np.int64, a.size) for a in (cell, state_arr, ivs, flags)]
+    rule = {"last": 0, "next": 0, "due": [0] * n}
+    t = t0
+    for step in steps:
+        t = max(0, t + step)
+        cell[0] = t
+        count = GF.log_walk_p(p[0], p[1], p[2], n, p[3])
+        want = _walk_rule(rule, t, iv)
+        # THEN the same streams are due, and the schedule is the same
+        assert count == len(want)
+        if count:
+            assert [i for i in range(n) if flags[i]] == want
+        assert state_arr.tolist() == [rule["last"], rule["next"], *rule["due"]]

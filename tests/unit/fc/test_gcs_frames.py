@@ -37,6 +37,16 @@ def _at(us):
     return _T_P
 
 
+_LT = np.zeros(1, np.int64)
+_LT_P = address_of(_LT, np.int64, 1)
+
+
+def _lt(us):
+    """The .tlog's time base ``us`` in an int64 cell: its address."""
+    _LT[0] = us
+    return _LT_P
+
+
 class Buf:
     def __init__(self):
         self.a = np.zeros(F.FRAME_MAX_B, np.uint8)
@@ -81,7 +91,7 @@ def test_state_messages_are_the_codecs(vals, us, seq, log, thr):
     b = Buf()
     c = _codec(seq)
     t_us = us if log else None
-    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
     ms = (us // 1000) & 0xFFFFFFFF
     # THEN ATTITUDE, AOA_SSA and VFR_HUD are the codec's frames of _build's values
     m = meas
@@ -121,7 +131,7 @@ def test_vfr_hud_heading_rounds_as_python(heading_deg):
 def test_servo_output_raw_is_the_codecs(pwm, us, seq, log):
     p = np.array(pwm, np.int64)
     b = Buf()
-    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
     n = F.servo_raw_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), address_of(p, np.int64, 4))
     want = _want(_codec(seq).servo_output_raw_encode(us & 0xFFFFFFFF, 0, *pwm, 0, 0, 0, 0), seq,
                  us if log else None)
@@ -135,7 +145,7 @@ def test_servo_output_raw_is_the_codecs(pwm, us, seq, log):
 def test_debug_vect_is_the_codecs(v, us, seq, which, deg, by_address, log):
     src = np.array(v, np.float64)
     b = Buf()
-    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
     if by_address:
         n = F.debug_vect_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), which,
                            address_of(src, np.float64, 3), deg, 0.0, 0.0, 0.0)
@@ -245,7 +255,7 @@ def test_named_value_float_is_the_codecs(values, names, us, seq, log, data):
     vals = np.array(values, np.float64)
     k = data.draw(st.integers(0, n - 1))
     b = Buf()
-    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
     got = F.named_value_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us),
                           address_of(table, np.uint8, table.size), address_of(vals, np.float64, n),
                           k)
@@ -337,7 +347,7 @@ def test_gnss_messages_are_the_codecs(lat, lon, alt, vel, fix, sats, acc, age_s,
     home_t = (home[0] * 1e-7, home[1] * 1e-7, home[2])
     state = _GnssState(g, meas, stamp_us, home_t, seq)
     b = Buf()
-    ep, tl = (EPOCH_US, us) if log else (-1, 0)
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
     gp = address_of(g, np.float64, G_N)
     hp = address_of(_home_array(home_t), np.float64, F.HOME_N)
     from fc.link import mavlink as ML
