@@ -478,15 +478,22 @@ class FlightController:
     def debug_vector_count(self) -> int:
         return self.telemetry.debug_vector_count()
 
-    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                           sysid: int, compid: int, time_us: int) -> int:
-        return self.telemetry.frame_debug_vector(k, tx, log_epoch_us, log_t_us, seq, sysid,
-                                                 compid, time_us)
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                           sysid: int, compid: int, time_at: int) -> int:
+        return self.telemetry.frame_debug_vector(k, tx, log_epoch_us, log_t_at, seq, sysid,
+                                                 compid, time_at)
 
-    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                          sysid: int, compid: int, time_us: int) -> int:
-        return self.telemetry.frame_named_value(k, tx, log_epoch_us, log_t_us, seq, sysid,
-                                                compid, time_us)
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                          sysid: int, compid: int, time_at: int) -> int:
+        return self.telemetry.frame_named_value(k, tx, log_epoch_us, log_t_at, seq, sysid,
+                                                compid, time_at)
+
+    def nav_output_active(self) -> bool:
+        return self.telemetry.nav_output_active()
+
+    def frame_nav_output(self, tx: int, log_epoch_us: int, log_t_at: int, seq: int, sysid: int,
+                         compid: int) -> int:
+        return self.telemetry.frame_nav_output(tx, log_epoch_us, log_t_at, seq, sysid, compid)
 
     def nav_controller_output(self):
         return self.telemetry.nav_controller_output()

@@ -95,7 +95,8 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_VFR_HUD, ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,
                           ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT,
                           ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                          ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT})
 #: FAST_STREAMS framed from the GNSS sample and home: the codec's path until home is set (it
 #: sets home at the first fix, ``_gnss``; GLOBAL_POSITION_INT and LOCAL_POSITION_NED are not
 #: sent before)
@@ -415,6 +416,8 @@ class GcsLink:
         self._dv_frame = getattr(self.v, "frame_debug_vector", None)
         self._dv_count = getattr(self.v, "debug_vector_count", None)
         self._nv_frame = getattr(self.v, "frame_named_value", None)
+        self._nav_frame = getattr(self.v, "frame_nav_output", None)
+        self._nav_active = getattr(self.v, "nav_output_active", None)
         self.fast: bool | None = None if FAST_IO else False
 
     def warm_up(self) -> bool:
@@ -424,6 +427,9 @@ class GcsLink:
         scratch = np.zeros(GF.LOG_DUE + 1, np.int64)                  # (loaded now)
         sp = address_of(scratch, np.int64, GF.LOG_DUE + 1)
         GF.log_walk_p(sp, sp, sp, 1, sp)
+        zeros = np.zeros(max(GF.GS_N, GF.TG_N, GF.E_N))     # (NAV: sent in guidance modes only)
+        zp = address_of(zeros, np.float64, zeros.size)
+        GF.nav_output_p(self._tx_p, -1, 0, 0, 1, 1, zp, zp, zp, False, 0.0, 0.0, 0.0)
         return self._fast_ok()
 
     def _fast_ok(self) -> bool:
@@ -467,6 +473,9 @@ class GcsLink:
                                 and k == self._n_debug_vectors() - 1)):
                         continue            # (no stamp cell: these take the codec's path)
                     msg = self._build(msg_id, k, us)    # (real time: the base moves on)
+                    if msg is None:
+                        continue            # (not sent now: NAV_CONTROLLER_OUTPUT outside
+                                            # the guidance modes)
                     c.seq = 17
                     want = msg.pack(c)
                     n = self._frame_stream(msg_id, k, -1, 0, 17, us)
@@ -555,6 +564,10 @@ class GcsLink:
             return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                     time_at, self._gps_at.of(v.plant.gps), self._stamp_at,
                                     self.home is not None)
+        if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
+            if self._nav_frame is None:
+                return 0
+            return self._nav_frame(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid)
         if self.home is None:
             return 0                    # the codec's path (it sets home at the first fix)
         if self.home is not self._home_src:
@@ -619,8 +632,8 @@ class GcsLink:
             count = len(self.v.named_values())
         elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             count = self._n_debug_vectors()
-        elif self.home is None and msg_id in HOME_STREAMS:
-            return                      # (HOME_STREAMS: none before home)
+        elif self._none_due(msg_id):
+            return
         else:
             count = 1
         k = 0
@@ -634,6 +647,14 @@ class GcsLink:
                 if msg is not None:
                     self._log_msg(msg, int64_at(t_at))
             k += 1
+
+    def _none_due(self, msg_id: int) -> bool:
+        """Whether FAST_STREAMS' ``msg_id`` has no message now (``_build`` would give None
+        after the work): HOME_STREAMS before home (``service`` looked for the first fix before
+        the streams), NAV_CONTROLLER_OUTPUT outside the guidance modes."""
+        if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
+            return self._nav_active is not None and not self._nav_active()
+        return self.home is None and msg_id in HOME_STREAMS
 
     def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
         """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64, mod
@@ -1666,8 +1687,8 @@ class GcsLink:
             nd = link.next_due[msg_id] + step
             link.next_due[msg_id] = nd if nd > now_s else now_s + step
             if fast and msg_id in FAST_STREAMS:
-                if self.home is None and msg_id in HOME_STREAMS:
-                    continue                            # (HOME_STREAMS: none before home)
+                if self._none_due(msg_id):
+                    continue
                 mav = link.mav
                 k = (cursor % n_vec if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                      else cursor % n_items if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT

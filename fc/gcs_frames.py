@@ -32,11 +32,15 @@ import numpy as np
 from numba import carray, njit, types
 
 import fc.control.carrays as _carrays
+import fc.control.layout as _control_layout
+import fc.guidance.layout as _guid_layout
 import hyfc_wire.codec as _codec
 import hyfc_wire.earth as _earth
 import hyfc_wire.frame_kernels as _frame_kernels
 import hyfc_wire.layout as _wire_layout
 from fc.control.carrays import f8p, i8p, u8p
+from fc.control.layout import E_H, E_N
+from fc.guidance.layout import GS_ALPHA_C, GS_GAM_C, GS_MU_C, GS_N, GS_V_ERR, TG_CHI, TG_H, TG_N
 from hyfc_wire.codec import mavlink
 from hyfc_wire.earth import EARTH_RADIUS_M
 from hyfc_wire.frame_kernels import _frame_at, _put_f32, _put_u
@@ -47,12 +51,13 @@ from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_
 from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout.__file__,
-                      _codec.__file__, _earth.__file__])
+                      _codec.__file__, _earth.__file__, _control_layout.__file__,
+                      _guid_layout.__file__])
 
 __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T", "DV_NAMES",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
-           "local_position_ned_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
+           "local_position_ned_p", "nav_output_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
            "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_DUE", "LOG_SAFE_US", "log_walk_p", "send_frame_p",
            "sockaddr_in", "SOCKADDR_IN_B"]
 
@@ -73,8 +78,10 @@ ID_NV, X_NV, N_NV = _spec(mavlink.MAVLink_named_value_float_message)
 ID_GPS, X_GPS, N_GPS = _spec(mavlink.MAVLink_gps_raw_int_message)
 ID_GPI, X_GPI, N_GPI = _spec(mavlink.MAVLink_global_position_int_message)
 ID_LPN, X_LPN, N_LPN = _spec(mavlink.MAVLink_local_position_ned_message)
+ID_NAV, X_NAV, N_NAV = _spec(mavlink.MAVLink_nav_controller_output_message)
 #: the longest frame written here, with the .tlog stamp (bytes)
-FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN) + 2
+FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN,
+                             N_NAV) + 2
 #: home (``GcsLink.home``) as the GNSS kernels read it: float64[HOME_N]
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 0, 1, 2
 HOME_COS_LAT = 3               # math.cos(math.radians(lat)): LOCAL_POSITION_NED's east scale
@@ -440,6 +447,61 @@ def local_position_ned_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at
     if not _put_ms_six_f32(out, pos + _HDR, time_us, x, y, z, g[G_VN], g[G_VE], g[G_VD]):
         return 0
     return _frame_at(out, pos, N_LPN, seq, sysid, compid, ID_LPN, X_LPN)
+
+
+@njit(cache=True)
+def _bearing_i16(rad):
+    """fc/guided.py ``nav_output``'s bearing field: round(deg of ``rad``) mod 360 (half to even),
+    as -180..179; (ok, value), not ok when not finite or beyond an int64."""
+    if not np.isfinite(rad):
+        return False, np.int64(0)
+    ok, d = _round_i(rad * _RAD)
+    b = d % 360
+    return ok, (b if b < 180 else b - 360)
+
+
+@njit(cache=True)
+def nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, status, tgt, est, has_wp,
+                 wp_bearing, wp_dist, wp_xtrack):
+    """NAV_CONTROLLER_OUTPUT (fc/guided.py ``nav_output``) from the guidance's status
+    float64[GS_N] at ``status``, targets float64[TG_N] at ``tgt`` and the estimate float64[E_N]
+    at ``est``: nav_roll = deg of mu_c, nav_pitch = deg of gamma_c + alpha_c, nav_bearing =
+    the course target, target_bearing = ``wp_bearing`` (rad) when ``has_wp`` else the course
+    target, wp_dist = round(``wp_dist``) clamped to 0..65535 (0 without a waypoint), alt_error
+    = altitude target - altitude, aspd_error = the status' V_ref - V, xtrack_error =
+    ``wp_xtrack`` (0 without a waypoint). Bytes written or 0."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    st = carray(f8p(status), (GS_N,))
+    tg = carray(f8p(tgt), (TG_N,))
+    e = carray(f8p(est), (E_N,))
+    ok, nav_bearing = _bearing_i16(tg[TG_CHI])
+    if not ok:
+        return 0
+    tb, dist = nav_bearing, np.int64(0)
+    xtrack = 0.0
+    if has_wp:
+        ok, tb = _bearing_i16(wp_bearing)
+        if not ok or not np.isfinite(wp_dist):
+            return 0
+        ok, d = _round_i(wp_dist)
+        if not ok:
+            return 0
+        dist = d if d > 0 else np.int64(0)
+        dist = dist if dist < 65535 else np.int64(65535)
+        xtrack = wp_xtrack
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    ok = _put_f32(out, p, st[GS_MU_C] * _RAD)
+    ok &= _put_f32(out, p + 4, (st[GS_GAM_C] + st[GS_ALPHA_C]) * _RAD)
+    ok &= _put_f32(out, p + 8, tg[TG_H] - e[E_H])
+    ok &= _put_f32(out, p + 12, st[GS_V_ERR])
+    ok &= _put_f32(out, p + 16, xtrack)
+    if not ok:
+        return 0
+    _put_u(out, p + 20, nav_bearing, 2)
+    _put_u(out, p + 22, tb, 2)
+    _put_u(out, p + 24, dist, 2)
+    return _frame_at(out, pos, N_NAV, seq, sysid, compid, ID_NAV, X_NAV)
 
 
 #: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_DUE + n streams]): the last time

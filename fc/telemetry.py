@@ -23,8 +23,8 @@ from fc.control.carrays import ArrayAddress, address_of, f8p, i8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
 from fc.gcs_frames import (DV_CMD, DV_DELTA, DV_EST, DV_GUID, NV_NAME_B, debug_vect_p,
-                           named_value_p)
-from fc.guidance.layout import GS_GAM_C
+                           named_value_p, nav_output_p)
+from fc.guidance.layout import GS_GAM_C, GS_N, TG_N
 from fc.guided import GuidanceRunner
 from fc.frame_calls import int64_at
 from fc.internals_log import InternalsLog
@@ -195,6 +195,10 @@ class Telemetry:
     _est_dv_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, 3))
     _gstatus: np.ndarray | None = None
     _gstatus_mv: memoryview | None = None
+    # NAV_CONTROLLER_OUTPUT's arrays by address (frame_nav_output)
+    _gstatus_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, GS_N))
+    _gtgt_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, TG_N))
+    _est_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, E_N))
     # NAMED_VALUE_FLOAT's names (zero-padded, uint8[n, NV_NAME_B]) and values (float64[n]) as
     # of the last refresh(), for frame_named_value; their addresses
     _nv_names: np.ndarray = field(default_factory=lambda: np.zeros((0, NV_NAME_B), np.uint8))
@@ -334,12 +338,34 @@ class Telemetry:
         """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
         return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
 
+    def nav_output_active(self) -> bool:
+        """Whether NAV_CONTROLLER_OUTPUT is sent (a guidance mode, the guidance engaged)."""
+        return self.modes.guidance_active and self.guid.engaged
+
     def nav_controller_output(self):
         """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
         guidance modes."""
-        if not (self.modes.guidance_active and self.guid.engaged):
+        if not self.nav_output_active():
             return None
         return self.guid.nav_output(self.est.est)
+
+    def frame_nav_output(self, tx: int, log_epoch_us: int, log_t_at: int, seq: int, sysid: int,
+                         compid: int) -> int:
+        """:meth:`nav_controller_output` framed by the compiled kernel (fc/gcs_frames.py
+        ``nav_output_p``, its arguments) from the guidance's arrays and waypoint; bytes
+        written, or 0 (outside the guidance modes, or declined: the caller then builds it
+        with the codec)."""
+        g = self.guid
+        if not self.nav_output_active():
+            return 0
+        wp = g.nav_wp
+        if wp is None:
+            return nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid,
+                                self._gstatus_at.of(g.g.status), self._gtgt_at.of(g.g.tgt),
+                                self._est_at.of(self.est.est), False, 0.0, 0.0, 0.0)
+        return nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid,
+                            self._gstatus_at.of(g.g.status), self._gtgt_at.of(g.g.tgt),
+                            self._est_at.of(self.est.est), True, wp[0], wp[1], wp[2])
 
     # ---------------------------------------------------------------- internals log
     def columns(self) -> list[str]:

@@ -402,3 +402,42 @@ def test_gps_raw_int_course_and_speed_edges(vn, ve):
     gp = address_of(g, np.float64, G_N)
     assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, _at(1_500_000), gp, now, False) == 0
     assert F.gps_raw_int_p(b.p, -1, 0, 9, SYSID, COMPID, _at(1_500_000), gp, later, False) > 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st_vals=st.lists(st.one_of(finite, any_float), min_size=4, max_size=4),
+       tgt=st.lists(st.one_of(finite, any_float), min_size=2, max_size=2),
+       alt=st.one_of(finite, any_float),
+       wp=st.one_of(st.none(), st.tuples(st.one_of(finite, any_float),
+                                         st.one_of(st.floats(-1e5, 1e6), any_float),
+                                         st.one_of(finite, any_float))),
+       us=stamps, seq=st.integers(0, 255), log=st.booleans())
+def test_nav_controller_output_is_the_codecs(st_vals, tgt, alt, wp, us, seq, log):
+    # GIVEN the guidance's status, targets and waypoint and the estimate (any floats)
+    from types import MethodType, SimpleNamespace
+
+    from fc.control.layout import E_H, E_N
+    from fc.guidance import layout as G
+    from fc.guided import GuidanceRunner
+    status, targets, est = np.zeros(G.GS_N), np.zeros(G.TG_N), np.zeros(E_N)
+    status[G.GS_MU_C], status[G.GS_GAM_C], status[G.GS_ALPHA_C], status[G.GS_V_ERR] = st_vals
+    targets[G.TG_H], targets[G.TG_CHI] = tgt
+    est[E_H] = alt
+    runner = SimpleNamespace(g=SimpleNamespace(status=status, tgt=targets), nav_wp=wp)
+    runner.targets = MethodType(GuidanceRunner.targets, runner)
+    b = Buf()
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
+    n = F.nav_output_p(b.p, ep, tl, seq, SYSID, COMPID, address_of(status, np.float64, G.GS_N),
+                       address_of(targets, np.float64, G.TG_N), address_of(est, np.float64, E_N),
+                       wp is not None, *(wp or (0.0, 0.0, 0.0)))
+    try:
+        nav = GuidanceRunner.nav_output(runner, est)
+        want = _want(_codec(seq).nav_controller_output_encode(*nav), seq, us if log else None)
+    except (OverflowError, ValueError):
+        want = None         # (round() of a non-finite float: nav_output raises)
+    # THEN the frame is the codec's (a bearing or distance beyond an int64 declined)
+    big = any(math.isfinite(x) and not abs(x) < 2.0 ** 62
+              for x in (math.degrees(tgt[1]) if math.isfinite(tgt[1]) else 0.0,
+                        *((math.degrees(wp[0]) if math.isfinite(wp[0]) else 0.0, wp[1])
+                          if wp else ())))
+    _check(n, b, want, may_decline=big)
