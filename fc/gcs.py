@@ -96,7 +96,9 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT,
                           ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                           ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-                          ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT})
+                          ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
+                          ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+                          ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT})
 #: FAST_STREAMS framed from the GNSS sample and home: the codec's path until home is set (it
 #: sets home at the first fix, ``_gnss``; GLOBAL_POSITION_INT and LOCAL_POSITION_NED are not
 #: sent before)
@@ -112,6 +114,7 @@ HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
 #: (CPython caches the ints up to 256: no int object per message)
 DV_CURSOR_WRAP = 240
 _I64_MAX = (1 << 63) - 1
+_MISSION_MODE = FlightMode.MISSION      # (bound once: a lookup on the enum class makes a block)
 _U64_MASK = (1 << 64) - 1
 #: GUIDED's target commands (``_guided_command``) -> the name in STATUSTEXT.
 GUIDED_COMMANDS = {
@@ -461,7 +464,7 @@ class GcsLink:
         try:
             c = new_codec(self.v.sysid, self.v.compid)
             us = self.time_us()
-            for msg_id in STREAM_IDS:
+            for msg_id in (*STREAM_IDS, ML.MAVLINK_MSG_ID_HEARTBEAT):
                 if msg_id not in FAST_STREAMS:
                     continue
                 for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
@@ -527,8 +530,25 @@ class GcsLink:
         bytes written, or 0 when the kernel declines or ``time_at`` is 0 (the caller takes the
         codec's path)."""
         v = self.v
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            base, custom, status = self._heartbeat_fields()
+            return GF.heartbeat_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                  custom, ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC, base,
+                                  status)
+        if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
+            item, total, state, mode = self.mission.current_fields(self._mission_active())
+            return GF.mission_current_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
+                                        v.compid, item, total, state, mode)
+        if msg_id == ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            return GF.extended_sys_state_p(
+                self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES, v.modes.data_lost,
+                self._meas_at.of(v.meas))
         if not time_at:
             return 0
+        if msg_id == ML.MAVLINK_MSG_ID_SYSTEM_TIME:
+            return GF.system_time_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                    time_at, self.epoch_us)
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
             return GF.attitude_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                  time_at, self._meas_at.of(v.meas))
@@ -1307,7 +1327,7 @@ class GcsLink:
 
     # ------------------------------------------------------------------ mission
     def _mission_active(self) -> bool:
-        return self.v.modes.mode == FlightMode.MISSION
+        return self.v.modes.mode == _MISSION_MODE
 
     def mission_send(self, outputs: list) -> None:
         """Send the outputs of fc/mission.py ``Mission`` (protocol replies, MISSION_CURRENT,
@@ -1320,7 +1340,8 @@ class GcsLink:
                 self.oneshot.append(mission_encode(self.mav, self.mission, out, active))
 
     # ------------------------------------------------------------------ transmit
-    def _heartbeat(self):
+    def _heartbeat_fields(self) -> tuple[int, int, int]:
+        """HEARTBEAT's (base_mode, custom_mode, system_status) of the vehicle now."""
         modes = self.v.modes
         base = ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if modes.armed:
@@ -1333,8 +1354,30 @@ class GcsLink:
             status = ML.MAV_STATE_ACTIVE
         else:
             status = ML.MAV_STATE_STANDBY
+        return base, custom_mode_of(modes.mode), status
+
+    def _heartbeat(self):
+        base, custom, status = self._heartbeat_fields()
         return self.mav.heartbeat_encode(ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC,
-                                         base, custom_mode_of(modes.mode), status)
+                                         base, custom, status)
+
+    def _send_heartbeat(self) -> None:
+        """HEARTBEAT to every output and peer (``send``, not logged: the .tlog has its own):
+        framed by the compiled kernel for the default schedule's destinations when its link
+        is unsigned (``_send_frame``), by the codec for the own-rate links."""
+        if self.default.mav.signing.sign_outgoing or not self._fast_ok():
+            self.send(self._heartbeat(), log=False)
+            return
+        n = self._frame_at(ML.MAVLINK_MSG_ID_HEARTBEAT, 0, -1, 0, self.mav.seq, 0)
+        if not n:
+            self.send(self._heartbeat(), log=False)
+            return
+        self.mav.seq = (self.mav.seq + 1) % 256             # as _pack
+        self._send_frame(n)
+        if self.links:
+            msg = self._heartbeat()
+            for link in self.links.values():
+                self._send_on(link, msg)
 
     def _current_mode(self):
         """CURRENT_MODE (standard modes): the mode's standard mode (CRUISE: MAV_STANDARD_MODE
@@ -1389,6 +1432,8 @@ class GcsLink:
         """The streamed message ``msg_id`` (``cursor``: which named value or vector) at time
         base ``us`` (default: now, ``time_us``)."""
         v = self.v
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            return self._heartbeat()
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
         if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
@@ -1585,7 +1630,7 @@ class GcsLink:
         sent = 0
         if now_s >= self.next_heartbeat:
             self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
-            self.send(self._heartbeat(), log=False)
+            self._send_heartbeat()
             self._expire_peers(now_s)
             self._summaries()
             sent += 1

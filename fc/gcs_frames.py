@@ -33,6 +33,7 @@ from numba import carray, njit, types
 
 import fc.control.carrays as _carrays
 import fc.control.layout as _control_layout
+import fc.gcs_streams as _gcs_streams
 import fc.guidance.layout as _guid_layout
 import hyfc_wire.codec as _codec
 import hyfc_wire.earth as _earth
@@ -40,6 +41,7 @@ import hyfc_wire.frame_kernels as _frame_kernels
 import hyfc_wire.layout as _wire_layout
 from fc.control.carrays import f8p, i8p, u8p
 from fc.control.layout import E_H, E_N
+from fc.gcs_streams import IN_AIR_SPEED_M_S
 from fc.guidance.layout import GS_ALPHA_C, GS_GAM_C, GS_MU_C, GS_N, GS_V_ERR, TG_CHI, TG_H, TG_N
 from hyfc_wire.codec import mavlink
 from hyfc_wire.earth import EARTH_RADIUS_M
@@ -52,12 +54,13 @@ from hyfc_wire.numba_cache import drop_stale
 
 drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout.__file__,
                       _codec.__file__, _earth.__file__, _control_layout.__file__,
-                      _guid_layout.__file__])
+                      _guid_layout.__file__, _gcs_streams.__file__])
 
 __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T", "DV_NAMES",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
-           "local_position_ned_p", "nav_output_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
+           "local_position_ned_p", "nav_output_p", "heartbeat_p", "system_time_p",
+           "extended_sys_state_p", "mission_current_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
            "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_DUE", "LOG_SAFE_US", "log_walk_p", "send_frame_p",
            "sockaddr_in", "SOCKADDR_IN_B"]
 
@@ -79,9 +82,20 @@ ID_GPS, X_GPS, N_GPS = _spec(mavlink.MAVLink_gps_raw_int_message)
 ID_GPI, X_GPI, N_GPI = _spec(mavlink.MAVLink_global_position_int_message)
 ID_LPN, X_LPN, N_LPN = _spec(mavlink.MAVLink_local_position_ned_message)
 ID_NAV, X_NAV, N_NAV = _spec(mavlink.MAVLink_nav_controller_output_message)
+ID_HB, X_HB, N_HB = _spec(mavlink.MAVLink_heartbeat_message)
+ID_TIME, X_TIME, N_TIME = _spec(mavlink.MAVLink_system_time_message)
+ID_EXT, X_EXT, N_EXT = _spec(mavlink.MAVLink_extended_sys_state_message)
+ID_MC, X_MC, N_MC = _spec(mavlink.MAVLink_mission_current_message)
 #: the longest frame written here, with the .tlog stamp (bytes)
 FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN,
-                             N_NAV) + 2
+                             N_NAV, N_HB, N_TIME, N_EXT, N_MC) + 2
+#: HEARTBEAT.mavlink_version as the codec's ``heartbeat_encode`` sets it
+_MAVLINK_VERSION = 3
+#: fc/gcs_streams.py ``landed_state``: IN_AIR above this airspeed with data current
+_IN_AIR_SPEED_M_S = IN_AIR_SPEED_M_S
+_IN_AIR = mavlink.MAV_LANDED_STATE_IN_AIR
+_LANDED_UNDEF = mavlink.MAV_LANDED_STATE_UNDEFINED
+_VTOL_UNDEF = mavlink.MAV_VTOL_STATE_UNDEFINED
 #: home (``GcsLink.home``) as the GNSS kernels read it: float64[HOME_N]
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 0, 1, 2
 HOME_COS_LAT = 3               # math.cos(math.radians(lat)): LOCAL_POSITION_NED's east scale
@@ -469,14 +483,16 @@ def nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, status, tgt, es
     the course target, target_bearing = ``wp_bearing`` (rad) when ``has_wp`` else the course
     target, wp_dist = round(``wp_dist``) clamped to 0..65535 (0 without a waypoint), alt_error
     = altitude target - altitude, aspd_error = the status' V_ref - V, xtrack_error =
-    ``wp_xtrack`` (0 without a waypoint). Bytes written or 0."""
+    ``wp_xtrack`` (0 without a waypoint). Bytes written or 0 (also when gamma_c and alpha_c
+    are both NaN: which NaN their sum gives, its sign, depends on the order the compiler put
+    the operands in, CPython's and LLVM's alike)."""
     out = carray(u8p(tx), (FRAME_MAX_B,))
     st = carray(f8p(status), (GS_N,))
     tg = carray(f8p(tgt), (TG_N,))
     e = carray(f8p(est), (E_N,))
     ok, nav_bearing = _bearing_i16(tg[TG_CHI])
-    if not ok:
-        return 0
+    if not ok or (np.isnan(st[GS_GAM_C]) and np.isnan(st[GS_ALPHA_C])):
+        return 0            # (two NaNs added: which one comes out is the compiler's choice)
     tb, dist = nav_bearing, np.int64(0)
     xtrack = 0.0
     if has_wp:
@@ -502,6 +518,78 @@ def nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, status, tgt, es
     _put_u(out, p + 22, tb, 2)
     _put_u(out, p + 24, dist, 2)
     return _frame_at(out, pos, N_NAV, seq, sysid, compid, ID_NAV, X_NAV)
+
+
+@njit(cache=True)
+def heartbeat_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, custom_mode, mav_type,
+                autopilot, base_mode, system_status):
+    """HEARTBEAT (``GcsLink._heartbeat``'s fields, mavlink_version 3 as the codec sets it);
+    bytes written or 0 (a field beyond its type)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    if not (0 <= custom_mode <= 0xFFFFFFFF and 0 <= mav_type <= 0xFF and 0 <= autopilot <= 0xFF
+            and 0 <= base_mode <= 0xFF and 0 <= system_status <= 0xFF):
+        return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, custom_mode, 4)
+    out[p + 4] = mav_type
+    out[p + 5] = autopilot
+    out[p + 6] = base_mode
+    out[p + 7] = system_status
+    out[p + 8] = _MAVLINK_VERSION
+    return _frame_at(out, pos, N_HB, seq, sysid, compid, ID_HB, X_HB)
+
+
+@njit(cache=True)
+def system_time_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, epoch_us):
+    """SYSTEM_TIME (``GcsLink._build``: time_unix_usec = ``epoch_us`` + the time base at
+    ``time_at``, time_boot_ms = time base / 1000 mod 2^32); bytes written or 0 (a sum beyond
+    u64)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    t = carray(i8p(time_at), (1,))[0]
+    if t < 0 or epoch_us < 0 or t > 0x7FFFFFFFFFFFFFFF - epoch_us:
+        return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, epoch_us + t, 8)
+    _put_u(out, p + 8, (t // 1000) % _U32, 4)
+    return _frame_at(out, pos, N_TIME, seq, sysid, compid, ID_TIME, X_TIME)
+
+
+@njit(cache=True)
+def extended_sys_state_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, frames, data_lost,
+                         meas):
+    """EXTENDED_SYS_STATE (``GcsLink._build``, fc/gcs_streams.py ``landed_state``): vtol_state
+    UNDEFINED, landed_state IN_AIR when the int64 count at ``frames`` (the plant link's frames)
+    is not 0, not ``data_lost`` and the measured airspeed of float64[M_N] ``meas`` is finite and
+    above IN_AIR_SPEED_M_S, else UNDEFINED; bytes written."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    v = carray(f8p(meas), (M_N,))[M_AIRSPEED]
+    has_data = carray(i8p(frames), (1,))[0] > 0 and not data_lost
+    landed = _IN_AIR if has_data and np.isfinite(v) and v > _IN_AIR_SPEED_M_S else _LANDED_UNDEF
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    out[p] = _VTOL_UNDEF
+    out[p + 1] = landed
+    return _frame_at(out, pos, N_EXT, seq, sysid, compid, ID_EXT, X_EXT)
+
+
+@njit(cache=True)
+def mission_current_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, item, total, state,
+                      mode):
+    """MISSION_CURRENT of fc/mission.py ``current_fields`` (seq, total, mission_state,
+    mission_mode); bytes written or 0 (a field beyond its type)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    if not (0 <= item <= 0xFFFF and 0 <= total <= 0xFFFF and 0 <= state <= 0xFF
+            and 0 <= mode <= 0xFF):
+        return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, item, 2)
+    _put_u(out, p + 2, total, 2)
+    out[p + 4] = state
+    out[p + 5] = mode
+    return _frame_at(out, pos, N_MC, seq, sysid, compid, ID_MC, X_MC)
 
 
 #: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_DUE + n streams]): the last time
