@@ -467,6 +467,9 @@ class FlightController:
     def named_values(self) -> list:
         return self.telemetry.named_values()
 
+    def named_value_count(self) -> int:
+        return self.telemetry.named_value_count()
+
     def debug_vectors(self) -> list:
         return self.telemetry.debug_vectors()
 

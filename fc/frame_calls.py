@@ -42,7 +42,7 @@ drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout._
                       _pwm.__file__, _codec.__file__])
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
-           "surfaces_throttle_pwm_p", "blend3_p", "count_p", "recv_sensor_p", "send_servo_p", "send_servo_at_p",
+           "surfaces_throttle_pwm_p", "blend3_p", "copy_p", "count_p", "recv_sensor_p", "send_servo_p", "send_servo_at_p",
            "intake_p", "int64_at", "FAST_IO", "RX_FRAME", "RX_FRAME_BIG", "RX_NONE", "RX_OTHER", "RX_REJECTED", "HOT_DATAGRAMS", "HOT_FRAMES", "HOT_OUTPUTS",
            "HOT_EMPTY_READS", "HOT_N", "IO_LEN", "IO_STAMP", "IO_N", "STAMP_CELL_MAX_US",
            "INTAKE_NEW", "INTAKE_DUPLICATE", "INTAKE_LATE", "INTAKE_RESTART", "IN_LAST", "IN_STAMP",
@@ -126,6 +126,15 @@ def blend3_p(dst, src, k):
     s = carray(f8p(src), (3,))
     for i in range(3):
         d[i] += k * (s[i] - d[i])
+
+
+@njit(cache=True)
+def copy_p(dst, src, n):
+    """The float64[n] at ``src`` copied to the float64[n] at ``dst`` (by address)."""
+    d = carray(f8p(dst), (n,))
+    s = carray(f8p(src), (n,))
+    for i in range(n):
+        d[i] = s[i]
 
 
 @njit(cache=True)

@@ -419,6 +419,7 @@ class GcsLink:
         self._dv_frame = getattr(self.v, "frame_debug_vector", None)
         self._dv_count = getattr(self.v, "debug_vector_count", None)
         self._nv_frame = getattr(self.v, "frame_named_value", None)
+        self._nv_count = getattr(self.v, "named_value_count", None)
         self._nav_frame = getattr(self.v, "frame_nav_output", None)
         self._nav_active = getattr(self.v, "nav_output_active", None)
         self.fast: bool | None = None if FAST_IO else False
@@ -468,7 +469,7 @@ class GcsLink:
                 if msg_id not in FAST_STREAMS:
                     continue
                 for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
-                               else len(self.v.named_values())
+                               else self._n_named_values()
                                if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1):
                     if self._stamp_at is None and (
                             msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT
@@ -493,6 +494,13 @@ class GcsLink:
             return False
         finally:
             self.home = home
+
+    def _n_named_values(self) -> int:
+        """How many NAMED_VALUE_FLOATs a stream period has (the vehicle's count, without
+        building the pairs, when it gives one)."""
+        if self._nv_count is not None:
+            return self._nv_count()
+        return len(self.v.named_values())
 
     def _n_debug_vectors(self) -> int:
         """How many DEBUG_VECTs a stream period has (the vehicle's, then SIM_T)."""
@@ -649,7 +657,7 @@ class GcsLink:
         mav = self.log_mav
         time_at = self._time_at()
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
-            count = len(self.v.named_values())
+            count = self._n_named_values()
         elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             count = self._n_debug_vectors()
         elif self._none_due(msg_id):
@@ -1713,7 +1721,7 @@ class GcsLink:
             if iv < 0 or now_s < link.next_due[msg_id]:
                 continue
             if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
-                n_items = len(self.v.named_values())
+                n_items = self._n_named_values()
                 step = iv / n_items
                 cursor = link.nv_cursor
                 # wrapped at a multiple of the count (which is fixed): ``cursor % n_items``

@@ -265,7 +265,7 @@ class TickPlanner:
     @property
     def skipped(self) -> int:
         """Fast deadlines skipped (overruns)."""
-        return int(self._st[_SKIPPED])
+        return self._st.item(_SKIPPED)              # (an int; no numpy scalar)
 
     @skipped.setter
     def skipped(self, value: int) -> None:

@@ -26,7 +26,7 @@ from fc.gcs_frames import (DV_CMD, DV_DELTA, DV_EST, DV_GUID, NV_NAME_B, debug_v
                            named_value_p, nav_output_p)
 from fc.guidance.layout import GS_GAM_C, GS_N, TG_N
 from fc.guided import GuidanceRunner
-from fc.frame_calls import int64_at
+from fc.frame_calls import copy_p, int64_at
 from fc.internals_log import InternalsLog
 from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
@@ -34,6 +34,12 @@ from fc.scheduler import FrameGate, LoopStats, TickPlanner
 from hyfc_wire.numba_cache import drop_stale
 
 __all__ = ["EST_COLS", "FcCounters", "TickOutput", "Telemetry"]
+
+#: the named values (NAMED_VALUE_FLOAT, ``Telemetry.refresh``) before the law's status
+_NV_NAMES = (b"GAMMA_DEG", b"LATE_P99", b"LATE_MAX", b"LATE_CNT", b"OVERRUN", b"SKIPPED",
+             b"TICK_FALLB", b"GC_US", b"REJ_PLANT", b"GNSS_DROP", b"REJ_GCS", b"REJ_SIGN",
+             b"EST_INVAL", b"EST_FLAGS", b"FS_CAUSE", b"DUP_FRAMES", b"FC_STALLS")
+_NV_FIXED = len(_NV_NAMES)
 
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
             "h_m", "gamma_rad")
@@ -182,7 +188,7 @@ class Telemetry:
     law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
     status_names: list
     guid: GuidanceRunner
-    _named: list = field(default_factory=list)     # as of the last refresh()
+    _nv_name_list: list = field(default_factory=list)   # the named values' names (refresh)
     #: the law's status record as the row kernel reads it: the law's own array, or None when
     #: that is not a contiguous float64 array (then converted per row); empty without one
     _status: np.ndarray | None = None
@@ -230,6 +236,7 @@ class Telemetry:
         # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
         self.log_row(_OneRow(row), np.zeros(M_N), 0, 0, 0, 0.0)
+        copy_p(address_of(row, np.float64, 1), address_of(row, np.float64, 1), 0)  # (loaded)
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
@@ -242,43 +249,61 @@ class Telemetry:
 
     def named_values(self) -> list:
         """NAMED_VALUE_FLOAT (name, value) pairs, as of the last :meth:`refresh` (1 Hz)."""
-        return self._named
+        return list(zip(self._nv_name_list, self._nv_values.tolist()))
 
     def refresh(self) -> None:
-        e = self.est.est
+        """The NAMED_VALUE_FLOAT values of now (1 Hz), written into the array the compiled
+        framing reads (``frame_named_value``) without a Python object (issue 24): values read
+        as Python floats or small ints, the law's status copied by a compiled call.
+        :meth:`named_values` gives the (name, value) pairs from it."""
+        if not self._nv_name_list:
+            self._init_named()
+        v = self._nv_values
         c = self.plant.counters
-        nv = [
-            (b"GAMMA_DEG", math.degrees(e[8])),
-            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
-            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
-            (b"SKIPPED", float(self.skipped_ticks())),
-            (b"TICK_FALLB", float(self.gate.fallback_ticks)),
-            (b"GC_US", self.counters.gc_us),
-            (b"REJ_PLANT", float(c.rejected)),
-            (b"GNSS_DROP", float(c.gnss_rejected)),
-            (b"REJ_GCS", float(self.gcs.rejected_bad)),
-            (b"REJ_SIGN", float(self.gcs.rejected_signing)),
-            (b"EST_INVAL", float(self.est.invalid_frames)),
-            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
-            (b"FS_CAUSE", float(self.modes.fs_cause)),
-            (b"DUP_FRAMES", float(self.counters.duplicate_frames)),
-            (b"FC_STALLS", float(self.counters.fc_stalls)),
-        ]
-        for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
-            nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
-        self._named = nv
-        # the same as arrays for the compiled framing (frame_named_value)
-        if len(nv) != len(self._nv_values):
-            self._nv_names = np.zeros((len(nv), NV_NAME_B), np.uint8)
-            self._nv_values = np.zeros(len(nv))
-            for i, (name, _) in enumerate(nv):
-                self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
-            self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
-            self._nv_values_p = address_of(self._nv_values, np.float64, len(nv))
-        k = 0
-        for _, value in nv:
-            self._nv_values[k] = value
-            k += 1
+        st = self.stats
+        masks = self.est.masks
+        v[0] = math.degrees(self.est.est.item(8))
+        v[1] = st.window_p99_us
+        v[2] = st.window_max_us
+        v[3] = st.late
+        v[4] = st.overruns
+        v[5] = self.skipped_ticks()
+        v[6] = self.gate.fallback_ticks
+        v[7] = self.counters.gc_us
+        v[8] = c.rejected
+        v[9] = c.gnss_rejected
+        v[10] = self.gcs.rejected_bad
+        v[11] = self.gcs.rejected_signing
+        v[12] = self.est.invalid_frames
+        v[13] = masks.item(0) | masks.item(1)
+        v[14] = self.modes.fs_cause
+        v[15] = self.counters.duplicate_frames
+        v[16] = self.counters.fc_stalls
+        n = len(v) - _NV_FIXED
+        if n:
+            if self._status is not None:
+                copy_p(self._nv_values_p + 8 * _NV_FIXED, self._status_p, n)
+            else:
+                for i in range(n):
+                    v[_NV_FIXED + i] = float(self.law.status[i])
+
+    def _init_named(self) -> None:
+        """The names of the named values (fixed: the law's status names, up to 16) as a list
+        and as the zero-padded table ``frame_named_value`` reads, and the values' array."""
+        names = list(_NV_NAMES)
+        for n in self.status_names[:16]:      # a law with STATUS_NAMES has status
+            names.append(n.upper()[:10].encode("ascii", "replace"))
+        self._nv_name_list = names
+        self._nv_names = np.zeros((len(names), NV_NAME_B), np.uint8)
+        self._nv_values = np.zeros(len(names))
+        for i, name in enumerate(names):
+            self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
+        self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
+        self._nv_values_p = address_of(self._nv_values, np.float64, len(names))
+
+    def named_value_count(self) -> int:
+        """How many named values :meth:`named_values` gives (0 before the first refresh)."""
+        return len(self._nv_values)
 
     def debug_vectors(self) -> list:
         """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz

@@ -204,3 +204,4 @@ def test_the_tlog_schedule_walk_is_the_python_rules(steps, t0):
         if count:
             assert [i for i in range(n) if flags[i]] == want
         assert state_arr.tolist() == [rule["last"], rule["next"], *rule["due"]]
+

@@ -479,3 +479,47 @@ def test_the_status_messages_are_the_codecs(custom, base, status, item, total, m
                  seq, t_us))
     _check(F.system_time_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us), epoch), b,
            _want(c.system_time_encode(epoch + us, (us // 1000) & 0xFFFFFFFF), seq, t_us))
+
+
+def _named_values_as_built(t) -> list:
+    """fc/telemetry.py ``Telemetry.refresh``'s list as it was built before its array form."""
+    e = t.est.est
+    c = t.plant.counters
+    nv = [(b"GAMMA_DEG", math.degrees(e[8])),
+          (b"LATE_P99", t.stats.window_p99_us), (b"LATE_MAX", t.stats.window_max_us),
+          (b"LATE_CNT", float(t.stats.late)), (b"OVERRUN", float(t.stats.overruns)),
+          (b"SKIPPED", float(t.skipped_ticks())), (b"TICK_FALLB", float(t.gate.fallback_ticks)),
+          (b"GC_US", t.counters.gc_us), (b"REJ_PLANT", float(c.rejected)),
+          (b"GNSS_DROP", float(c.gnss_rejected)), (b"REJ_GCS", float(t.gcs.rejected_bad)),
+          (b"REJ_SIGN", float(t.gcs.rejected_signing)),
+          (b"EST_INVAL", float(t.est.invalid_frames)),
+          (b"EST_FLAGS", float(t.est.masks[0] | t.est.masks[1])),
+          (b"FS_CAUSE", float(t.modes.fs_cause)),
+          (b"DUP_FRAMES", float(t.counters.duplicate_frames)),
+          (b"FC_STALLS", float(t.counters.fc_stalls))]
+    for i, n in enumerate(t.status_names[:16]):
+        nv.append((n.upper()[:10].encode("ascii", "replace"), float(t.law.status[i])))
+    return nv
+
+
+def test_the_named_values_are_the_ones_the_list_held():
+    # GIVEN a controller after a short flight, its counters and the law's status not zero
+    from tools.bench.profile import _Rig, record
+    flight = record(600, "COORDINATED")
+    rig = _Rig("COORDINATED")
+    try:
+        for data in flight:
+            rig.step(data)
+        t = rig.fc.telemetry
+        t.stats.late, t.counters.duplicate_frames, t.counters.fc_stalls = 3, 7, 1
+        t.plant.counters.gnss_rejected = 300
+        # WHEN the 1 Hz refresh runs
+        t.refresh()
+        # THEN the named values are the pairs the list held, value for value
+        want = _named_values_as_built(t)
+        got = t.named_values()
+        assert [n for n, _ in got] == [n for n, _ in want]
+        assert [struct.pack("<d", v) for _, v in got] == [struct.pack("<d", v) for _, v in want]
+        assert t.named_value_count() == len(want) > 17
+    finally:
+        rig.close()
