@@ -98,7 +98,8 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
                           ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
                           ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
-                          ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT})
+                          ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT,
+                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE})
 #: FAST_STREAMS framed from the GNSS sample and home: the codec's path until home is set (it
 #: sets home at the first fix, ``_gnss``; GLOBAL_POSITION_INT and LOCAL_POSITION_NED are not
 #: sent before)
@@ -543,6 +544,19 @@ class GcsLink:
             return GF.heartbeat_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                   custom, ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC, base,
                                   status)
+        if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
+            mode = v.modes.mode
+            return GF.current_mode_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                     STANDARD_MODE.get(mode, 0), custom_mode_of(mode))
+        if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0
+            c = v.error_counts()
+            return GF.sys_status_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                   v.modes.law_active, v.health_failed_bits(),
+                                   self._gps_at.of(v.plant.gps), self._stamp_at,
+                                   self.home is not None, v.load_permille(), c[0], c[1], c[2],
+                                   c[3], c[4])
         if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
             item, total, state, mode = self.mission.current_fields(self._mission_active())
             return GF.mission_current_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,

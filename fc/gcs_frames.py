@@ -43,7 +43,7 @@ from fc.control.carrays import f8p, i8p, u8p
 from fc.control.layout import E_H, E_N
 from fc.gcs_streams import IN_AIR_SPEED_M_S
 from fc.guidance.layout import GS_ALPHA_C, GS_GAM_C, GS_MU_C, GS_N, GS_V_ERR, TG_CHI, TG_H, TG_N
-from hyfc_wire.codec import mavlink
+from hyfc_wire.codec import development_dialect, mavlink
 from hyfc_wire.earth import EARTH_RADIUS_M
 from hyfc_wire.frame_kernels import _frame_at, _put_f32, _put_u
 from hyfc_wire.layout import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_N, G_SACC_M_S,
@@ -60,7 +60,8 @@ __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T",
            "NV_NAME_B", "attitude_p", "aoa_ssa_p", "vfr_hud_p", "servo_raw_p", "debug_vect_p",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
            "local_position_ned_p", "nav_output_p", "heartbeat_p", "system_time_p",
-           "extended_sys_state_p", "mission_current_p", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
+           "extended_sys_state_p", "mission_current_p", "sys_status_p", "current_mode_p",
+           "SYS_PRESENT", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
            "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_DUE", "LOG_SAFE_US", "log_walk_p", "send_frame_p",
            "sockaddr_in", "SOCKADDR_IN_B"]
 
@@ -86,9 +87,11 @@ ID_HB, X_HB, N_HB = _spec(mavlink.MAVLink_heartbeat_message)
 ID_TIME, X_TIME, N_TIME = _spec(mavlink.MAVLink_system_time_message)
 ID_EXT, X_EXT, N_EXT = _spec(mavlink.MAVLink_extended_sys_state_message)
 ID_MC, X_MC, N_MC = _spec(mavlink.MAVLink_mission_current_message)
+ID_SYS, X_SYS, N_SYS = _spec(mavlink.MAVLink_sys_status_message)
+ID_CM, X_CM, N_CM = _spec(development_dialect().MAVLink_current_mode_message)
 #: the longest frame written here, with the .tlog stamp (bytes)
 FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN,
-                             N_NAV, N_HB, N_TIME, N_EXT, N_MC) + 2
+                             N_NAV, N_HB, N_TIME, N_EXT, N_MC, N_SYS, N_CM) + 2
 #: HEARTBEAT.mavlink_version as the codec's ``heartbeat_encode`` sets it
 _MAVLINK_VERSION = 3
 #: fc/gcs_streams.py ``landed_state``: IN_AIR above this airspeed with data current
@@ -96,6 +99,19 @@ _IN_AIR_SPEED_M_S = IN_AIR_SPEED_M_S
 _IN_AIR = mavlink.MAV_LANDED_STATE_IN_AIR
 _LANDED_UNDEF = mavlink.MAV_LANDED_STATE_UNDEFINED
 _VTOL_UNDEF = mavlink.MAV_VTOL_STATE_UNDEFINED
+#: SYS_STATUS's sensors present (``GcsLink._build``); the two the law drives are enabled only
+#: while it is active; GPS is healthy only with a 3D fix
+SYS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
+               | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+               | mavlink.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+               | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+               | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+               | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+               | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
+               | mavlink.MAV_SYS_STATUS_LOGGING)
+_SYS_LAW = (mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+            | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION)
+_SYS_GPS = mavlink.MAV_SYS_STATUS_SENSOR_GPS
 #: home (``GcsLink.home``) as the GNSS kernels read it: float64[HOME_N]
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 0, 1, 2
 HOME_COS_LAT = 3               # math.cos(math.radians(lat)): LOCAL_POSITION_NED's east scale
@@ -590,6 +606,60 @@ def mission_current_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, item, tota
     out[p + 4] = state
     out[p + 5] = mode
     return _frame_at(out, pos, N_MC, seq, sysid, compid, ID_MC, X_MC)
+
+
+@njit(cache=True)
+def sys_status_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, law_active, failed_bits, gps,
+                 stamp, home_set, load, c0, c1, c2, c3, c4):
+    """SYS_STATUS (``GcsLink._build``): sensors SYS_PRESENT, enabled less the law's two when
+    not ``law_active``, health = all but ``failed_bits`` and GPS without a 3D fix (the fix of
+    the GNSS sample at ``gps`` as ``_gnss`` gives it, the newest frame's stamp in the int64
+    cell at ``stamp``), ``load`` (permille), no battery, the error counts ``c0`` .. ``c4``
+    saturated at 65535. Bytes written, or 0 (a field beyond its type, or a 3D fix while home
+    is not set: the codec's path sets it)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    fix = _gnss_fix(carray(f8p(gps), (G_N,)), carray(i8p(stamp), (1,))[0])
+    if not home_set and fix >= _FIX_3D:
+        return 0
+    if not (0 <= load <= 0xFFFF and c0 >= 0 and c1 >= 0 and c2 >= 0 and c3 >= 0 and c4 >= 0
+            and 0 <= failed_bits <= 0xFFFFFFFF):
+        return 0
+    enabled = SYS_PRESENT if law_active else SYS_PRESENT & ~_SYS_LAW
+    health = 0xFFFFFFFF & ~failed_bits
+    if fix < _FIX_3D:
+        health &= ~_SYS_GPS
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, SYS_PRESENT, 4)
+    _put_u(out, p + 4, enabled, 4)
+    _put_u(out, p + 8, health, 4)
+    _put_u(out, p + 12, load, 2)
+    _put_u(out, p + 14, 65535, 2)                # voltage_battery: unknown
+    _put_u(out, p + 16, -1, 2)                   # current_battery: unknown
+    _put_u(out, p + 18, 0, 2)                    # drop_rate_comm
+    k = p + 20
+    for c in (c0, c1, c2, c3, c4):
+        _put_u(out, k, c if c < 65535 else 65535, 2)
+        k += 2
+    out[k] = 0xFF                                # battery_remaining: -1
+    for i in range(k + 1, p + N_SYS):            # the extensions: 0
+        out[i] = 0
+    return _frame_at(out, pos, N_SYS, seq, sysid, compid, ID_SYS, X_SYS)
+
+
+@njit(cache=True)
+def current_mode_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, standard_mode, custom_mode):
+    """CURRENT_MODE (development dialect; ``GcsLink._current_mode``): custom = intended =
+    ``custom_mode``; bytes written or 0 (a field beyond its type)."""
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    if not (0 <= standard_mode <= 0xFF and 0 <= custom_mode <= 0xFFFFFFFF):
+        return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, custom_mode, 4)
+    _put_u(out, p + 4, custom_mode, 4)
+    out[p + 8] = standard_mode
+    return _frame_at(out, pos, N_CM, seq, sysid, compid, ID_CM, X_CM)
 
 
 #: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_DUE + n streams]): the last time

@@ -523,3 +523,49 @@ def test_the_named_values_are_the_ones_the_list_held():
         assert t.named_value_count() == len(want) > 17
     finally:
         rig.close()
+
+
+@settings(max_examples=200, deadline=None)
+@given(law_active=st.booleans(), failed=st.sampled_from([0, 1 << 21, (1 << 21) | (1 << 24)]),
+       fix=st.integers(0, 6), age_s=st.floats(0.0, 3.0), home_set=st.booleans(),
+       load=st.integers(0, 70000),
+       counts=st.lists(st.integers(0, 200000), min_size=5, max_size=5),
+       standard=st.integers(0, 300), custom=st.integers(0, 2**32),
+       us=stamps, seq=st.integers(0, 255), log=st.booleans())
+def test_sys_status_and_current_mode_are_the_codecs(law_active, failed, fix, age_s, home_set,
+                                                    load, counts, standard, custom, us, seq,
+                                                    log):
+    # GIVEN the vehicle's state SYS_STATUS is built from (``GcsLink._build``), and a mode
+    from types import SimpleNamespace
+
+    from fc.link import mavlink_dev as MD
+    from hyfc_wire.layout import G_FIX, G_N, G_T_S
+    g = np.zeros(G_N)
+    stamp_us = 50_000_000
+    g[G_T_S], g[G_FIX] = stamp_us * 1e-6 - age_s, fix
+    state = _GnssState(g, np.zeros(M_N), stamp_us, (1.0, 2.0, 3.0) if home_set else None, seq)
+    state.v.modes = SimpleNamespace(law_active=law_active)
+    state.v.health_failed_bits = lambda: failed
+    state.v.load_permille = lambda: load
+    state.v.error_counts = lambda: tuple(counts)
+    state.statustext = lambda *a: None
+    state.oneshot = []
+    b = Buf()
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
+    stamp_cell = np.array([stamp_us], np.int64)
+    n = F.sys_status_p(b.p, ep, tl, seq, SYSID, COMPID, law_active, failed,
+                       address_of(g, np.float64, G_N), address_of(stamp_cell, np.int64, 1),
+                       home_set, load, *counts)
+    from fc.link import mavlink as ML
+    codec_sets_home = not home_set and fix >= 3 and age_s <= 1.0
+    want = None if codec_sets_home else _want(
+        state._build(ML.MAVLINK_MSG_ID_SYS_STATUS, 0, us), seq, us if log else None)
+    # THEN SYS_STATUS is the codec's frame (declined where the codec's path sets home)
+    if codec_sets_home:
+        assert n == 0
+    else:
+        _check(n, b, want)
+    # AND CURRENT_MODE is the codec's (development dialect)
+    n = F.current_mode_p(b.p, ep, tl, seq, SYSID, COMPID, standard, custom)
+    _check(n, b, _want(MD.MAVLink_current_mode_message(standard, custom, custom), seq,
+                       us if log else None))
