@@ -591,20 +591,30 @@ def extended_sys_state_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, frames,
 
 
 @njit(cache=True)
+def _payload_u4(out, log_epoch_us, log_t_at, a, na, b, nb, c, nc, d, nd):
+    """A payload of up to four unsigned fields (``na`` .. ``nd`` bytes each, 0: none) after the
+    .tlog stamp if any (``_stamp_at``); the frame's position, or -1 when a field does not fit
+    its bytes (the codec's struct would refuse it)."""
+    for v, nb_ in ((a, na), (b, nb), (c, nc), (d, nd)):
+        if v < 0 or (nb_ < 8 and v >= (1 << (8 * nb_))):
+            return -1
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    for v, nb_ in ((a, na), (b, nb), (c, nc), (d, nd)):
+        _put_u(out, p, v, nb_)
+        p += nb_
+    return pos
+
+
+@njit(cache=True)
 def mission_current_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, item, total, state,
                       mode):
     """MISSION_CURRENT of fc/mission.py ``current_fields`` (seq, total, mission_state,
     mission_mode); bytes written or 0 (a field beyond its type)."""
     out = carray(u8p(tx), (FRAME_MAX_B,))
-    if not (0 <= item <= 0xFFFF and 0 <= total <= 0xFFFF and 0 <= state <= 0xFF
-            and 0 <= mode <= 0xFF):
+    pos = _payload_u4(out, log_epoch_us, log_t_at, item, 2, total, 2, state, 1, mode, 1)
+    if pos < 0:
         return 0
-    pos = _stamp_at(out, log_epoch_us, log_t_at)
-    p = pos + _HDR
-    _put_u(out, p, item, 2)
-    _put_u(out, p + 2, total, 2)
-    out[p + 4] = state
-    out[p + 5] = mode
     return _frame_at(out, pos, N_MC, seq, sysid, compid, ID_MC, X_MC)
 
 
@@ -652,13 +662,10 @@ def current_mode_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, standard_mode
     """CURRENT_MODE (development dialect; ``GcsLink._current_mode``): custom = intended =
     ``custom_mode``; bytes written or 0 (a field beyond its type)."""
     out = carray(u8p(tx), (FRAME_MAX_B,))
-    if not (0 <= standard_mode <= 0xFF and 0 <= custom_mode <= 0xFFFFFFFF):
+    pos = _payload_u4(out, log_epoch_us, log_t_at, custom_mode, 4, custom_mode, 4,
+                      standard_mode, 1, 0, 0)
+    if pos < 0:
         return 0
-    pos = _stamp_at(out, log_epoch_us, log_t_at)
-    p = pos + _HDR
-    _put_u(out, p, custom_mode, 4)
-    _put_u(out, p + 4, custom_mode, 4)
-    out[p + 8] = standard_mode
     return _frame_at(out, pos, N_CM, seq, sysid, compid, ID_CM, X_CM)
 
 
