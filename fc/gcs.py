@@ -399,6 +399,8 @@ class GcsLink:
         self._meas_at = ArrayAddress(np.float64, M_N)
         self._pwm_at = ArrayAddress(np.int64, 4)
         self._frames_at = ArrayAddress(np.int64, HOT_FRAMES + 1)
+        self._frames_p = 0                      # ``_frames_cell``: the address, of the array
+        self._frames_of: np.ndarray | None = None
         self._gps_at = ArrayAddress(np.float64, G_N)
         # ``home`` as the GNSS kernels read it (GF.HOME_*), copied when ``home`` is rebound
         self._home_arr = np.zeros(GF.HOME_N)
@@ -564,7 +566,7 @@ class GcsLink:
         if msg_id == ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
             return GF.extended_sys_state_p(
                 self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
-                self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES, v.modes.data_lost,
+                self._frames_cell(), v.modes.data_lost,
                 self._meas_at.of(v.meas))
         if not time_at:
             return 0
@@ -598,7 +600,7 @@ class GcsLink:
                 return 0                # (the stamp as a Python int: the codec's path)
             return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                               time_at, self._stamp_at,
-                              self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
+                              self._frames_cell())
         if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
             # (declined at a 3D fix while home is not set: the codec's path sets it)
             if self._stamp_at is None or v.meas_stamp_big:
@@ -623,6 +625,15 @@ class GcsLink:
                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
                                            self._home_p)
         return 0
+
+    def _frames_cell(self) -> int:
+        """The address of the plant link's frame count (``LinkCounters.hot[HOT_FRAMES]``), bound
+        once (an address plus an offset makes an int per call)."""
+        hot = self.v.plant.counters.hot
+        if hot is not self._frames_of:
+            self._frames_p = self._frames_at.of(hot) + 8 * HOT_FRAMES
+            self._frames_of = hot
+        return self._frames_p
 
     def _set_home_arr(self) -> None:
         """``home`` into the GNSS kernels' array, with its latitude's cosine as ``local_ned``
@@ -822,9 +833,10 @@ class GcsLink:
     def _summaries(self) -> None:
         """Once a second: the "N suppressed" lines of bursts that have ended."""
         now = time.monotonic()
-        for sev, text in self.texts.summaries(now):
-            self._queue_text(sev, text)
-        if self.log is not None:
+        if not self.texts.idle:             # (the idle limiters make no list)
+            for sev, text in self.texts.summaries(now):
+                self._queue_text(sev, text)
+        if self.log is not None and not self.log_limit.idle:
             for _sev, text in self.log_limit.summaries(now):
                 self.log.warning(text)
 
@@ -915,9 +927,10 @@ class GcsLink:
         """Forget peers silent for PEER_TIMEOUT_S; ``force``: also the oldest one, to make
         room (with signing on: the oldest unsigned one, or a signed one for a signed newcomer
         only)."""
-        for addr, t in list(self.peers.items()):
-            if now_s - t > PEER_TIMEOUT_S:
-                self._forget(addr)
+        if self.peers:                  # (no list made while there is none)
+            for addr, t in list(self.peers.items()):
+                if now_s - t > PEER_TIMEOUT_S:
+                    self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
             pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
             if not pool and (newcomer_signed or not self.signing):
@@ -1651,7 +1664,8 @@ class GcsLink:
             return 0                       # nothing due, nothing queued: most frames
         sent = 0
         if now_s >= self.next_heartbeat:
-            self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
+            nxt = self.next_heartbeat + 1.0          # (``max`` makes an argument iterator)
+            self.next_heartbeat = nxt if nxt > now_s + 0.5 else now_s + 0.5
             self._send_heartbeat()
             self._expire_peers(now_s)
             self._summaries()

@@ -119,9 +119,9 @@ class Housekeeping:
                 self.stats.roll()
                 self.counters.roll_load(self.planner.period_ns)
             elif stage == 1:
-                t_gc = time.perf_counter_ns()
+                t_gc = time.perf_counter()      # (floats: no int per reading)
                 collect_garbage()
-                self.counters.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
+                self.counters.gc_us = (time.perf_counter() - t_gc) * 1e6
             elif stage == 2:
                 self.telemetry.refresh()
                 self._report_gnss_drops()
