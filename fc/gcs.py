@@ -100,14 +100,10 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
                           ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT,
                           ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE})
-#: FAST_STREAMS framed from the GNSS sample and home: the codec's path until home is set (it
-#: sets home at the first fix, ``_gnss``; GLOBAL_POSITION_INT and LOCAL_POSITION_NED are not
-#: sent before)
-GNSS_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
-#: the GNSS_STREAMS about home: none is sent while home is not set. ``service`` looks for the
-#: first fix (``_gnss``) before the streams, so a walk that finds home unset skips them without
-#: building them (``_build`` would look again and return None)
+#: FAST_STREAMS about home: none is sent while home is not set. ``service`` looks for the first
+#: fix (``_gnss``, which sets home) before the streams, so a walk that finds home unset skips
+#: them without building them (``_build`` would look again and return None). GPS_RAW_INT and
+#: SYS_STATUS are framed without home, and declined (the codec's path sets home) at a 3D fix.
 HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                           ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
 #: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
