@@ -440,6 +440,18 @@ class FlightController:
         """Plant time of the newest frame, us."""
         return self.intake.stamp_us
 
+    @property
+    def meas_stamp_at(self) -> int:
+        """The address of the int64 cell holding ``meas_stamp_us`` (compiled readers), valid
+        while not ``meas_stamp_big``."""
+        return self.intake.stamp_at
+
+    @property
+    def meas_stamp_big(self) -> bool:
+        """Whether ``meas_stamp_us`` is beyond the cell at ``meas_stamp_at`` (a faulty plant's
+        u64 stamp)."""
+        return self.intake.stamp_big
+
     def health_failed_bits(self) -> int:
         bits = self.mode_ctl.health_failed_bits()
         if self.disk.failing:
@@ -455,6 +467,9 @@ class FlightController:
     def named_values(self) -> list:
         return self.telemetry.named_values()
 
+    def named_value_count(self) -> int:
+        return self.telemetry.named_value_count()
+
     def debug_vectors(self) -> list:
         return self.telemetry.debug_vectors()
 
@@ -466,15 +481,22 @@ class FlightController:
     def debug_vector_count(self) -> int:
         return self.telemetry.debug_vector_count()
 
-    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                           sysid: int, compid: int, time_us: int) -> int:
-        return self.telemetry.frame_debug_vector(k, tx, log_epoch_us, log_t_us, seq, sysid,
-                                                 compid, time_us)
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                           sysid: int, compid: int, time_at: int) -> int:
+        return self.telemetry.frame_debug_vector(k, tx, log_epoch_us, log_t_at, seq, sysid,
+                                                 compid, time_at)
 
-    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                          sysid: int, compid: int, time_us: int) -> int:
-        return self.telemetry.frame_named_value(k, tx, log_epoch_us, log_t_us, seq, sysid,
-                                                compid, time_us)
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                          sysid: int, compid: int, time_at: int) -> int:
+        return self.telemetry.frame_named_value(k, tx, log_epoch_us, log_t_at, seq, sysid,
+                                                compid, time_at)
+
+    def nav_output_active(self) -> bool:
+        return self.telemetry.nav_output_active()
+
+    def frame_nav_output(self, tx: int, log_epoch_us: int, log_t_at: int, seq: int, sysid: int,
+                         compid: int) -> int:
+        return self.telemetry.frame_nav_output(tx, log_epoch_us, log_t_at, seq, sysid, compid)
 
     def nav_controller_output(self):
         return self.telemetry.nav_controller_output()

@@ -235,7 +235,7 @@ class Estimator:
     @property
     def invalid_frames(self) -> int:
         """Frames since reset() with at least one invalid field or an old stamp."""
-        return int(self._iv[EM_INVALID_FRAMES])
+        return self._iv.item(EM_INVALID_FRAMES)       # (an int; no numpy scalar)
 
     @invalid_frames.setter
     def invalid_frames(self, value: int) -> None:

@@ -23,6 +23,8 @@ cannot run and the link uses ``socket``'s calls (``FAST_IO`` False).
 """
 from __future__ import annotations
 
+import ctypes
+
 from numba import carray, njit, types
 from numba.core import config as _numba_config
 
@@ -40,9 +42,11 @@ drop_stale(__file__, [_carrays.__file__, _frame_kernels.__file__, _wire_layout._
                       _pwm.__file__, _codec.__file__])
 
 __all__ = ["ArrayAddress", "address_of", "decode_sensor_p", "servo_frame_p", "surfaces_pwm_p",
-           "surfaces_throttle_pwm_p", "blend3_p", "recv_sensor_p", "send_servo_p", "FAST_IO",
-           "RX_NONE", "RX_OTHER", "RX_REJECTED", "HOT_DATAGRAMS", "HOT_FRAMES", "HOT_OUTPUTS",
-           "HOT_EMPTY_READS", "HOT_N", "IO_LEN", "IO_N", "SOCKADDR_IN_B", "f8p", "i8p", "u4p",
+           "surfaces_throttle_pwm_p", "blend3_p", "copy_p", "count_p", "recv_sensor_p", "send_servo_p", "send_servo_at_p",
+           "intake_p", "int64_at", "FAST_IO", "RX_FRAME", "RX_FRAME_BIG", "RX_NONE", "RX_OTHER", "RX_REJECTED", "HOT_DATAGRAMS", "HOT_FRAMES", "HOT_OUTPUTS",
+           "HOT_EMPTY_READS", "HOT_N", "IO_LEN", "IO_STAMP", "IO_N", "STAMP_CELL_MAX_US",
+           "INTAKE_NEW", "INTAKE_DUPLICATE", "INTAKE_LATE", "INTAKE_RESTART", "IN_LAST", "IN_STAMP",
+           "IN_N", "SOCKADDR_IN_B", "f8p", "i8p", "u4p",
            "u8p"]
 
 #: the link's counters the compiled calls keep (``LinkCounters.hot``, int64[HOT_N])
@@ -53,8 +57,16 @@ HOT_EMPTY_READS = 3     # receives that found nothing waiting (or failed)
 HOT_N = 4
 #: the receive's result beside its code (int64[IO_N])
 IO_LEN = 0              # length of the datagram received (bytes, cut at the buffer's length)
-IO_N = 1
-#: recv_sensor_p's codes (a stamp is >= 0)
+IO_STAMP = 1            # the stamp of the frame received (us): the frame's stamp cell
+IO_N = 2
+#: stamps below this (us) are kept in int64 cells through the frame path (the intake, the tick
+#: planner, the answer, the internals row, the .tlog's schedule: every sum and product there
+#: stays in int64, the planner's ``_SAFE_US``); a stamp at or beyond it (a faulty plant's u64)
+#: takes the Python-int path, as before the cells
+STAMP_CELL_MAX_US = (1 << 61) // 1000
+#: recv_sensor_p's codes
+RX_FRAME = 0            # a frame, decoded; its stamp in ``io[IO_STAMP]``
+RX_FRAME_BIG = 1        # the same, its stamp at or beyond STAMP_CELL_MAX_US
 RX_NONE = -1            # nothing waiting (or the receive failed: as ``UdpEndpoint.recv_into``)
 RX_OTHER = -2           # a datagram whose source is not the locked peer (or none is locked yet)
 RX_REJECTED = -3        # from the peer, but the compiled decoder rejected it (the general parser's)
@@ -117,14 +129,32 @@ def blend3_p(dst, src, k):
 
 
 @njit(cache=True)
+def copy_p(dst, src, n):
+    """The float64[n] at ``src`` copied to the float64[n] at ``dst`` (by address)."""
+    d = carray(f8p(dst), (n,))
+    s = carray(f8p(src), (n,))
+    for i in range(n):
+        d[i] = s[i]
+
+
+@njit(cache=True)
+def count_p(counter):
+    """``counter += 1`` on the int64 at ``counter`` (a count kept beyond CPython's cached
+    small ints without an int object per step)."""
+    carray(i8p(counter), (1,))[0] += 1
+
+
+@njit(cache=True)
 def recv_sensor_p(fd, rx, rx_n, sa, salen, peer, locked, plant_sysid, meas, meas_n, gps, gps_n,
                   hot, io):
     """One datagram from the non-blocking UDP socket ``fd`` into the uint8[rx_n] at ``rx``
     (libc ``recvfrom``), its source's sockaddr_in into the uint8[16] at ``sa`` (its length
     through the uint32 at ``salen``); when ``locked`` and it came from the sockaddr_in at
     ``peer`` (family, port, address), ``decode_sensor`` of it as :func:`decode_sensor_p`.
-    Counts in int64 ``hot`` (HOT_*), the length in int64 ``io[IO_LEN]``. Returns the frame's
-    stamp (us, >= 0: counted in HOT_FRAMES), or RX_NONE, RX_OTHER or RX_REJECTED."""
+    Counts in int64 ``hot`` (HOT_*), the length in int64 ``io[IO_LEN]``. Returns RX_FRAME (the
+    frame's stamp, us, in ``io[IO_STAMP]``: no Python int for it; counted in HOT_FRAMES;
+    RX_FRAME_BIG for a stamp at or beyond STAMP_CELL_MAX_US), or RX_NONE, RX_OTHER or
+    RX_REJECTED."""
     h = carray(i8p(hot), (HOT_N,))
     ln = carray(u4p(salen), (1,))
     ln[0] = SOCKADDR_IN_B
@@ -145,8 +175,19 @@ def recv_sensor_p(fd, rx, rx_n, sa, salen, peer, locked, plant_sysid, meas, meas
                           carray(f8p(meas), (meas_n,)), carray(f8p(gps), (gps_n,)))
     if stamp < 0:
         return RX_REJECTED
+    carray(i8p(io), (IO_N,))[IO_STAMP] = stamp
     h[HOT_FRAMES] += 1
-    return stamp
+    return RX_FRAME if stamp < STAMP_CELL_MAX_US else RX_FRAME_BIG
+
+
+@njit(cache=True)
+def _send_servo(fd, tx, tx_n, seq, sysid, compid, time_usec, pwm, peer, hot):
+    n = servo_frame(carray(u8p(tx), (tx_n,)), seq, sysid, compid, time_usec,
+                    carray(i8p(pwm), (4,)))
+    if _sendto(fd, u8p(tx), n, 0, u8p(peer), SOCKADDR_IN_B) < 0:
+        return False
+    carray(i8p(hot), (HOT_N,))[HOT_OUTPUTS] += 1
+    return True
 
 
 @njit(cache=True)
@@ -154,9 +195,47 @@ def send_servo_p(fd, tx, tx_n, seq, sysid, compid, time_usec, pwm, peer, hot):
     """:func:`servo_frame_p` into the uint8[tx_n] at ``tx``, sent to the sockaddr_in at
     ``peer`` with libc ``sendto`` on ``fd``. Counts it in int64 ``hot[HOT_OUTPUTS]`` when sent;
     returns True if it was."""
-    n = servo_frame(carray(u8p(tx), (tx_n,)), seq, sysid, compid, time_usec,
-                    carray(i8p(pwm), (4,)))
-    if _sendto(fd, u8p(tx), n, 0, u8p(peer), SOCKADDR_IN_B) < 0:
-        return False
-    carray(i8p(hot), (HOT_N,))[HOT_OUTPUTS] += 1
-    return True
+    return _send_servo(fd, tx, tx_n, seq, sysid, compid, time_usec, pwm, peer, hot)
+
+
+@njit(cache=True)
+def send_servo_at_p(fd, tx, tx_n, seq, sysid, compid, stamp, pwm, peer, hot):
+    """:func:`send_servo_p` echoing the stamp in the int64 cell at ``stamp`` (us, >= 0) mod
+    2^32: no Python int for it."""
+    t = carray(i8p(stamp), (1,))[0] & 0xFFFFFFFF
+    return _send_servo(fd, tx, tx_n, seq, sysid, compid, t, pwm, peer, hot)
+
+
+def int64_at(addr: int) -> int:
+    """The int64 at ``addr`` as a Python int (a cell read outside the compiled calls: the
+    exceptional paths)."""
+    return ctypes.c_int64.from_address(addr).value
+
+
+#: the frame intake's stamps (fc/intake.py ``FrameIntake``, int64[IN_N])
+IN_LAST = 0             # the newest frame's stamp taken (us), -1 before the first
+IN_STAMP = 1            # the stamp of ``meas`` (us), 0 before the first
+IN_N = 2
+#: intake_p's verdicts
+INTAKE_NEW, INTAKE_DUPLICATE, INTAKE_LATE, INTAKE_RESTART = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def intake_p(stamp, st, late_window_us):
+    """``FrameIntake.take``'s stamp checks on the stamp in the int64 cell at ``stamp`` and the
+    intake's int64[IN_N] at ``st``: INTAKE_DUPLICATE (the newest stamp again) or INTAKE_LATE (at
+    most ``late_window_us`` older) leave the state; INTAKE_NEW or INTAKE_RESTART (plant time
+    went further back) take the stamp as the newest and as ``meas``'s."""
+    t = carray(i8p(stamp), (1,))[0]
+    s = carray(i8p(st), (IN_N,))
+    last = s[IN_LAST]
+    if t == last:
+        return INTAKE_DUPLICATE
+    verdict = INTAKE_NEW
+    if last >= 0 and t < last:
+        if last - t <= late_window_us:
+            return INTAKE_LATE
+        verdict = INTAKE_RESTART
+    s[IN_LAST] = t
+    s[IN_STAMP] = t
+    return verdict

@@ -40,9 +40,9 @@ import numpy as np
 
 from fc import gcs_frames as GF
 from fc.control.carrays import ArrayAddress, address_of
-from fc.frame_calls import FAST_IO, HOT_FRAMES
+from fc.frame_calls import FAST_IO, HOT_FRAMES, int64_at
 from fc.link import (G_ALT_M, G_FIX, G_HACC_M, G_LAT_DEG, G_LON_DEG, G_SACC_M_S, G_SATS,
-                     G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
+                     G_N, G_T_S, G_VACC_M, G_VD, G_VE, G_VN, M_AIRSPEED, M_HEADING, M_N, LeanFramer,
                      UdpEndpoint, decode_datagram, mavlink, mavlink_dev, new_codec)
 from fc.gcs_ftp import FtpService
 from fc.gcs_logs import MSG_IDS as LOG_MSGS, LogService
@@ -93,12 +93,26 @@ STREAM_IDS = tuple(STREAM_DEFAULTS_S)
 #: are built as the codec's message objects (``_build``).
 FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_VFR_HUD, ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,
-                          ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT})
+                          ML.MAVLINK_MSG_ID_DEBUG_VECT, ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT,
+                          ML.MAVLINK_MSG_ID_GPS_RAW_INT, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                          ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
+                          ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+                          ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT,
+                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE})
+#: FAST_STREAMS about home: none is sent while home is not set. ``service`` looks for the first
+#: fix (``_gnss``, which sets home) before the streams, so a walk that finds home unset skips
+#: them without building them (``_build`` would look again and return None). GPS_RAW_INT and
+#: SYS_STATUS are framed without home, and declined (the codec's path sets home) at a 3D fix.
+HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
 #: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
 #: (and 8, 10, 12, 15, 16): ``cursor % n`` is unchanged and the cursor stays a small int
 #: (CPython caches the ints up to 256: no int object per message)
 DV_CURSOR_WRAP = 240
 _I64_MAX = (1 << 63) - 1
+_MISSION_MODE = FlightMode.MISSION      # (bound once: a lookup on the enum class makes a block)
+_U64_MASK = (1 << 64) - 1
 #: GUIDED's target commands (``_guided_command``) -> the name in STATUSTEXT.
 GUIDED_COMMANDS = {
     ML.MAV_CMD_GUIDED_CHANGE_SPEED: "GUIDED_CHANGE_SPEED",
@@ -294,10 +308,22 @@ class GcsLink:
         # paced by the time base (sim time in lockstep), not by the wall clock
         self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
         self.log_framer = LeanFramer(vehicle.sysid, vehicle.compid)   # unsigned, codec's bytes
-        self._log_iv_us = {k: int(round(iv * 1e6)) for k, iv in LOG_STREAMS_S.items()}
-        self.log_due = {k: 0 for k in LOG_STREAMS_S}     # next due time, us of the time base
-        self._log_next = 0
-        self._log_last_us = 0
+        #: the .tlog's streams, their intervals (us of the time base) and, in ``_log_st``,
+        #: their next due times (GF.LOG_*: stepped by ``GF.log_walk_p``)
+        self._log_ids = tuple(LOG_STREAMS_S)
+        self._log_iv = np.array([int(round(iv * 1e6)) for iv in LOG_STREAMS_S.values()],
+                                np.int64)
+        self._log_iv_p = address_of(self._log_iv, np.int64, len(self._log_ids))
+        self._log_flags = np.zeros(len(self._log_ids), np.int64)      # due in this walk
+        self._log_flags_p = address_of(self._log_flags, np.int64, len(self._log_ids))
+        self._log_tb = np.zeros(1, np.int64)       # the walk's time base (real time)
+        self._log_tb_p = address_of(self._log_tb, np.int64, 1)
+        # the .tlog schedule (GF.LOG_*: last time base seen, next due time, each stream's):
+        # int64 stepped by a compiled call (``_service_log``), or Python ints in ``_log_big``
+        # while one is beyond the cells' range
+        self._log_st = np.zeros(GF.LOG_DUE + len(self._log_ids), np.int64)
+        self._log_st_p = address_of(self._log_st, np.int64, self._log_st.size)
+        self._log_big: list[int] | None = None
         self.io = io
         self._init_fast_frames()
         # the protocol services (one module each): log download of this .tlog, read-only FTP
@@ -364,9 +390,18 @@ class GcsLink:
         self._tx_p = address_of(self._tx, np.uint8, GF.FRAME_MAX_B)
         mv = memoryview(self._tx)
         self._tx_views = tuple(mv[:n] for n in range(GF.FRAME_MAX_B + 1))
+        self._tb = np.zeros(1, np.int64)        # the time base for the kernels (``_time_at``)
+        self._tb_p = address_of(self._tb, np.int64, 1)
         self._meas_at = ArrayAddress(np.float64, M_N)
         self._pwm_at = ArrayAddress(np.int64, 4)
         self._frames_at = ArrayAddress(np.int64, HOT_FRAMES + 1)
+        self._frames_p = 0                      # ``_frames_cell``: the address, of the array
+        self._frames_of: np.ndarray | None = None
+        self._gps_at = ArrayAddress(np.float64, G_N)
+        # ``home`` as the GNSS kernels read it (GF.HOME_*), copied when ``home`` is rebound
+        self._home_arr = np.zeros(GF.HOME_N)
+        self._home_p = address_of(self._home_arr, np.float64, GF.HOME_N)
+        self._home_src: tuple | None = None
         self._fd = self.endpoint.fileno()
         # the default schedule's destinations (``_default_addrs``): the IPv4 ones as
         # sockaddr_in rows for the compiled send, the others sent by ``socket``; rebuilt when
@@ -376,24 +411,39 @@ class GcsLink:
         self._n_dests = 0
         self._slow_dests: tuple = ()
         self._dests_dirty = True
+        # the int64 cell of the newest frame's stamp (the time base in lockstep), if the
+        # vehicle keeps one (fc/intake.py ``stamp_at``): bound by ``warm_up`` (the vehicle
+        # complete then); while None, the stamp is read as an int
+        self._stamp_at: int | None = None
         self._dv_frame = getattr(self.v, "frame_debug_vector", None)
         self._dv_count = getattr(self.v, "debug_vector_count", None)
         self._nv_frame = getattr(self.v, "frame_named_value", None)
+        self._nv_count = getattr(self.v, "named_value_count", None)
+        self._nav_frame = getattr(self.v, "frame_nav_output", None)
+        self._nav_active = getattr(self.v, "nav_output_active", None)
         self.fast: bool | None = None if FAST_IO else False
 
     def warm_up(self) -> bool:
         """Decide the compiled stream framing now, loading its kernels (the fc calls this at
         the end of its construction, before READY, so the first frames do not load them and
         ``hyfc-precompile`` compiles them): True when FAST_STREAMS use it."""
+        scratch = np.zeros(GF.LOG_DUE + 1, np.int64)                  # (loaded now)
+        sp = address_of(scratch, np.int64, GF.LOG_DUE + 1)
+        GF.log_walk_p(sp, sp, sp, 1, sp)
+        zeros = np.zeros(max(GF.GS_N, GF.TG_N, GF.E_N))     # (NAV: sent in guidance modes only)
+        zp = address_of(zeros, np.float64, zeros.size)
+        GF.nav_output_p(self._tx_p, -1, 0, 0, 1, 1, zp, zp, zp, False, 0.0, 0.0, 0.0)
         return self._fast_ok()
 
     def _fast_ok(self) -> bool:
         """Whether FAST_STREAMS go through the compiled framing (``fast``, decided once)."""
         if self.fast is None:
+            self._stamp_at = getattr(self.v, "meas_stamp_at", None)
             try:
                 self._meas_at.of(self.v.meas)
                 self._pwm_at.of(self.v.pwm_us)
                 self._frames_at.of(self.v.plant.counters.hot)
+                self._gps_at.of(self.v.plant.gps)
             except (ValueError, AttributeError, TypeError):
                 self.fast = False
                 return False
@@ -406,16 +456,29 @@ class GcsLink:
     def _fast_self_check(self) -> bool:
         """The kernels' frames of the vehicle's state now equal the codec's (as ``_build``
         makes them), each with and without the .tlog stamp."""
+        home = self.home
+        if home is None:
+            # the GNSS messages checked (and their kernels loaded) about a stand-in home, taken
+            # back after: ``_gnss`` sets no home while one is set
+            self.home = (0.0, 0.0, 0.0)
         try:
             c = new_codec(self.v.sysid, self.v.compid)
             us = self.time_us()
-            for msg_id in STREAM_IDS:
+            for msg_id in (*STREAM_IDS, ML.MAVLINK_MSG_ID_HEARTBEAT):
                 if msg_id not in FAST_STREAMS:
                     continue
                 for k in range(self._n_debug_vectors() if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
-                               else len(self.v.named_values())
+                               else self._n_named_values()
                                if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT else 1):
+                    if self._stamp_at is None and (
+                            msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT
+                            or (msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
+                                and k == self._n_debug_vectors() - 1)):
+                        continue            # (no stamp cell: these take the codec's path)
                     msg = self._build(msg_id, k, us)    # (real time: the base moves on)
+                    if msg is None:
+                        continue            # (not sent now: NAV_CONTROLLER_OUTPUT outside
+                                            # the guidance modes)
                     c.seq = 17
                     want = msg.pack(c)
                     n = self._frame_stream(msg_id, k, -1, 0, 17, us)
@@ -428,6 +491,15 @@ class GcsLink:
             return True
         except Exception:  # noqa: BLE001 - any surprise: the codec's path
             return False
+        finally:
+            self.home = home
+
+    def _n_named_values(self) -> int:
+        """How many NAMED_VALUE_FLOATs a stream period has (the vehicle's count, without
+        building the pairs, when it gives one)."""
+        if self._nv_count is not None:
+            return self._nv_count()
+        return len(self.v.named_values())
 
     def _n_debug_vectors(self) -> int:
         """How many DEBUG_VECTs a stream period has (the vehicle's, then SIM_T)."""
@@ -437,40 +509,138 @@ class GcsLink:
 
     def _frame_stream(self, msg_id: int, k: int, log_epoch_us: int, log_t_us: int, seq: int,
                       us: int) -> int:
-        """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at time base
-        ``us`` with sequence ``seq`` into ``_tx`` (with the .tlog stamp ``log_epoch_us +
-        log_t_us`` when ``log_epoch_us`` >= 0): the bytes written, or 0 when the kernel
-        declines (the caller takes the codec's path)."""
-        v = self.v
-        if us > _I64_MAX:
+        """:meth:`_frame_at` at the time base ``us``, the .tlog's stamp at ``log_t_us`` (us;
+        0 framed when one is beyond int64)."""
+        if not (0 <= us <= _I64_MAX and 0 <= log_t_us <= _I64_MAX):
             return 0
+        self._tb[0] = us
+        self._log_tb[0] = log_t_us
+        return self._frame_at(msg_id, k, log_epoch_us, self._log_tb_p, seq, self._tb_p)
+
+    def _time_at(self) -> int:
+        """The address of an int64 cell holding the time base now (``time_us``): in lockstep
+        the newest frame's stamp cell (no Python int for it), else ``_tb`` set to it; 0 when
+        it is beyond int64 (the kernels decline)."""
+        if self.sim_time and self._stamp_at is not None and not self.v.meas_stamp_big:
+            return self._stamp_at
+        us = self.time_us()
+        if not 0 <= us <= _I64_MAX:
+            return 0
+        self._tb[0] = us
+        return self._tb_p
+
+    def _frame_at(self, msg_id: int, k: int, log_epoch_us: int, log_t_at: int, seq: int,
+                  time_at: int) -> int:
+        """Frame message ``msg_id`` of FAST_STREAMS (DEBUG_VECT: vector ``k``) at the time base
+        in the int64 cell at ``time_at`` with sequence ``seq`` into ``_tx`` (with the .tlog
+        stamp ``log_epoch_us`` + the int64 at ``log_t_at`` when ``log_epoch_us`` >= 0): the
+        bytes written, or 0 when the kernel declines or ``time_at`` is 0 (the caller takes the
+        codec's path)."""
+        v = self.v
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            base, custom, status = self._heartbeat_fields()
+            return GF.heartbeat_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                  custom, ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC, base,
+                                  status)
+        if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
+            mode = v.modes.mode
+            return GF.current_mode_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                     STANDARD_MODE.get(mode, 0), custom_mode_of(mode))
+        if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0
+            c = v.error_counts()
+            return GF.sys_status_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                   v.modes.law_active, v.health_failed_bits(),
+                                   self._gps_at.of(v.plant.gps), self._stamp_at,
+                                   self.home is not None, v.load_permille(), c[0], c[1], c[2],
+                                   c[3], c[4])
+        if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
+            item, total, state, mode = self.mission.current_fields(self._mission_active())
+            return GF.mission_current_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
+                                        v.compid, item, total, state, mode)
+        if msg_id == ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            return GF.extended_sys_state_p(
+                self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                self._frames_cell(), v.modes.data_lost,
+                self._meas_at.of(v.meas))
+        if not time_at:
+            return 0
+        if msg_id == ML.MAVLINK_MSG_ID_SYSTEM_TIME:
+            return GF.system_time_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                    time_at, self.epoch_us)
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
-            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                                 self._meas_at.of(v.meas))
+            return GF.attitude_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                 time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_AOA_SSA:
-            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                                self._meas_at.of(v.meas))
+            return GF.aoa_ssa_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                time_at, self._meas_at.of(v.meas))
         if msg_id == ML.MAVLINK_MSG_ID_VFR_HUD:
-            return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
+            return GF.vfr_hud_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
                                 self._meas_at.of(v.meas), v.throttle_percent())
         if msg_id == ML.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
-            return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
-                                  us, self._pwm_at.of(v.pwm_us))
+            return GF.servo_raw_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                  time_at, self._pwm_at.of(v.pwm_us))
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
             if self._nv_frame is None:
                 return 0
-            return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid,
-                                  us)
+            return self._nv_frame(k, self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                  time_at)
         if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             if self._dv_frame is None:
                 return 0
             if k < self._dv_count():
-                return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_us, seq, v.sysid,
-                                      v.compid, us)
-            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_us, seq, v.sysid, v.compid, us,
-                              v.meas_stamp_us * 1e-6,
-                              self._frames_at.of(v.plant.counters.hot) + 8 * HOT_FRAMES)
+                return self._dv_frame(k, self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
+                                      v.compid, time_at)
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0                # (the stamp as a Python int: the codec's path)
+            return GF.sim_t_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                              time_at, self._stamp_at,
+                              self._frames_cell())
+        if msg_id == ML.MAVLINK_MSG_ID_GPS_RAW_INT:
+            # (declined at a 3D fix while home is not set: the codec's path sets it)
+            if self._stamp_at is None or v.meas_stamp_big:
+                return 0
+            return GF.gps_raw_int_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                    time_at, self._gps_at.of(v.plant.gps), self._stamp_at,
+                                    self.home is not None)
+        if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
+            if self._nav_frame is None:
+                return 0
+            return self._nav_frame(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid)
+        if self.home is None:
+            return 0                    # the codec's path (it sets home at the first fix)
+        if self.home is not self._home_src:
+            self._set_home_arr()
+        if msg_id == ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+            return GF.global_position_int_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
+                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
+                                            self._meas_at.of(v.meas), self._home_p)
+        if msg_id == ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
+            return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
+                                           v.compid, time_at, self._gps_at.of(v.plant.gps),
+                                           self._home_p)
         return 0
+
+    def _frames_cell(self) -> int:
+        """The address of the plant link's frame count (``LinkCounters.hot[HOT_FRAMES]``), bound
+        once (an address plus an offset makes an int per call)."""
+        hot = self.v.plant.counters.hot
+        if hot is not self._frames_of:
+            self._frames_p = self._frames_at.of(hot) + 8 * HOT_FRAMES
+            self._frames_of = hot
+        return self._frames_p
+
+    def _set_home_arr(self) -> None:
+        """``home`` into the GNSS kernels' array, with its latitude's cosine as ``local_ned``
+        computes it."""
+        lat, lon, alt = self.home
+        h = self._home_arr
+        h[GF.HOME_LAT_DEG] = lat
+        h[GF.HOME_LON_DEG] = lon
+        h[GF.HOME_ALT_M] = alt
+        h[GF.HOME_COS_LAT] = math.cos(math.radians(lat))
+        self._home_src = self.home
 
     def _refresh_dests(self) -> None:
         """The default schedule's destinations (``_default_addrs``) as sockaddr_in rows."""
@@ -500,37 +670,49 @@ class GcsLink:
             for addr in self._slow_dests:
                 self.endpoint.send(self._tx_views[n], addr)
 
-    def _log_fast(self, msg_id: int, t_us: int) -> None:
+    def _log_fast(self, msg_id: int, t_at: int) -> None:
         """The .tlog's messages of one stream period of ``msg_id`` (FAST_STREAMS: every named
-        value and every vector, in order) framed by the kernels and stamped ``t_us``, as
-        ``_stream_messages`` + ``_log_msg`` write them; one the kernel declines is built and
-        written by the codec's path."""
+        value and every vector, in order) framed by the kernels and stamped with the time base
+        at the int64 cell ``t_at``, as ``_stream_messages`` + ``_log_msg`` write them; one the
+        kernel declines is built and written by the codec's path."""
         mav = self.log_mav
-        us = self.time_us()
+        time_at = self._time_at()
         if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
-            count = len(self.v.named_values())
+            count = self._n_named_values()
         elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
             count = self._n_debug_vectors()
+        elif self._none_due(msg_id):
+            return
         else:
             count = 1
         k = 0
         while k < count:
-            n = self._frame_stream(msg_id, k, self.epoch_us, t_us, mav.seq, us)
+            n = self._frame_at(msg_id, k, self.epoch_us, t_at, mav.seq, time_at)
             if n:
                 self._tlog_buf += self._tx_views[n]
                 mav.seq = (mav.seq + 1) % 256
             else:
                 msg = self._build(msg_id, k)
                 if msg is not None:
-                    self._log_msg(msg, t_us)
+                    self._log_msg(msg, int64_at(t_at))
             k += 1
 
+    def _none_due(self, msg_id: int) -> bool:
+        """Whether FAST_STREAMS' ``msg_id`` has no message now (``_build`` would give None
+        after the work): HOME_STREAMS before home (``service`` looked for the first fix before
+        the streams), NAV_CONTROLLER_OUTPUT outside the guidance modes."""
+        if msg_id == ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT:
+            return self._nav_active is not None and not self._nav_active()
+        return self.home is None and msg_id in HOME_STREAMS
+
     def _tlog_write(self, buf: bytes, t_us: int | None = None) -> None:
-        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64)."""
+        """Append a frame to the .tlog, stamped epoch + time base (us, big-endian u64, mod
+        2^64: a faulty plant's stamp near 2^64 raised here and stopped the fc; the compiled
+        framing's int64 sum wraps the same way)."""
         if self.tlog is not None:
             if t_us is None:
                 t_us = self.time_us()
-            self._tlog_buf += struct.pack(">Q", self.epoch_us + t_us)
+            self._tlog_buf += struct.pack(">Q", (self.epoch_us + t_us) & _U64_MASK)
             self._tlog_buf += buf
 
     def _log_msg(self, msg, t_us: int | None = None) -> None:
@@ -647,9 +829,10 @@ class GcsLink:
     def _summaries(self) -> None:
         """Once a second: the "N suppressed" lines of bursts that have ended."""
         now = time.monotonic()
-        for sev, text in self.texts.summaries(now):
-            self._queue_text(sev, text)
-        if self.log is not None:
+        if not self.texts.idle:             # (the idle limiters make no list)
+            for sev, text in self.texts.summaries(now):
+                self._queue_text(sev, text)
+        if self.log is not None and not self.log_limit.idle:
             for _sev, text in self.log_limit.summaries(now):
                 self.log.warning(text)
 
@@ -740,9 +923,10 @@ class GcsLink:
         """Forget peers silent for PEER_TIMEOUT_S; ``force``: also the oldest one, to make
         room (with signing on: the oldest unsigned one, or a signed one for a signed newcomer
         only)."""
-        for addr, t in list(self.peers.items()):
-            if now_s - t > PEER_TIMEOUT_S:
-                self._forget(addr)
+        if self.peers:                  # (no list made while there is none)
+            for addr, t in list(self.peers.items()):
+                if now_s - t > PEER_TIMEOUT_S:
+                    self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
             pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
             if not pool and (newcomer_signed or not self.signing):
@@ -1174,7 +1358,7 @@ class GcsLink:
 
     # ------------------------------------------------------------------ mission
     def _mission_active(self) -> bool:
-        return self.v.modes.mode == FlightMode.MISSION
+        return self.v.modes.mode == _MISSION_MODE
 
     def mission_send(self, outputs: list) -> None:
         """Send the outputs of fc/mission.py ``Mission`` (protocol replies, MISSION_CURRENT,
@@ -1187,7 +1371,8 @@ class GcsLink:
                 self.oneshot.append(mission_encode(self.mav, self.mission, out, active))
 
     # ------------------------------------------------------------------ transmit
-    def _heartbeat(self):
+    def _heartbeat_fields(self) -> tuple[int, int, int]:
+        """HEARTBEAT's (base_mode, custom_mode, system_status) of the vehicle now."""
         modes = self.v.modes
         base = ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if modes.armed:
@@ -1200,8 +1385,30 @@ class GcsLink:
             status = ML.MAV_STATE_ACTIVE
         else:
             status = ML.MAV_STATE_STANDBY
+        return base, custom_mode_of(modes.mode), status
+
+    def _heartbeat(self):
+        base, custom, status = self._heartbeat_fields()
         return self.mav.heartbeat_encode(ML.MAV_TYPE_FIXED_WING, ML.MAV_AUTOPILOT_GENERIC,
-                                         base, custom_mode_of(modes.mode), status)
+                                         base, custom, status)
+
+    def _send_heartbeat(self) -> None:
+        """HEARTBEAT to every output and peer (``send``, not logged: the .tlog has its own):
+        framed by the compiled kernel for the default schedule's destinations when its link
+        is unsigned (``_send_frame``), by the codec for the own-rate links."""
+        if self.default.mav.signing.sign_outgoing or not self._fast_ok():
+            self.send(self._heartbeat(), log=False)
+            return
+        n = self._frame_at(ML.MAVLINK_MSG_ID_HEARTBEAT, 0, -1, 0, self.mav.seq, 0)
+        if not n:
+            self.send(self._heartbeat(), log=False)
+            return
+        self.mav.seq = (self.mav.seq + 1) % 256             # as _pack
+        self._send_frame(n)
+        if self.links:
+            msg = self._heartbeat()
+            for link in self.links.values():
+                self._send_on(link, msg)
 
     def _current_mode(self):
         """CURRENT_MODE (standard modes): the mode's standard mode (CRUISE: MAV_STANDARD_MODE
@@ -1256,6 +1463,8 @@ class GcsLink:
         """The streamed message ``msg_id`` (``cursor``: which named value or vector) at time
         base ``us`` (default: now, ``time_us``)."""
         v = self.v
+        if msg_id == ML.MAVLINK_MSG_ID_HEARTBEAT:
+            return self._heartbeat()
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             return self._current_mode()
         if msg_id == ML.MAVLINK_MSG_ID_MISSION_CURRENT:
@@ -1362,31 +1571,76 @@ class GcsLink:
     def _service_log(self) -> None:
         """The .tlog's streams at LOG_STREAMS_S rates of the time base (sim time in
         lockstep): due messages are written with the log's codec, stamped with the time base.
-        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames."""
+        Scheduled in whole microseconds, so a 0.1 s stream falls on the 0.1 s frames. The
+        schedule is stepped by a compiled call on the time base's cell (lockstep: the newest
+        frame's stamp; no Python int for it, nothing made on the frames where nothing is due);
+        a time base or schedule beyond the cells' range is stepped on Python ints."""
         if self.tlog is None:
             return
-        t_us = self.time_us()
-        if t_us < self._log_last_us:        # the plant restarted: the schedule starts over
-            for k in self.log_due:
-                self.log_due[k] = t_us
-            self._log_next = t_us
-        self._log_last_us = t_us
-        if t_us < self._log_next:
+        t_at = self._log_time_at() if self._log_big is None else 0
+        if not t_at:
+            self._service_log_py()
             return
-        nxt = None
-        for msg_id, iv_us in self._log_iv_us.items():
-            due = self.log_due[msg_id]
-            if t_us >= due:
-                if msg_id in FAST_STREAMS and self._fast_ok():
-                    self._log_fast(msg_id, t_us)
-                else:
+        if not GF.log_walk_p(t_at, self._log_st_p, self._log_iv_p, len(self._log_ids),
+                             self._log_flags_p):
+            return
+        ids, flags = self._log_ids, self._log_flags
+        i, n = 0, len(ids)
+        while i < n:                        # (an index loop: no iterator object)
+            if flags.item(i):
+                self._log_period(ids[i], t_at)
+            i += 1
+
+    def _log_time_at(self) -> int:
+        """The address of an int64 cell holding the time base for the .tlog's walk (the
+        newest frame's stamp cell in lockstep, else ``_log_tb``), 0 beyond the cells' range."""
+        if self.sim_time and self._stamp_at is not None and not self.v.meas_stamp_big:
+            return self._stamp_at
+        us = self.time_us()
+        if not -GF.LOG_SAFE_US < us < GF.LOG_SAFE_US:
+            return 0
+        self._log_tb[0] = us
+        return self._log_tb_p
+
+    def _log_period(self, msg_id: int, t_at: int) -> None:
+        """Write one stream period of ``msg_id`` to the .tlog, stamped with the time base at
+        the int64 cell ``t_at``."""
+        if msg_id in FAST_STREAMS and self._fast_ok():
+            self._log_fast(msg_id, t_at)
+        else:
+            t_us = int64_at(t_at)
+            for msg in self._stream_messages(msg_id):
+                self._log_msg(msg, t_us)
+
+    def _service_log_py(self) -> None:
+        """``_service_log``'s walk on Python ints (the schedule in ``_log_big`` or the time
+        base beyond the cells' range): the same steps as ``GF.log_walk_p``, the messages built
+        by the codec."""
+        k = self._log_big or self._log_st.tolist()
+        t_us = self.time_us()
+        n = len(self._log_ids)
+        if t_us < k[GF.LOG_LAST]:           # the plant restarted: the schedule starts over
+            k[GF.LOG_DUE:] = [t_us] * n
+            k[GF.LOG_NEXT] = t_us
+        k[GF.LOG_LAST] = t_us
+        if t_us >= k[GF.LOG_NEXT]:
+            nxt = None
+            for i, msg_id in enumerate(self._log_ids):
+                due = k[GF.LOG_DUE + i]
+                if t_us >= due:
                     for msg in self._stream_messages(msg_id):
                         self._log_msg(msg, t_us)
-                due = due + iv_us if due + iv_us > t_us else t_us + iv_us
-                self.log_due[msg_id] = due
-            if nxt is None or due < nxt:
-                nxt = due
-        self._log_next = nxt
+                    iv_us = int(self._log_iv[i])
+                    due = due + iv_us if due + iv_us > t_us else t_us + iv_us
+                    k[GF.LOG_DUE + i] = due
+                if nxt is None or due < nxt:
+                    nxt = due
+            k[GF.LOG_NEXT] = nxt
+        if all(-GF.LOG_SAFE_US < v < GF.LOG_SAFE_US for v in k):
+            self._log_st[:] = k
+            self._log_big = None
+        else:
+            self._log_big = k
 
     def service(self, now_s: float) -> int:
         """Send what is due (at most ``max_tx`` messages) on the wall clock ``now_s``, and write
@@ -1406,8 +1660,9 @@ class GcsLink:
             return 0                       # nothing due, nothing queued: most frames
         sent = 0
         if now_s >= self.next_heartbeat:
-            self.next_heartbeat = max(self.next_heartbeat + 1.0, now_s + 0.5)
-            self.send(self._heartbeat(), log=False)
+            nxt = self.next_heartbeat + 1.0          # (``max`` makes an argument iterator)
+            self.next_heartbeat = nxt if nxt > now_s + 0.5 else now_s + 0.5
+            self._send_heartbeat()
             self._expire_peers(now_s)
             self._summaries()
             sent += 1
@@ -1490,12 +1745,14 @@ class GcsLink:
             if iv < 0 or now_s < link.next_due[msg_id]:
                 continue
             if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT:
-                n_items = len(self.v.named_values())
+                n_items = self._n_named_values()
                 step = iv / n_items
                 cursor = link.nv_cursor
                 # wrapped at a multiple of the count (which is fixed): ``cursor % n_items``
                 # unchanged, the cursor a small int (CPython's cached ints: none made per message)
-                link.nv_cursor = (cursor + 1) % (n_items * max(1, 256 // n_items))
+                # (``max`` made an argument iterator: a block per message)
+                wrap = 256 // n_items
+                link.nv_cursor = (cursor + 1) % (n_items * (wrap if wrap > 1 else 1))
             elif msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT:
                 n_vec = self._n_debug_vectors()
                 step = iv / n_vec
@@ -1507,11 +1764,13 @@ class GcsLink:
             nd = link.next_due[msg_id] + step
             link.next_due[msg_id] = nd if nd > now_s else now_s + step
             if fast and msg_id in FAST_STREAMS:
+                if self._none_due(msg_id):
+                    continue
                 mav = link.mav
                 k = (cursor % n_vec if msg_id == ML.MAVLINK_MSG_ID_DEBUG_VECT
                      else cursor % n_items if msg_id == ML.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT
                      else 0)
-                n = self._frame_stream(msg_id, k, -1, 0, mav.seq, self.time_us())
+                n = self._frame_at(msg_id, k, -1, 0, mav.seq, self._time_at())
                 if n:
                     mav.seq = (mav.seq + 1) % 256       # as _pack
                     self._send_frame(n)

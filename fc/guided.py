@@ -24,6 +24,7 @@ import numpy as np
 
 from fc.control.carrays import address_of
 from fc.control.layout import ATM_N, ATM_RHO, E_GAMMA, E_H, E_N, E_V
+from fc.frame_calls import count_p
 from fc.control.nominal import interp_atmosphere
 from fc.guidance import layout as G
 from fc.guidance.guidance import Guidance
@@ -53,7 +54,10 @@ class GuidanceRunner:
         self.div = max(1, int(round(fast_hz / GUIDANCE_HZ)))
         self.dt_s = self.div / fast_hz
         self.count = 0                  # fast ticks since the last guidance step, mod div
-        self.steps = 0                  # guidance steps since start (tests, telemetry)
+        # guidance steps since start (tests, telemetry): an int64 counted by a compiled call
+        # (an int past 256 per step otherwise)
+        self._steps = np.zeros(1, np.int64)
+        self._steps_p = address_of(self._steps, np.int64, 1)
         self.engaged = False
         self.mode = -1                  # the guidance mode it was last engaged or re-targeted in
         self.mode_before_off = -1       # the mode it flew when last disengaged (resume)
@@ -88,6 +92,8 @@ class GuidanceRunner:
         spare.set_targets(h_m=28000.0, chi_rad=0.0, V_m_s=2250.0)
         spare.step(est, 0.0, self.dt_s)
         course_from_air_data(0.0, 0.05, 0.0, 0.05, 0.0)
+        spare_count = np.zeros(1, np.int64)
+        count_p(address_of(spare_count, np.int64, 1))
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, est: np.ndarray, meas: np.ndarray) -> None:
@@ -162,8 +168,13 @@ class GuidanceRunner:
         if before_step is not None:
             before_step()
         self.limits = self.g.step(self.gest, self.chi_rad, self.dt_s)
-        self.steps += 1
+        count_p(self._steps_p)
         return True
+
+    @property
+    def steps(self) -> int:
+        """Guidance steps since start."""
+        return self._steps.item(0)
 
     def course_error_filtered(self) -> float:
         """The course loop's filtered error wrap(chi_t - chi) (rad) after the last step; 0

@@ -22,7 +22,11 @@ from typing import Callable
 
 import numpy as np
 
+from fc.control.carrays import address_of
 from fc.estimator import Estimator
+from fc.frame_calls import (IN_LAST, IN_N, IN_STAMP, INTAKE_DUPLICATE, INTAKE_LATE,
+                            INTAKE_RESTART, STAMP_CELL_MAX_US, int64_at, intake_p)
+from fc.link import M_T_S
 from fc.link import mavlink as ML
 from fc.mode_control import ModeControl
 from fc.scheduler import TickPlanner
@@ -38,7 +42,12 @@ REORDER_WINDOW_US = 100_000
 
 @dataclass
 class FrameIntake:
-    """Takes plant frames into the estimator; see the module docstring."""
+    """Takes plant frames into the estimator; see the module docstring.
+
+    The newest stamp and ``meas``'s (``last_stamp_us``, ``stamp_us``) live in an int64 array
+    checked and stepped by a compiled call (:meth:`take_at`, issue 24: no Python int per
+    frame), read and assigned as ints. A stamp at or beyond STAMP_CELL_MAX_US (a faulty
+    plant's u64) is kept as a Python int (``_big``) until a smaller one is taken."""
 
     meas: np.ndarray                # the newest frame (fc/link.py M_*), updated in place
     scratch: np.ndarray             # where the loops read the next frame
@@ -52,35 +61,87 @@ class FrameIntake:
     announce_param: Callable[[str], None]
     event: Callable[[str, int], None]
     late_window_us: int = 0         # see the module docstring
-    stamp_us: int = 0               # plant time of ``meas``, us
-    last_stamp_us: int = -1
+
+    def __post_init__(self) -> None:
+        self._st = np.zeros(IN_N, np.int64)
+        self._st[IN_LAST] = -1
+        #: the address of the int64 holding ``stamp_us`` (the compiled readers of the stamp)
+        self.stamp_at = address_of(self._st, np.int64, IN_N) + 8 * IN_STAMP
+        self._st_p = self.stamp_at - 8 * IN_STAMP
+        self._big: int | None = None    # the newest stamp when beyond the cell (see above)
+
+    @property
+    def stamp_us(self) -> int:
+        """Plant time of ``meas``, us (0 before the first frame)."""
+        return self._big if self._big is not None else self._st.item(IN_STAMP)
+
+    @property
+    def last_stamp_us(self) -> int:
+        """The newest stamp taken, us (-1 before the first frame)."""
+        return self._big if self._big is not None else self._st.item(IN_LAST)
+
+    @property
+    def stamp_big(self) -> bool:
+        """Whether ``stamp_us`` is beyond the int64 cell at ``stamp_at`` (a Python int)."""
+        return self._big is not None
 
     def take(self, stamp: int, now_s: float) -> bool:
         """The frame in ``scratch`` stamped ``stamp`` (plant time, us) arrived at ``now_s``
         (wall clock). False for a repeat or a late frame (the caller answers it or not), else
         True."""
-        if stamp == self.last_stamp_us:
+        last = self.last_stamp_us
+        if stamp == last:
             self.counters.duplicate_frames += 1
             return False
-        if self.last_stamp_us >= 0 and stamp < self.last_stamp_us:
-            if self.last_stamp_us - stamp <= self.late_window_us:
+        if last >= 0 and stamp < last:
+            if last - stamp <= self.late_window_us:
                 self.counters.reordered_frames += 1
                 return False
-            self.counters.plant_resets += 1
-            self.event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
-            self.est.reset()
-            if self.plant_time_ticks:
-                self.planner.next_ns = None     # real time: its deadlines are the wall clock
-            self.mode_ctl.restart()
-            if self.timeline is not None:
-                self.timeline.next = 0          # the command timeline starts over
-        self.last_stamp_us = stamp
-        self.stamp_us = stamp
+            self._restart()
+        if 0 <= stamp < STAMP_CELL_MAX_US:
+            self._st[IN_LAST] = stamp
+            self._st[IN_STAMP] = stamp
+            self._big = None
+        else:
+            self._big = stamp
         self.est.accept(self.scratch, self.meas)       # meas = scratch, the estimator on it
         self.mode_ctl.on_frame(now_s, stamp * 1e-6)
         if self.timeline is not None:
             self._timeline_due()
         return True
+
+    def take_at(self, stamp_at: int, now_s: float) -> bool:
+        """:meth:`take` of the frame whose stamp is in the int64 cell at ``stamp_at`` (below
+        STAMP_CELL_MAX_US: fc/link.py ``read_frame_at``), checked by a compiled call; its
+        plant time (s) read from ``scratch`` as a float (the decoder wrote stamp x 1e-6)."""
+        if self._big is not None:
+            return self.take(int64_at(stamp_at), now_s)
+        verdict = intake_p(stamp_at, self._st_p, self.late_window_us)
+        if verdict == INTAKE_DUPLICATE:
+            self.counters.duplicate_frames += 1
+            return False
+        if verdict == INTAKE_LATE:
+            self.counters.reordered_frames += 1
+            return False
+        if verdict == INTAKE_RESTART:
+            self._restart()
+        t_s = self.scratch.item(M_T_S)
+        self.est.accept(self.scratch, self.meas)       # meas = scratch, the estimator on it
+        self.mode_ctl.on_frame(now_s, t_s)
+        if self.timeline is not None:
+            self._timeline_due()
+        return True
+
+    def _restart(self) -> None:
+        """Plant time went back beyond the late window (a plant restarted): the loops restart."""
+        self.counters.plant_resets += 1
+        self.event("plant time went backwards: restarting the loops", ML.MAV_SEVERITY_WARNING)
+        self.est.reset()
+        if self.plant_time_ticks:
+            self.planner.next_ns = None     # real time: its deadlines are the wall clock
+        self.mode_ctl.restart()
+        if self.timeline is not None:
+            self.timeline.next = 0          # the command timeline starts over
 
     def _timeline_due(self) -> None:
         for c in self.timeline.due(self.meas[0]):

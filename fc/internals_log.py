@@ -30,6 +30,7 @@ import numpy as np
 from numba import carray, njit
 
 from fc.control.carrays import i8p
+from fc.frame_calls import STAMP_CELL_MAX_US, int64_at
 import hyfc_wire.rawnpz as _rawnpz
 from fc.storage import AppendFile, DiskHealth, atomic_write, open_for_write
 
@@ -59,6 +60,37 @@ def _take_row_p(cur, chunk_rows):
 def _count_p(cur, k):
     """``cur[k] += 1``."""
     carray(i8p(cur), (CUR_N,))[k] += 1
+
+
+# which rows are kept past the full-rate span (int64[KS_N], ``InternalsLog._keep``)
+KS_HAVE_T0 = 0          # 1 once the first stamp is known
+KS_T0 = 1               # the first row's stamp (us)
+KS_FULL_END = 2         # the first stamp past the full-rate span (us)
+KS_NEXT = 3             # the next tail row's stamp (us)
+KS_N = 4
+
+
+@njit(cache=True)
+def _keep_p(ks, stamp_us, full_us, tail_us):
+    """:meth:`InternalsLog._keep` on its int64[KS_N] state at ``ks``."""
+    k = carray(i8p(ks), (KS_N,))
+    if k[KS_HAVE_T0] == 0:
+        k[KS_T0] = stamp_us
+        k[KS_FULL_END] = stamp_us + full_us
+        k[KS_HAVE_T0] = 1
+    if stamp_us < k[KS_FULL_END]:
+        return True
+    if stamp_us < k[KS_NEXT]:
+        return False
+    since_us = stamp_us - k[KS_T0]
+    k[KS_NEXT] = k[KS_T0] + (since_us // tail_us + 1) * tail_us
+    return True
+
+
+@njit(cache=True)
+def _keep_at_p(ks, stamp, full_us, tail_us):
+    """:func:`_keep_p` of the stamp in the int64 cell at ``stamp``."""
+    return _keep_p(ks, carray(i8p(stamp), (1,))[0], full_us, tail_us)
 
 
 NPZ_NAME = "fc_internals.npz"
@@ -120,9 +152,15 @@ class InternalsLog:
         _count_p(int(scratch.__array_interface__["data"][0]), CUR_DECIMATED)
         self._full_us = None if full_rate_s is None else int(round(full_rate_s * 1e6))
         self._tail_us = max(1, int(round(1e6 / tail_hz)))
-        self._t0_us: int | None = None
-        self._full_end_us = 0      # first stamp past the full-rate span (us), set at the first
-        self._next_us = 0
+        # which rows are kept (``_keep``): int64[KS_N] stepped by compiled calls; the same
+        # state as Python ints in ``_ks_big`` while a stamp beyond the cells' range is in it
+        self._ks = np.zeros(KS_N, np.int64)
+        self._ks_p = int(self._ks.__array_interface__["data"][0])
+        self._ks_big: list[int] | None = None
+        ks = np.zeros(KS_N, np.int64)                                       # (loaded now)
+        ks_p = int(ks.__array_interface__["data"][0])
+        _keep_p(ks_p, 0, 1, 1)
+        _keep_at_p(ks_p, ks_p, 1, 1)
         self._thread = threading.Thread(target=self._writer, name="internals-log", daemon=True)
         self._thread.start()
         self.closed = False
@@ -144,6 +182,24 @@ class InternalsLog:
         if self._full_us is not None and stamp_us is not None and not self._keep(stamp_us):
             _count_p(self.cursor_address, CUR_DECIMATED)
             return False
+        return self._next_row()
+
+    def take_row_at(self, stamp_at: int) -> bool:
+        """:meth:`take_row` of the frame whose stamp is in the int64 cell at ``stamp_at`` (below
+        fc/frame_calls.py STAMP_CELL_MAX_US), read in the compiled call: no int per row."""
+        if self._full_us is not None:
+            if self._ks_big is None:
+                keep = _keep_at_p(self._ks_p, stamp_at, self._full_us, self._tail_us)
+            else:
+                keep = self._keep(int64_at(stamp_at))
+            if not keep:
+                _count_p(self.cursor_address, CUR_DECIMATED)
+                return False
+        return self._next_row()
+
+    def _next_row(self) -> bool:
+        """The next row of ``chunk`` taken (a full chunk handed to the writer first); False
+        when no buffer is free."""
         if self.chunk is None or not _take_row_p(self.cursor_address, self._chunk_rows):
             n = self.n
             if self.chunk is not None:
@@ -178,16 +234,27 @@ class InternalsLog:
     def _keep(self, stamp_us: int) -> bool:
         """Is the row of this frame stamp (us) kept? Every one in the first ``full_rate_s``,
         then the first at or after each multiple of the tail period (from the first stamp)."""
-        if self._t0_us is None:
-            self._t0_us = stamp_us
-            self._full_end_us = stamp_us + self._full_us
-        if stamp_us < self._full_end_us:     # stamp - t0 < full_us, without an int per row
-            return True
-        if stamp_us < self._next_us:
-            return False
-        since_us = stamp_us - self._t0_us
-        self._next_us = self._t0_us + (since_us // self._tail_us + 1) * self._tail_us
-        return True
+        if self._ks_big is None and 0 <= stamp_us < STAMP_CELL_MAX_US:
+            return _keep_p(self._ks_p, stamp_us, self._full_us, self._tail_us)
+        # a stamp beyond the cells' range: the same steps on Python ints
+        k = self._ks_big if self._ks_big is not None else self._ks.tolist()
+        if not k[KS_HAVE_T0]:
+            k[KS_T0] = stamp_us
+            k[KS_FULL_END] = stamp_us + self._full_us
+            k[KS_HAVE_T0] = 1
+        keep = True
+        if stamp_us >= k[KS_FULL_END]:
+            if stamp_us < k[KS_NEXT]:
+                keep = False
+            else:
+                since_us = stamp_us - k[KS_T0]
+                k[KS_NEXT] = k[KS_T0] + (since_us // self._tail_us + 1) * self._tail_us
+        if all(-STAMP_CELL_MAX_US < v < 2 * STAMP_CELL_MAX_US for v in k):
+            self._ks[:] = k
+            self._ks_big = None
+        else:
+            self._ks_big = k
+        return keep
 
     def _writer(self) -> None:
         while True:

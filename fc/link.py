@@ -23,9 +23,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fc.frame_calls import (FAST_IO, HOT_DATAGRAMS, HOT_EMPTY_READS, HOT_FRAMES, HOT_N,
-                            HOT_OUTPUTS, IO_LEN, IO_N, RX_NONE, RX_OTHER, RX_REJECTED,
-                            SOCKADDR_IN_B, ArrayAddress, address_of, decode_sensor_p,
-                            recv_sensor_p, send_servo_p, servo_frame_p, surfaces_pwm_p)
+                            HOT_OUTPUTS, IO_LEN, IO_N, IO_STAMP, RX_FRAME, RX_FRAME_BIG, RX_NONE, RX_OTHER,
+                            RX_REJECTED, SOCKADDR_IN_B, STAMP_CELL_MAX_US, ArrayAddress,
+                            address_of, decode_sensor_p, recv_sensor_p, send_servo_at_p,
+                            send_servo_p, servo_frame_p, surfaces_pwm_p)
 from hyfc_wire.codec import development_dialect, mavlink, new_codec, reset_parser
 from hyfc_wire.frame_kernels import (GR_FIX, GR_HACC_M, GR_LAT_E7, GR_LON_E7, GR_N,
                                      GR_PRESENT, GR_SACC_M_S, GR_SATS, GR_VACC_M, GR_VD, GR_VE,
@@ -44,7 +45,7 @@ from hyfc_wire.udp import MAX_DATAGRAM_B, UdpEndpoint, parse_hostport  # noqa: F
 
 __all__ = [
     "mavlink", "mavlink_dev", "new_codec", "UdpEndpoint", "decode_datagram", "PlantLink",
-    "LinkCounters", "LeanFramer",
+    "LinkCounters", "LeanFramer", "FRAME_AT", "FRAME_BIG", "FRAME_NONE",
     "deflection_to_pwm", "pwm_to_deflection", "throttle_to_pwm", "pwm_map", "surfaces_pwm",
     "load_signing_key",
     "parse_hostport",
@@ -53,6 +54,11 @@ __all__ = [
     "G_T_S", "G_LAT_DEG", "G_LON_DEG", "G_ALT_M", "G_VN", "G_VE", "G_VD", "G_FIX", "G_SATS",
     "G_HACC_M", "G_VACC_M", "G_SACC_M_S", "G_N",
 ]
+
+#: ``PlantLink.read_frame_at``'s codes
+FRAME_AT = 0        # a frame; its stamp in the int64 cell at ``stamp_cell_at``
+FRAME_BIG = 1       # a frame; its stamp (>= STAMP_CELL_MAX_US) in ``big_stamp``
+FRAME_NONE = -1     # no acceptable datagram waiting
 
 #: the development dialect (standard modes, PARAM_ERROR: the ground-station link's), loaded
 #: here, by the fc only (hyfc_wire/codec.py ``development_dialect``)
@@ -185,7 +191,7 @@ def _libc_io_self_check(link: "PlantLink") -> bool:
         link._fd = a.fileno()
         link.peer = None
         got = np.zeros(M_N)
-        if link._read_frame_compiled(got) != -1 or link.counters.empty_reads != saved[2][
+        if link._read_frame_compiled(got) != FRAME_NONE or link.counters.empty_reads != saved[2][
                 HOT_EMPTY_READS] + 1:
             return False
         for locked in (False, True):
@@ -198,7 +204,8 @@ def _libc_io_self_check(link: "PlantLink") -> bool:
                                  link._meas_at.of(got), M_N, link._gps_raw_addr, GR_N,
                                  link._hot_at.of(link.counters.hot), link._io_addr)
             if locked:
-                if code != 7_654_321 or not np.array_equal(got, want):
+                if (code != RX_FRAME or link._io.item(IO_STAMP) != 7_654_321
+                        or not np.array_equal(got, want)):
                     return False
             elif (code != RX_OTHER or int(link._io[IO_LEN]) != len(frame)
                   or link._source() != b.getsockname()):
@@ -297,6 +304,8 @@ class PlantLink:
     frame_rx_ns: int = 0
     #: the plant said goodbye (its run is over) and no frame has come since
     ended: bool = False
+    #: the stamp (us) of the last frame ``read_frame_at`` answered FRAME_BIG for
+    big_stamp: int = 0
     #: the newest GNSS sample (layout G_*; G_T_S = the stamp of the frame that carried it,
     #: G_FIX 0 until the first one); ``gps_samples`` counts them
     gps: np.ndarray = None
@@ -327,7 +336,8 @@ class PlantLink:
     _salen: np.ndarray = None       # its length (uint32[1])
     _peer_sa: np.ndarray = None     # ``peer`` as sockaddr_in bytes (zeros when None)
     _peer_sa_of: tuple | None = None    # the ``peer`` that _peer_sa holds
-    _io: np.ndarray = None          # int64[IO_N]: the receive's length
+    _io: np.ndarray = None          # int64[IO_N]: the receive's length, the frame's stamp
+    stamp_cell_at: int = 0          # the address of ``_io[IO_STAMP]`` (``read_frame_at``)
     _sa_addr: int = 0
     _salen_addr: int = 0
     _peer_sa_addr: int = 0
@@ -359,6 +369,9 @@ class PlantLink:
         self._salen_addr = address_of(self._salen, np.uint32, 1)
         self._peer_sa_addr = address_of(self._peer_sa, np.uint8, SOCKADDR_IN_B)
         self._io_addr = address_of(self._io, np.int64, IO_N)
+        #: the address of the int64 cell holding the stamp of the frame ``read_frame_at``
+        #: answered FRAME_AT for (the intake, the planner and the answer read it there)
+        self.stamp_cell_at = self._io_addr + 8 * IO_STAMP
         self._fd = self.endpoint.sock.fileno()
         self._fast = _lean_self_check(self)
         self._fast_io = (self._fast and FAST_IO and self.endpoint.sock.family == socket.AF_INET
@@ -368,9 +381,19 @@ class PlantLink:
         """Read datagrams until one complete accepted frame is decoded into ``meas_out``.
 
         Returns the frame stamp in us (u64) or -1 when no acceptable datagram is waiting.
-        At most 64 datagrams are read per call (bounded work). In the common case (a frame
-        from the locked peer) no Python object is made but the stamp (``_fast_io``: receive,
-        source check and decode in one compiled call)."""
+        At most 64 datagrams are read per call (bounded work). :meth:`read_frame_at` without
+        the stamp as a Python int."""
+        code = self.read_frame_at(meas_out)
+        if code == FRAME_AT:
+            return self._io.item(IO_STAMP)
+        return self.big_stamp if code == FRAME_BIG else -1
+
+    def read_frame_at(self, meas_out: np.ndarray) -> int:
+        """:meth:`read_frame` returning a code: FRAME_AT (the stamp, below STAMP_CELL_MAX_US, in
+        the int64 cell at ``stamp_cell_at``), FRAME_BIG (a stamp at or beyond it, a faulty
+        plant's u64: in ``big_stamp``, a Python int) or FRAME_NONE. In the common case (a frame
+        from the locked peer) no Python object is made (``_fast_io``: receive, source check and
+        decode in one compiled call, the stamp left in the cell)."""
         if self._fast_io and not self.endpoint.stamped:
             return self._read_frame_compiled(meas_out)
         rx = self._rx
@@ -378,18 +401,26 @@ class PlantLink:
             got = self.endpoint.recv_into(rx)
             if got is None:
                 self.counters.empty_reads += 1
-                return -1
+                return FRAME_NONE
             n, addr = got
             self.counters.datagrams += 1
             stamp = self._accept(n, addr, meas_out)
             if stamp >= 0:
-                return stamp
-        return -1
+                return self._stamp_code(stamp)
+        return FRAME_NONE
+
+    def _stamp_code(self, stamp: int) -> int:
+        """A frame stamped ``stamp`` (a Python int) taken: into the cell, or ``big_stamp``."""
+        if stamp < STAMP_CELL_MAX_US:
+            self._io[IO_STAMP] = stamp
+            return FRAME_AT
+        self.big_stamp = stamp
+        return FRAME_BIG
 
     def _read_frame_compiled(self, meas_out: np.ndarray) -> int:
-        """:meth:`read_frame` through ``recv_sensor_p`` (counted there); a datagram it does not
-        take (another source, none locked yet, rejected by the compiled decoder) goes through
-        :meth:`_accept` as the socket path's would."""
+        """:meth:`read_frame_at` through ``recv_sensor_p`` (counted there); a datagram it does
+        not take (another source, none locked yet, rejected by the compiled decoder) goes
+        through :meth:`_accept` as the socket path's would."""
         if self.peer is not self._peer_sa_of:
             self._bind_peer_sa()
         meas = self._meas_at.of(meas_out)
@@ -398,25 +429,28 @@ class PlantLink:
         k = 64                          # (counted down: no range object per call)
         while k:
             k -= 1
-            stamp = recv_sensor_p(self._fd, self._rx_addr, MAX_DATAGRAM_B, self._sa_addr,
-                                  self._salen_addr, self._peer_sa_addr, locked,
-                                  self.plant_sysid, meas, M_N, self._gps_raw_addr, GR_N, hot,
-                                  self._io_addr)
-            if stamp >= 0:
-                self._take_gps(stamp)
+            code = recv_sensor_p(self._fd, self._rx_addr, MAX_DATAGRAM_B, self._sa_addr,
+                                 self._salen_addr, self._peer_sa_addr, locked,
+                                 self.plant_sysid, meas, M_N, self._gps_raw_addr, GR_N, hot,
+                                 self._io_addr)
+            if code == RX_FRAME or code == RX_FRAME_BIG:
+                if self._gps_raw_mv[GR_PRESENT]:       # (a float: no numpy scalar per frame)
+                    self._take_gps(self._io.item(IO_STAMP))
                 self.frame_rx_ns = self.endpoint.rx_ns
                 self.ended = False
-                return stamp
-            if stamp == RX_NONE:
-                return -1
-            src = self.peer if stamp == RX_REJECTED else self._source()
+                if code == RX_FRAME_BIG:
+                    return self._stamp_code(self._io.item(IO_STAMP))
+                return FRAME_AT
+            if code == RX_NONE:
+                return FRAME_NONE
+            src = self.peer if code == RX_REJECTED else self._source()
             stamp = self._accept(int(self._io[IO_LEN]), src, meas_out)
             if stamp >= 0:
-                return stamp
+                return self._stamp_code(stamp)
             locked = self.peer is not None
             if self.peer is not self._peer_sa_of:
                 self._bind_peer_sa()
-        return -1
+        return FRAME_NONE
 
     def _accept(self, n: int, addr: tuple, meas_out: np.ndarray) -> int:
         """The datagram of ``n`` bytes in the receive buffer, from ``addr`` (counted as
@@ -574,6 +608,34 @@ class PlantLink:
         self.gps_samples += 1
         self.counters.gnss += 1
 
+    def send_servo_at(self, pwm_us) -> bool:
+        """:meth:`send_servo` answering the frame :meth:`read_frame_at` answered FRAME_AT for:
+        its stamp read from the cell in the compiled call (no Python int for it) when the
+        answer is framed and sent compiled and ``pwm_us`` is the int64[4] it takes."""
+        if self._fast_io and self.peer is not None and type(pwm_us) is np.ndarray and len(
+                pwm_us) == 4:
+            try:
+                pwm_addr = self._pwm_at.of(pwm_us)
+            except ValueError:
+                pwm_addr = 0
+            if pwm_addr:
+                if self.peer is not self._peer_sa_of:
+                    self._bind_peer_sa()
+                return self._sent(send_servo_at_p(self._fd, self._tx_addr, SERVO_FRAME_MAX_B,
+                                                  self._tx_codec.seq, self.sysid, self.compid,
+                                                  self.stamp_cell_at, pwm_addr,
+                                                  self._peer_sa_addr,
+                                                  self._hot_at.of(self.counters.hot)))
+        return self.send_servo(self._io.item(IO_STAMP), pwm_us)
+
+    def _sent(self, ok: bool) -> bool:
+        """After a compiled answer (counted there when sent): a failed send counted, the
+        sequence stepped."""
+        if not ok:
+            self.endpoint.send_errors += 1
+        self._tx_codec.seq = (self._tx_codec.seq + 1) % 256
+        return ok
+
     def send_servo(self, stamp_us: int, pwm_us) -> bool:
         """Answer a frame: SERVO_OUTPUT_RAW echoing ``stamp_us`` mod 2^32 (docs/wire.md 3).
 
@@ -594,13 +656,10 @@ class PlantLink:
             if self._fast_io:           # framed and sent in one compiled call (counted there)
                 if self.peer is not self._peer_sa_of:
                     self._bind_peer_sa()
-                ok = send_servo_p(self._fd, self._tx_addr, SERVO_FRAME_MAX_B,
-                                  self._tx_codec.seq, self.sysid, self.compid, stamp_us,
-                                  pwm_addr, self._peer_sa_addr, self._hot_at.of(self.counters.hot))
-                if not ok:
-                    self.endpoint.send_errors += 1
-                self._tx_codec.seq = (self._tx_codec.seq + 1) % 256
-                return ok
+                return self._sent(send_servo_p(self._fd, self._tx_addr, SERVO_FRAME_MAX_B,
+                                               self._tx_codec.seq, self.sysid, self.compid,
+                                               stamp_us, pwm_addr, self._peer_sa_addr,
+                                               self._hot_at.of(self.counters.hot)))
             buf = self._tx_views[servo_frame_p(self._tx_addr, SERVO_FRAME_MAX_B,
                                                self._tx_codec.seq, self.sysid, self.compid,
                                                stamp_us, pwm_addr)]

@@ -21,7 +21,7 @@ from fc.gcs import GcsLink
 from fc.intake import FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import PlantLink
+from fc.link import FRAME_AT, FRAME_BIG, PlantLink
 from fc.link import mavlink as ML
 from fc.mode_control import ModeControl
 from fc.modes import ModeManager
@@ -119,9 +119,9 @@ class Housekeeping:
                 self.stats.roll()
                 self.counters.roll_load(self.planner.period_ns)
             elif stage == 1:
-                t_gc = time.perf_counter_ns()
+                t_gc = time.perf_counter()      # (floats: no int per reading)
                 collect_garbage()
-                self.counters.gc_us = (time.perf_counter_ns() - t_gc) * 1e-3
+                self.counters.gc_us = (time.perf_counter() - t_gc) * 1e6
             elif stage == 2:
                 self.telemetry.refresh()
                 self._report_gnss_drops()
@@ -244,18 +244,26 @@ class RunLoops:
             # follows every frame: the .tlog's sim-paced streams fall due on a frame's stamp,
             # so the log does not depend on how the frames were batched.
             if plant_fd in ready:
-                stamp = self.plant.read_frame(self.intake.scratch)
-                if stamp >= 0:
+                code = self.plant.read_frame_at(self.intake.scratch)
+                if code >= 0:
                     t0 = pc()
-                    self.lockstep_frame(stamp, mono())     # the arrival time, for the failsafe
+                    self.lockstep_exchange(code, mono())   # the arrival time, for the failsafe
                     self.counters.add_exec((pc() - t0) * 1e9)
             self.housekeeping(now_s, gcs_ready)
+
+    def lockstep_exchange(self, code: int, now_s: float) -> None:
+        """The exchange of the frame ``PlantLink.read_frame_at`` read (``code`` FRAME_AT: its
+        stamp in the link's cell; FRAME_BIG: a stamp beyond the cells, a faulty plant's u64,
+        in ``big_stamp``), arrived at ``now_s`` (wall clock)."""
+        if code == FRAME_AT:
+            self.lockstep_frame_at(now_s)
+        elif code == FRAME_BIG:
+            self.lockstep_frame(self.plant.big_stamp, now_s)
 
     def lockstep_frame(self, stamp: int, now_s: float) -> None:
         """One lockstep exchange: the frame in ``intake.scratch`` stamped ``stamp`` (us),
         arrived at ``now_s`` (wall clock): the ticks its stamp makes due, one answer.
-        Allocates no Python object but the ints of the stamp's arithmetic (issue 24): the
-        clock is read as floats, the ticks counted down without a range."""
+        :meth:`lockstep_frame_at` for a stamp given as a Python int (any u64)."""
         t_exec = time.perf_counter()
         if not self.intake.take(stamp, now_s):
             # the plant re-sent frame k (re-request): answer again with the same output
@@ -263,15 +271,39 @@ class RunLoops:
             return
         if self.modes.changes != self.mode_ctl.changes_seen:    # cheap check first
             self.mode_ctl.sync()
-        n = self.planner.due_us(stamp)
-        k = n
-        while k:
-            self.tick(self.planner.slow_due(), False)
-            k -= 1
+        n = self._run_ticks(self.planner.due_us(stamp))
         self.plant.send_servo(stamp, self.out.pwm_us)
         if n:
             self.telemetry.log_row(self.ilog, self.intake.meas, self.intake.stamp_us, 0,
                                    (time.perf_counter() - t_exec) * 1e9, now_s)
+
+    def lockstep_frame_at(self, now_s: float) -> None:
+        """:meth:`lockstep_frame` of the frame whose stamp is in the plant link's int64 cell
+        (``PlantLink.read_frame_at`` answered FRAME_AT): the intake, the planner, the answer
+        and the internals row read it there in their compiled calls. Allocates no Python
+        object (issue 24): the clock is read as floats, the ticks counted down without a
+        range."""
+        t_exec = time.perf_counter()
+        at = self.plant.stamp_cell_at
+        if not self.intake.take_at(at, now_s):
+            self.plant.send_servo_at(self.out.pwm_us)   # a re-sent frame: the same answer
+            return
+        if self.modes.changes != self.mode_ctl.changes_seen:
+            self.mode_ctl.sync()
+        n = self._run_ticks(self.planner.due_at(at))
+        self.plant.send_servo_at(self.out.pwm_us)
+        if n:
+            self.telemetry.log_row_at(self.ilog, self.intake.meas, at, 0,
+                                      (time.perf_counter() - t_exec) * 1e9, now_s)
+
+    def _run_ticks(self, n: int) -> int:
+        """The ``n`` fast ticks a frame's stamp made due, each with its slow step when due.
+        Returns ``n``."""
+        k = n
+        while k:
+            self.tick(self.planner.slow_due(), False)
+            k -= 1
+        return n
 
     def _run_realtime(self, stop) -> None:
         if self.sync == "frame":

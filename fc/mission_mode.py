@@ -110,9 +110,9 @@ class MissionFlight:
 
     @staticmethod
     def _fix(fc: MissionVehicle) -> bool:
-        g = fc.plant.gps
-        return (int(g[G_FIX]) >= ML.GPS_FIX_TYPE_3D_FIX
-                and fc.meas_stamp_us * 1e-6 - g[G_T_S] <= GNSS_MAX_AGE_S)
+        g = fc.plant.gps        # (``item``: Python floats, no numpy scalar per call)
+        return (int(g.item(G_FIX)) >= ML.GPS_FIX_TYPE_3D_FIX
+                and fc.meas_stamp_us * 1e-6 - g.item(G_T_S) <= GNSS_MAX_AGE_S)
 
     def entry_refusal(self, fc: MissionVehicle) -> str | None:
         """None if MISSION may be entered, else the reason."""

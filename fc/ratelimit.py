@@ -80,6 +80,11 @@ class RateLimiter:
         self.seen[text] = _Seen(severity, now_s, now_s)
         return True
 
+    @property
+    def idle(self) -> bool:
+        """Nothing held back or remembered: :meth:`summaries` would say nothing."""
+        return not self.seen and not self.dropped
+
     def summaries(self, now_s: float) -> list[tuple[int, str]]:
         """Summaries of bursts that have ended: ``[(severity, text), ...]``; forgets quiet texts."""
         out: list[tuple[int, str]] = []

@@ -27,6 +27,7 @@ import numpy as np
 from numba import carray, njit
 
 from fc.control.carrays import i8p
+from fc.frame_calls import int64_at
 
 __all__ = ["monotonic_ns", "sleep_until_ns", "try_realtime", "freeze_heap", "release_heap",
            "collect_garbage",
@@ -180,6 +181,12 @@ def _due_us_p(st, t_us, period_ns, max_catchup):
 
 
 @njit(cache=True)
+def _due_at_p(st, stamp, period_ns, max_catchup):
+    """:func:`_due_us_p` at the stamp (us) in the int64 cell at ``stamp``."""
+    return _due_p(st, carray(i8p(stamp), (1,))[0] * 1000, period_ns, max_catchup)
+
+
+@njit(cache=True)
 def _slow_due_p(st, ratio):
     """:meth:`TickPlanner.slow_due` on its state (int64[_ST_N] at ``st``)."""
     s = carray(i8p(st), (_ST_N,))
@@ -224,6 +231,7 @@ class TickPlanner:
         p = int(scratch.__array_interface__["data"][0])
         _due_p(p, 0, self.period_ns, max_catchup)
         _due_us_p(p, 0, self.period_ns, max_catchup)
+        _due_at_p(p, p + 8 * _TICKS, self.period_ns, max_catchup)
         _slow_due_p(p, self.ratio)
 
     @property
@@ -257,7 +265,7 @@ class TickPlanner:
     @property
     def skipped(self) -> int:
         """Fast deadlines skipped (overruns)."""
-        return int(self._st[_SKIPPED])
+        return self._st.item(_SKIPPED)              # (an int; no numpy scalar)
 
     @skipped.setter
     def skipped(self, value: int) -> None:
@@ -277,6 +285,14 @@ class TickPlanner:
         if self._big_next is None and _MIN_SAFE_US < t_us < _SAFE_US:
             return _due_us_p(self._st_p, t_us, self.period_ns, self.max_catchup)
         return self._due_py(t_us * 1000)
+
+    def due_at(self, stamp_at: int) -> int:
+        """:meth:`due_us` of the frame stamp in the int64 cell at ``stamp_at`` (below
+        fc/frame_calls.py STAMP_CELL_MAX_US, the safe range: fc/link.py ``read_frame_at``),
+        read in the compiled call: no Python int for it."""
+        if self._big_next is None:
+            return _due_at_p(self._st_p, stamp_at, self.period_ns, self.max_catchup)
+        return self._due_py(int64_at(stamp_at) * 1000)
 
     def _due_py(self, t_ns: int) -> int:
         """:func:`_due_p`'s steps on Python ints (times beyond the int64-safe range)."""

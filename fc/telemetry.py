@@ -23,9 +23,10 @@ from fc.control.carrays import ArrayAddress, address_of, f8p, i8p
 from fc.estimator import E_N, EM_EST, EM_MASKS, EM_N, Estimator
 from fc.gcs import GcsLink
 from fc.gcs_frames import (DV_CMD, DV_DELTA, DV_EST, DV_GUID, NV_NAME_B, debug_vect_p,
-                           named_value_p)
-from fc.guidance.layout import GS_GAM_C
+                           named_value_p, nav_output_p)
+from fc.guidance.layout import GS_GAM_C, GS_N, TG_N
 from fc.guided import GuidanceRunner
+from fc.frame_calls import copy_p, int64_at
 from fc.internals_log import InternalsLog
 from fc.link import M_N, M_T_S, PlantLink
 from fc.modes import ModeManager
@@ -33,6 +34,12 @@ from fc.scheduler import FrameGate, LoopStats, TickPlanner
 from hyfc_wire.numba_cache import drop_stale
 
 __all__ = ["EST_COLS", "FcCounters", "TickOutput", "Telemetry"]
+
+#: the named values (NAMED_VALUE_FLOAT, ``Telemetry.refresh``) before the law's status
+_NV_NAMES = (b"GAMMA_DEG", b"LATE_P99", b"LATE_MAX", b"LATE_CNT", b"OVERRUN", b"SKIPPED",
+             b"TICK_FALLB", b"GC_US", b"REJ_PLANT", b"GNSS_DROP", b"REJ_GCS", b"REJ_SIGN",
+             b"EST_INVAL", b"EST_FLAGS", b"FS_CAUSE", b"DUP_FRAMES", b"FC_STALLS")
+_NV_FIXED = len(_NV_NAMES)
 
 EST_COLS = ("alpha_rad", "beta_rad", "mu_rad", "p_rad_s", "q_rad_s", "r_rad_s", "V_m_s",
             "h_m", "gamma_rad")
@@ -80,13 +87,17 @@ def fill_row(r, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd, delta,
 
 
 @njit(cache=True)
-def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, mode, armed, healthy, emem, cmd,
-               delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
+def fill_row_p(chunk, cursor, dims, meas, wall_s, stamp_us, stamp_at, mode, armed, healthy,
+               emem, cmd, delta, lateness_ns, exec_ns, status, throttle, limits, tgt):
     """:func:`fill_row` with its arrays given by address (fc/control/carrays.py): row
     ``cursor[1]`` (fc/internals_log.py ``CUR_ROW`` of the int64 cursor) of the float64[:, ncol]
     at ``chunk``, meas float64[M_N], emem float64[EM_N], cmd/delta/tgt
-    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status).
-    (Fewer than 20 arguments: CPython takes the call's argument tuple from its free list.)"""
+    float64[3], status float64[status_n]; ``dims`` int64[3] = (ncol, status_n, n_status). The
+    stamp is the int64 cell at ``stamp_at`` (as a float) when ``stamp_at`` is not 0, else the
+    float ``stamp_us``. (Fewer than 20 arguments: CPython takes the call's argument tuple from
+    its free list.)"""
+    if stamp_at != 0:
+        stamp_us = np.float64(carray(i8p(stamp_at), (1,))[0])
     d = carray(i8p(dims), (3,))
     ncol, status_n, n_status = d[0], d[1], d[2]
     i = carray(i8p(cursor), (2,))[1]
@@ -177,7 +188,7 @@ class Telemetry:
     law: object                 # the injected law (fc/control AttitudeLaw or a stand-in)
     status_names: list
     guid: GuidanceRunner
-    _named: list = field(default_factory=list)     # as of the last refresh()
+    _nv_name_list: list = field(default_factory=list)   # the named values' names (refresh)
     #: the law's status record as the row kernel reads it: the law's own array, or None when
     #: that is not a contiguous float64 array (then converted per row); empty without one
     _status: np.ndarray | None = None
@@ -190,6 +201,10 @@ class Telemetry:
     _est_dv_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, 3))
     _gstatus: np.ndarray | None = None
     _gstatus_mv: memoryview | None = None
+    # NAV_CONTROLLER_OUTPUT's arrays by address (frame_nav_output)
+    _gstatus_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, GS_N))
+    _gtgt_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, TG_N))
+    _est_at: ArrayAddress = field(default_factory=lambda: ArrayAddress(np.float64, E_N))
     # NAMED_VALUE_FLOAT's names (zero-padded, uint8[n, NV_NAME_B]) and values (float64[n]) as
     # of the last refresh(), for frame_named_value; their addresses
     _nv_names: np.ndarray = field(default_factory=lambda: np.zeros((0, NV_NAME_B), np.uint8))
@@ -221,6 +236,7 @@ class Telemetry:
         # logs in its modes, is a contiguous float64[3] like the settings' one)
         row = np.zeros(len(self.columns()))
         self.log_row(_OneRow(row), np.zeros(M_N), 0, 0, 0, 0.0)
+        copy_p(address_of(row, np.float64, 1), address_of(row, np.float64, 1), 0)  # (loaded)
 
     def skipped_ticks(self) -> int:
         """Fast deadlines skipped (overruns), whichever real-time schedule ran."""
@@ -233,43 +249,61 @@ class Telemetry:
 
     def named_values(self) -> list:
         """NAMED_VALUE_FLOAT (name, value) pairs, as of the last :meth:`refresh` (1 Hz)."""
-        return self._named
+        return list(zip(self._nv_name_list, self._nv_values.tolist()))
 
     def refresh(self) -> None:
-        e = self.est.est
+        """The NAMED_VALUE_FLOAT values of now (1 Hz), written into the array the compiled
+        framing reads (``frame_named_value``) without a Python object (issue 24): values read
+        as Python floats or small ints, the law's status copied by a compiled call.
+        :meth:`named_values` gives the (name, value) pairs from it."""
+        if not self._nv_name_list:
+            self._init_named()
+        v = self._nv_values
         c = self.plant.counters
-        nv = [
-            (b"GAMMA_DEG", math.degrees(e[8])),
-            (b"LATE_P99", self.stats.window_p99_us), (b"LATE_MAX", self.stats.window_max_us),
-            (b"LATE_CNT", float(self.stats.late)), (b"OVERRUN", float(self.stats.overruns)),
-            (b"SKIPPED", float(self.skipped_ticks())),
-            (b"TICK_FALLB", float(self.gate.fallback_ticks)),
-            (b"GC_US", self.counters.gc_us),
-            (b"REJ_PLANT", float(c.rejected)),
-            (b"GNSS_DROP", float(c.gnss_rejected)),
-            (b"REJ_GCS", float(self.gcs.rejected_bad)),
-            (b"REJ_SIGN", float(self.gcs.rejected_signing)),
-            (b"EST_INVAL", float(self.est.invalid_frames)),
-            (b"EST_FLAGS", float(self.est.masks[0] | self.est.masks[1])),
-            (b"FS_CAUSE", float(self.modes.fs_cause)),
-            (b"DUP_FRAMES", float(self.counters.duplicate_frames)),
-            (b"FC_STALLS", float(self.counters.fc_stalls)),
-        ]
-        for i, n in enumerate(self.status_names[:16]):     # a law with STATUS_NAMES has status
-            nv.append((n.upper()[:10].encode("ascii", "replace"), float(self.law.status[i])))
-        self._named = nv
-        # the same as arrays for the compiled framing (frame_named_value)
-        if len(nv) != len(self._nv_values):
-            self._nv_names = np.zeros((len(nv), NV_NAME_B), np.uint8)
-            self._nv_values = np.zeros(len(nv))
-            for i, (name, _) in enumerate(nv):
-                self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
-            self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
-            self._nv_values_p = address_of(self._nv_values, np.float64, len(nv))
-        k = 0
-        for _, value in nv:
-            self._nv_values[k] = value
-            k += 1
+        st = self.stats
+        masks = self.est.masks
+        v[0] = math.degrees(self.est.est.item(8))
+        v[1] = st.window_p99_us
+        v[2] = st.window_max_us
+        v[3] = st.late
+        v[4] = st.overruns
+        v[5] = self.skipped_ticks()
+        v[6] = self.gate.fallback_ticks
+        v[7] = self.counters.gc_us
+        v[8] = c.rejected
+        v[9] = c.gnss_rejected
+        v[10] = self.gcs.rejected_bad
+        v[11] = self.gcs.rejected_signing
+        v[12] = self.est.invalid_frames
+        v[13] = masks.item(0) | masks.item(1)
+        v[14] = self.modes.fs_cause
+        v[15] = self.counters.duplicate_frames
+        v[16] = self.counters.fc_stalls
+        n = len(v) - _NV_FIXED
+        if n:
+            if self._status is not None:
+                copy_p(self._nv_values_p + 8 * _NV_FIXED, self._status_p, n)
+            else:
+                for i in range(n):
+                    v[_NV_FIXED + i] = float(self.law.status[i])
+
+    def _init_named(self) -> None:
+        """The names of the named values (fixed: the law's status names, up to 16) as a list
+        and as the zero-padded table ``frame_named_value`` reads, and the values' array."""
+        names = list(_NV_NAMES)
+        for n in self.status_names[:16]:      # a law with STATUS_NAMES has status
+            names.append(n.upper()[:10].encode("ascii", "replace"))
+        self._nv_name_list = names
+        self._nv_names = np.zeros((len(names), NV_NAME_B), np.uint8)
+        self._nv_values = np.zeros(len(names))
+        for i, name in enumerate(names):
+            self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
+        self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
+        self._nv_values_p = address_of(self._nv_values, np.float64, len(names))
+
+    def named_value_count(self) -> int:
+        """How many named values :meth:`named_values` gives (0 before the first refresh)."""
+        return len(self._nv_values)
 
     def debug_vectors(self) -> list:
         """CMD_DEG, EST_DEG, DELTA_DEG of the newest tick (built when asked, not from the 1 Hz
@@ -291,49 +325,72 @@ class Telemetry:
         """How many vectors :meth:`debug_vectors` gives now (GUID in the guidance modes)."""
         return 4 if self.modes.guidance_active else 3
 
-    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                           sysid: int, compid: int, time_us: int) -> int:
+    def frame_debug_vector(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                           sysid: int, compid: int, time_at: int) -> int:
         """:meth:`debug_vectors`' vector ``k`` as a DEBUG_VECT framed by the compiled kernel
-        (fc/gcs_frames.py ``debug_vect_p``, its arguments) from the arrays it is made of: no
+        (fc/gcs_frames.py ``debug_vect_p``, its arguments: the time base in the int64
+        cell at ``time_at``) from the arrays it is made of: no
         Python object but the floats of GUID. Bytes written, or 0 (the caller then builds it
         with the codec from :meth:`debug_vectors`)."""
         if k == 0:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_CMD,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_CMD,
                                 self._cmd_dv_at.of(self.out.cmd_active), True, 0.0, 0.0, 0.0)
         if k == 1:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_EST,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_EST,
                                 self._est_dv_at.of(self.est.est), True, 0.0, 0.0, 0.0)
         if k == 2:
-            return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+            return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at,
                                 DV_DELTA, self._delta_p, True, 0.0, 0.0, 0.0)
         g = self.guid
         st = g.g.status
         if st is not self._gstatus:             # (bound once: a read of it gives a float)
             self._gstatus, self._gstatus_mv = st, memoryview(st)
-        return debug_vect_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us, DV_GUID, 0,
+        return debug_vect_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, DV_GUID, 0,
                             False, float(g.limits), g.throttle(),
                             math.degrees(self._gstatus_mv[GS_GAM_C]))
 
-    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_us: int, seq: int,
-                          sysid: int, compid: int, time_us: int) -> int:
+    def frame_named_value(self, k: int, tx: int, log_epoch_us: int, log_t_at: int, seq: int,
+                          sysid: int, compid: int, time_at: int) -> int:
         """:meth:`named_values`' ``k``-th pair as NAMED_VALUE_FLOAT framed by the compiled
         kernel (fc/gcs_frames.py ``named_value_p``, its arguments) from the arrays
         :meth:`refresh` keeps beside the list. Bytes written, or 0."""
         if not 0 <= k < len(self._nv_values):
             return 0
-        return named_value_p(tx, log_epoch_us, log_t_us, seq, sysid, compid, time_us,
+        return named_value_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at,
                              self._nv_names_p, self._nv_values_p, k)
 
     def throttle_percent(self) -> int:
         """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
         return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
 
+    def nav_output_active(self) -> bool:
+        """Whether NAV_CONTROLLER_OUTPUT is sent (a guidance mode, the guidance engaged)."""
+        return self.modes.guidance_active and self.guid.engaged
+
     def nav_controller_output(self):
         """NAV_CONTROLLER_OUTPUT fields (fc/guided.py ``nav_output``), None outside the
         guidance modes."""
-        if not (self.modes.guidance_active and self.guid.engaged):
+        if not self.nav_output_active():
             return None
         return self.guid.nav_output(self.est.est)
+
+    def frame_nav_output(self, tx: int, log_epoch_us: int, log_t_at: int, seq: int, sysid: int,
+                         compid: int) -> int:
+        """:meth:`nav_controller_output` framed by the compiled kernel (fc/gcs_frames.py
+        ``nav_output_p``, its arguments) from the guidance's arrays and waypoint; bytes
+        written, or 0 (outside the guidance modes, or declined: the caller then builds it
+        with the codec)."""
+        g = self.guid
+        if not self.nav_output_active():
+            return 0
+        wp = g.nav_wp
+        if wp is None:
+            return nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid,
+                                self._gstatus_at.of(g.g.status), self._gtgt_at.of(g.g.tgt),
+                                self._est_at.of(self.est.est), False, 0.0, 0.0, 0.0)
+        return nav_output_p(tx, log_epoch_us, log_t_at, seq, sysid, compid,
+                            self._gstatus_at.of(g.g.status), self._gtgt_at.of(g.g.tgt),
+                            self._est_at.of(self.est.est), True, wp[0], wp[1], wp[2])
 
     # ---------------------------------------------------------------- internals log
     def columns(self) -> list[str]:
@@ -347,33 +404,47 @@ class Telemetry:
                  "guid_tgt_V_m_s"]
         return cols
 
+    def log_row_at(self, ilog: InternalsLog, meas: np.ndarray, stamp_at: int,
+                   lateness_ns: float, exec_ns: float, wall_s: float) -> None:
+        """:meth:`log_row` of the frame whose stamp is in the int64 cell at ``stamp_at`` (below
+        fc/frame_calls.py STAMP_CELL_MAX_US): read by the compiled calls, no int per row."""
+        if self._status is None:
+            self.log_row(ilog, meas, int64_at(stamp_at), lateness_ns, exec_ns, wall_s)
+        elif ilog.take_row_at(stamp_at):
+            self._fill_p(ilog, meas, 0.0, stamp_at, lateness_ns, exec_ns, wall_s)
+
+    def _fill_p(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: float, stamp_at: int,
+                lateness_ns: float, exec_ns: float, wall_s: float) -> None:
+        """The row ``ilog`` took, filled by ``fill_row_p`` (the stamp: ``fill_row_p``'s)."""
+        modes = self.modes
+        fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas),
+                   wall_s, stamp_us, stamp_at, int(modes.mode), modes.armed, self.est.healthy,
+                   self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
+                   float(lateness_ns), float(exec_ns), self._status_p,
+                   self.guid.throttle() if modes.guidance_active else math.nan,
+                   self.guid.limits, self._tgt_p)
+
     def log_row(self, ilog: InternalsLog, meas: np.ndarray, stamp_us: int, lateness_ns: float,
                 exec_ns: float, wall_s: float) -> None:
         """One internals-log row of the newest tick (dropped when the log is full); ``wall_s``:
         the tick's wall clock (``time.monotonic``, s) as the loop read it: in lockstep the
         frame's arrival, in real time the wake-up. ``lateness_ns``, ``exec_ns``: int or float
         (the kernel takes floats: one specialisation, the same values)."""
-        modes = self.modes
-        st = self._status
-        if st is not None:
+        if self._status is not None:
             # by address (fc/control/carrays.py): no array object nor numba record per row,
             # and the row as an index (no address int per row)
             if ilog.take_row(stamp_us):
-                fill_row_p(ilog.chunk_address, ilog.cursor_address, self._dims_p, self._meas_at.of(meas), wall_s,
-                           float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
-                           self._emem_p, self._cmd_at.of(self.out.cmd_active), self._delta_p,
-                           float(lateness_ns), float(exec_ns), self._status_p,
-                           self.guid.throttle() if modes.guidance_active else math.nan,
-                           self.guid.limits, self._tgt_p)
+                self._fill_p(ilog, meas, float(stamp_us), 0, lateness_ns, exec_ns, wall_s)
             return
         r = ilog.row(stamp_us)
         if r is None:
             return
+        modes = self.modes
         # the parts' arrays are bound once (__post_init__; they update them in place)
         # the stamp as a float: a u64 stamp beyond the int64 range (the plant's to send) would
         # not convert to the kernel's integer argument
         fill_row(r, meas, wall_s, float(stamp_us), int(modes.mode), modes.armed, self.est.healthy,
                  self._emem, self.out.cmd_active, self._delta, lateness_ns, exec_ns,
-                 st if st is not None else np.ascontiguousarray(self.law.status, np.float64),
+                 np.ascontiguousarray(self.law.status, np.float64),
                  self._n_status, self.guid.throttle() if modes.guidance_active else math.nan,
                  self.guid.limits, self._tgt)

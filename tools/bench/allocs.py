@@ -3,7 +3,7 @@
 A count, not a time: valid on a loaded machine. The sensor datagrams of a closed-loop flight
 (``tools.bench.profile.record``: the stand-in physics against a real controller, the given
 flight mode) are replayed into a fresh ``fc.app.FlightController`` in process, one datagram
-per step of its lockstep loop (``plant.read_frame``, ``loops.lockstep_frame``,
+per step of its lockstep loop (``plant.read_frame_at``, ``loops.lockstep_exchange``,
 ``loops.housekeeping``). After ``WARM_FRAMES`` frames, over the measured frames:
 
 - Python: every block taken from Python's object allocator (``PYMEM_DOMAIN_OBJ``: every
@@ -169,9 +169,9 @@ class _Replay:
     def step(self, now_s: float) -> None:
         """One step of the lockstep loop on the datagram sent (as ``fc.loops._run_lockstep``)."""
         fc = self.rig.fc
-        st = fc.plant.read_frame(fc.meas_scratch)
-        if st >= 0:
-            fc.loops.lockstep_frame(st, now_s)
+        code = fc.plant.read_frame_at(fc.meas_scratch)
+        if code >= 0:
+            fc.loops.lockstep_exchange(code, now_s)
         fc.loops.housekeeping(now_s, False)
 
     def drain(self) -> None:
@@ -210,7 +210,7 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
         fc = rep.rig.fc
         plant, meas, loops = fc.plant, fc.meas_scratch, fc.loops
         mark(c_p, m_p, 0)                   # (compiled or loaded before the count)
-        # per frame: the receive (read_frame), the frame (lockstep_frame), the housekeeping
+        # per frame: the receive (read_frame_at), the frame (lockstep_exchange), the housekeeping
         # (ground station, .tlog streams, 1 Hz chores), as ``_Replay.step``
         per = [[0, 0, 0] for _ in range(n)]
         with counter:
@@ -225,10 +225,10 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
             for k in range(n):
                 now = feed()
                 mark(c_p, m_p, 0)
-                st = plant.read_frame(meas)
+                code = plant.read_frame_at(meas)
                 mark(c_p, m_p, 1)
-                if st >= 0:
-                    loops.lockstep_frame(st, now)
+                if code >= 0:
+                    loops.lockstep_exchange(code, now)
                 mark(c_p, m_p, 2)
                 loops.housekeeping(now, False)
                 mark(c_p, m_p, 3)
@@ -262,7 +262,7 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
                 "blocks_net_change": int(blocks1 - blocks0),
                 "note": "in process, one datagram per lockstep loop step; loop clock = sensor "
                         "time; py = blocks from PYMEM_DOMAIN_OBJ (gross, while the fc's calls "
-                        "run; _read / _frame / _housekeeping: read_frame, lockstep_frame, "
+                        "run; _read / _frame / _housekeeping: read_frame_at, lockstep_exchange, "
                         "housekeeping); alloc_free_frames: frames whose three calls allocated "
                         "nothing; alloc_free_frame_paths: frames whose read and frame allocated "
                         "nothing (the housekeeping aside); alloc_free_housekeeping: frames "

@@ -2,13 +2,13 @@
 
 A real ``fc.app.FlightController`` (lockstep, armed, COORDINATED, a ground-station output)
 gets sensor datagrams from a local socket, one at a time, and each step of its lockstep loop
-is timed with ``perf_counter_ns``: ``plant.read_frame`` (recv + MAVLink decode), the frame
+is timed with ``perf_counter_ns``: ``plant.read_frame_at`` (recv + MAVLink decode), the frame
 (estimator, law, PWM, SERVO_OUTPUT_RAW encode + send, internals-log row) and the
 housekeeping (ground-station poll and streams). The datagrams come from the measuring
 stand-in's encoder with the plant physics between frames, so the law sees a flight.
 
 This is the fc's share of a lockstep exchange (the rest is the plant's share and the
-two UDP hops: the ping-pong floor). It uses the fc's loop parts (``loops.lockstep_frame``,
+two UDP hops: the ping-pong floor). It uses the fc's loop parts (``loops.lockstep_exchange``,
 ``loops.housekeeping``, fc/loops.py) directly; if those change, the part is reported as skipped.
 """
 from __future__ import annotations
@@ -68,10 +68,10 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             stamp = int(round(sim.t_s * 1e6))
             plant.sendto(codec.encode(meas, stamp), addr)
             t0 = pc()
-            st = fc.plant.read_frame(fc.meas_scratch)
+            code = fc.plant.read_frame_at(fc.meas_scratch)
             t1 = pc()
-            if st >= 0:
-                fc.loops.lockstep_frame(st, mono())
+            if code >= 0:
+                fc.loops.lockstep_exchange(code, mono())
             t2 = pc()
             # no GCS traffic here: the lockstep loop's select finds its socket not readable
             fc.loops.housekeeping(mono(), False)

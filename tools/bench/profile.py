@@ -12,8 +12,8 @@ of a lockstep exchange; the two UDP hops and the plant's work are the rest):
    given flight mode, one ground-station output); the sensor datagrams it sends are kept.
 2. replay: a fresh controller gets the recorded datagrams one at a time through its plant
    socket; its outputs are the same as in pass 1 (the fc is deterministic in its inputs), so
-   it flies the same flight. Each step of its lockstep loop (``plant.read_frame``,
-   ``loops.lockstep_frame``, ``loops.housekeeping``) is what is measured:
+   it flies the same flight. Each step of its lockstep loop (``plant.read_frame_at``,
+   ``loops.lockstep_exchange``, ``loops.housekeeping``) is what is measured:
 
    - parts: the controller's own callables (decode, estimator, guidance, law, PWM, framing,
      send, internals row, GCS poll, GCS streams, the .tlog's sim-paced streams, the 1 Hz
@@ -97,9 +97,9 @@ class _Rig:
     def fc_step(self) -> None:
         fc = self.fc
         mono = time.monotonic
-        st = fc.plant.read_frame(fc.meas_scratch)
-        if st >= 0:
-            fc.loops.lockstep_frame(st, mono())
+        code = fc.plant.read_frame_at(fc.meas_scratch)
+        if code >= 0:
+            fc.loops.lockstep_exchange(code, mono())
         # no GCS traffic here: the lockstep loop's select finds its socket not readable
         fc.loops.housekeeping(mono(), False)
 
@@ -176,10 +176,10 @@ def replay(datagrams: list, flight_mode: str = "COORDINATED", baseline: bool = F
 # (name, parent, label): the parts wrapped on the controller; parent None = top level.
 # Each is found by ``_target`` below; a part the controller does not have is left out.
 PARTS = (
-    ("read_frame", None, "recv + decode (plant.read_frame)"),
+    ("read_frame", None, "recv + decode (plant.read_frame_at)"),
     ("recv", "read_frame", "socket recv + source check + decode ATTITUDE+AOA_SSA+VFR_HUD "
                            "(recv_sensor_p, compiled, libc recvfrom)"),
-    ("frame", None, "frame (loops.lockstep_frame)"),
+    ("frame", None, "frame (loops.lockstep_exchange)"),
     ("new_frame", "frame", "frame intake (intake.take)"),
     ("estimator", "new_frame", "frame copy + estimator (est.accept)"),
     ("sync_mode", "frame", "mode sync (mode_ctl.sync)"),
@@ -211,14 +211,14 @@ def _target(fc, name: str):
     import fc.loops as loops_mod
     plant = fc.plant
     return {
-        "read_frame": (plant, "read_frame"), "recv": (link_mod, "recv_sensor_p"),
-        "frame": (fc.loops, "lockstep_frame"),
-        "new_frame": (fc.intake, "take"), "estimator": (fc.est, "accept"),
+        "read_frame": (plant, "read_frame_at"), "recv": (link_mod, "recv_sensor_p"),
+        "frame": (fc.loops, "lockstep_exchange"),
+        "new_frame": (fc.intake, "take_at"), "estimator": (fc.est, "accept"),
         "sync_mode": (fc.mode_ctl, "sync"), "fast_tick": (fc.loops, "tick"),
         "guidance": (fc.guid, "tick"), "slow_step": (fc.law, "slow_step"),
         "fast_step": (fc.law, "fast_step"), "pwm": (app, "surfaces_pwm_p"),
-        "send_servo": (plant, "send_servo"),
-        "framing": (link_mod, "send_servo_p"), "log_row": (fc.telemetry, "log_row"),
+        "send_servo": (plant, "send_servo_at"),
+        "framing": (link_mod, "send_servo_at_p"), "log_row": (fc.telemetry, "log_row_at"),
         "housekeeping": (fc.loops, "housekeeping"), "gcs_poll": (fc.gcs, "poll"),
         "gcs_service": (fc.gcs, "service"), "tlog_streams": (fc.gcs, "_service_log"),
         "gcs_streams": (fc.gcs, "_streams"), "stats_roll": (fc.stats, "roll"),

@@ -108,12 +108,18 @@ def test_frame_kernels_by_address_equal_the_array_entries():
     chunk, r2 = np.zeros((3, 50)), np.zeros(50)
     dims = np.array([50, st.size, 10], np.int64)
     cursor = np.array([2, 1], np.int64)             # (rows taken, the row taken last)
-    fill_row_p(_p(chunk), _p(cursor), _p(dims), _p(m1), 12.5, 3.0e6, 4, True, True, _p(emem), _p(cmd),
+    fill_row_p(_p(chunk), _p(cursor), _p(dims), _p(m1), 12.5, 3.0e6, 0, 4, True, True, _p(emem), _p(cmd),
                _p(delta), 1234.0, 5678.0, _p(st), 0.4, 3, _p(tgt))
     fill_row(r2, m1, 12.5, 3.0e6, 4, True, True, emem, cmd, delta, 1234, 5678, st, 10, 0.4, 3,
              tgt)
     assert chunk[1].tobytes() == r2.tobytes()            # row 1 of the chunk, the others kept
     assert not chunk[0].any() and not chunk[2].any()
+    # the same row with the stamp read from an int64 cell (the lockstep frame's)
+    chunk[1] = 0.0
+    cell = np.array([3_000_000], np.int64)
+    fill_row_p(_p(chunk), _p(cursor), _p(dims), _p(m1), 12.5, 0.0, _p(cell), 4, True, True,
+               _p(emem), _p(cmd), _p(delta), 1234.0, 5678.0, _p(st), 0.4, 3, _p(tgt))
+    assert chunk[1].tobytes() == r2.tobytes()
 
 
 def test_calls_by_address_allocate_no_numba_record():
