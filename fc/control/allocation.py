@@ -1,9 +1,10 @@
 """Allocation (Eqs. 44-47) with saturation, and the controller's model of the actuators.
 
-    allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st)
+    allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st, w_yaw_scale=1.0)
         delta = g_Gamma^-1 M_c (Eq. 46), Eq. 47 surface coordination, position limit
-        (ALLOC_MODE: clip each surface or scale the vector); the saturation flags and the
-        unallocated moment go to the status record (house style 9).
+        (ALLOC_MODE: clip each surface, scale the vector, or the prioritised re-solve, whose
+        yaw weight is multiplied by w_yaw_scale: the fast loop's yaw escalation); the
+        saturation flags and the unallocated moment go to the status record (house style 9).
     rate_limit_command(par, nm, x, e_coup, dt, delta, st)
         rate-aware allocation: the command's change per fast step kept within what the
         actuators can travel (ALLOC_RATE x ACT_RATE x dt), the change vector scaled (direction
@@ -152,7 +153,9 @@ def prioritised(a, o, e_coup, m0, m1, m2, w0, w1, w2, lim, d0, d1, d2):
 def allocate(par, nm, mc0, mc1, mc2, e_coup, delta, st, w_yaw_scale=1.0):
     """delta = g_Gamma^-1 M_c (Eq. 46), Eq. 47 surface coordination, position saturation.
 
-    mc0..mc2: M_c (N m); e_coup: the coupling degree E of Eq. 15. Writes delta[0:3] (rad),
+    mc0..mc2: M_c (N m); e_coup: the coupling degree E of Eq. 15; w_yaw_scale: factor on
+    ALLOC_W_YAW in the prioritised re-solve (>= 1, the fast loop's escalation; 1 = the
+    parameter's weight). Writes delta[0:3] (rad),
     the saturation flags and the unallocated moment into st; returns 1.0 if any surface was
     requested beyond its limit.
     """

@@ -38,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fc.control.params import parse_sets
+
 GAMMA_AIR = 1.4
 #: the dynamic-pressure corridor flown, Pa: it contains the paper's point (183 kPa at Mach 7.4,
 #: 21 km) and the classic air-breathing band (24-96 kPa, 500-2000 psf)
@@ -427,13 +429,6 @@ def summary(rows: list[dict]) -> str:
         only_un = sum(1 for k in co if k in un and meets_spec(un[k]) and not meets_spec(co[k]))
         lines.append(f"  meets spec only coordinated: {only_co} points; only uncoordinated: {only_un}")
     return "\n".join(lines)
-
-
-def parse_sets(items) -> dict:
-    """``NAME=VALUE`` strings -> {name: value}, checked against the law's parameter table
-    (``fc.control.params.parse_sets``). Raises ValueError naming the bad item."""
-    from fc.control.params import parse_sets as _parse
-    return _parse(items)
 
 
 def main(argv=None) -> int:
