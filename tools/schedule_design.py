@@ -78,7 +78,7 @@ import numpy as np
 
 from fc.control import layout as L
 from fc.control.params import P_ACT_MAX, P_MDL_IXX, P_MDL_IYY, P_MDL_IZZ, default_si_array
-from fc.control.schedule_data import SCHEDULE_PATH, SCHED_MACH, SCHED_QUANTITIES
+from fc.control.schedule_data import SCHEDULE_PATH, SCHED_AUTH, SCHED_MACH, SCHED_QUANTITIES
 
 DEG = math.pi / 180.0
 
@@ -491,7 +491,17 @@ def design(nodes_kpa=QBAR_NODES_KPA, verbose: bool = False) -> dict:
             print(_row_text(row), flush=True)
     return {"rows": rows, "n_candidates": len(cands["kappa1"]), "n_margin_ok": int(idx_ok.size),
             "mach_nodes": (nodes := mach_nodes()),
-            "omc_mach_factor": tuple(omc_mach_factor(m) for m in nodes)}
+            "omc_mach_factor": tuple(omc_mach_factor(m) for m in nodes),
+            "authority_factor": tuple(max(authority_factor(m), 1.0) for m in nodes)}
+
+
+def authority_factor(mach: float, qbar_pa: float = ANCHOR_QBAR_KPA * 1e3) -> float:
+    """The authority factor at ``mach``: the least effective channel's effectiveness there over
+    the least over MACH_RANGE (what design() sized every node's noise budget on), >= 1. Both
+    scale with the dynamic pressure, so the ratio depends on the Mach number only: the law
+    looks its gains up at qbar x factor, where the same noise budget holds (s. 13, "The
+    authority axis")."""
+    return float(effectiveness(qbar_pa, (mach,)).min() / effectiveness(qbar_pa).min())
 
 
 def table_arrays(result: dict) -> dict:
@@ -508,6 +518,7 @@ def table_arrays(result: dict) -> dict:
         out[f"design_{k}"] = np.array([r[k] for r in rows])
     out[SCHED_MACH[0]] = np.array(result["mach_nodes"], dtype=np.float64)
     out[SCHED_MACH[1]] = np.array(result["omc_mach_factor"], dtype=np.float64)
+    out[SCHED_AUTH] = np.array(result["authority_factor"], dtype=np.float64)
     return out
 
 
@@ -566,6 +577,12 @@ def main(argv=None) -> int:
     for m, f in zip(res["mach_nodes"], res["omc_mach_factor"]):
         a_dir, b_rud = directional_instability(m)
         print(f"| {m:g} | {a_dir:+.2f} | {b_rud:.2f} | {f:.3f} |")
+    print("\nAuthority factor (gains looked up at qbar x factor; effectiveness 1/s^2 per rad "
+          f"at {ANCHOR_QBAR_KPA:g} kPa):\n\n| Mach | roll | pitch | yaw | factor |\n"
+          "|---|---|---|---|---|")
+    for m, f in zip(res["mach_nodes"], res["authority_factor"]):
+        b = effectiveness(ANCHOR_QBAR_KPA * 1e3, (m,))
+        print(f"| {m:g} | {b[0]:.2f} | {b[1]:.2f} | {b[2]:.2f} | {f:.3f} |")
     return 0
 
 

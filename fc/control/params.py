@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fc.control.schedule_data import SCHED_MACH, SCHED_N, load_schedule
+from fc.control.schedule_data import SCHED_AUTH, SCHED_MACH, SCHED_N, load_schedule
 
 DEG = math.pi / 180.0
 
@@ -282,6 +282,13 @@ def _schedule_params() -> tuple[Param, ...]:
                       f"Factor on the scheduled SLW_OMC_MAX at Mach node {i + 1} (SCH_M_"
                       f"{i + 1}), CTL_SCHED 1: the rudder authority the airframe's directional "
                       "instability leaves (1 where the airframe is directionally stable)."))
+    for i in range(SCHED_N):
+        out.append(_p(f"SCH_AUTH_{i + 1}", tab[SCHED_AUTH][i], 0.1, 10.0, "-", "SCH",
+                      f"Authority factor at Mach node {i + 1} (SCH_M_{i + 1}), CTL_SCHED 1: the "
+                      "gains and filters are looked up at the dynamic pressure times it (the "
+                      "least effective channel's effectiveness at this Mach number over the "
+                      "least over Mach 6-15, which the SCH_Q nodes were designed for; "
+                      "SLW_OMC_MAX keeps the plain dynamic pressure)."))
     return tuple(out)
 
 
@@ -368,13 +375,14 @@ P_SCH_FLTA = PARAM_INDEX["SCH_FLTA_1"]
 P_SCH_OMC = PARAM_INDEX["SCH_OMC_1"]
 P_SCH_M = PARAM_INDEX["SCH_M_1"]           # SCHED_N Mach nodes, then SCHED_N factors
 P_SCH_OMCF = PARAM_INDEX["SCH_OMCF_1"]
+P_SCH_AUTH = PARAM_INDEX["SCH_AUTH_1"]
 P_CO_LAMR_SCL = PARAM_INDEX["CO_LAMR_SCL"]
 #: the fixed parameters the schedule replaces while it is on (restored when it goes off)
 SCHEDULED_NAMES = tuple(f[5] for f in SCHED_FAMILIES) + ("SLW_K2", "SLW_K3", "CO_LAMR_SCL")
 P_N = len(LAW_PARAMS)
 assert [PARAM_INDEX[f"CO_K{i}"] for i in range(1, 10)] == list(range(P_CO_K1, P_CO_K1 + 9))
 assert [PARAM_INDEX[f"SLW_K{i}"] for i in (1, 2, 3)] == list(range(P_SLW_K1, P_SLW_K1 + 3))
-for _f in ("SCH_Q_",) + tuple(f[0] for f in SCHED_FAMILIES) + ("SCH_M_", "SCH_OMCF_"):
+for _f in ("SCH_Q_",) + tuple(f[0] for f in SCHED_FAMILIES) + ("SCH_M_", "SCH_OMCF_", "SCH_AUTH_"):
     assert [PARAM_INDEX[f"{_f}{i + 1}"] for i in range(SCHED_N)] == list(
         range(PARAM_INDEX[f"{_f}1"], PARAM_INDEX[f"{_f}1"] + SCHED_N)), _f
 for _prm in LAW_PARAMS:

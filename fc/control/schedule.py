@@ -13,7 +13,10 @@ condition, read from the SCH_* parameters (fc/control/params.py; defaults from t
     apply_schedule(qbar_pa, mach, par, x)
         writes the interpolated values into the slots of the fixed parameters they replace
         (SLW_KAPPA, SLW_K1..3, FST_KAPPA, DOB_C, FST_CF_WN, FLT_RATE_HZ, FLT_ANG_HZ,
-        SLW_OMC_MAX), so every kernel reads them where it always did; SLW_OMC_MAX is the
+        SLW_OMC_MAX), so every kernel reads them where it always did; the gains and filters
+        are read at the effective dynamic pressure qbar x SCH_AUTH(Mach) (the nodes were
+        designed for the least effective Mach number; where the surfaces are more effective
+        the same noise budget allows the gains of a higher node); SLW_OMC_MAX is the
         dynamic-pressure value times the Mach factor SCH_OMCF (1 where the airframe is
         directionally stable, below 1 where its instability takes rudder authority), and the
         same factor scales the yaw-row coordination factor lambda_r (CO_LAMR_SCL); bumpless: the
@@ -32,7 +35,7 @@ from fc.control.layout import E_P, X_EF, X_INT_E1, X_Z
 from fc.control.params import (
     P_DOB_C, P_FLT_ANG_HZ, P_FLT_RATE_HZ, P_FST_CF_WN, P_FST_KAPPA, P_SCH_CFWN, P_SCH_DOBC,
     P_SCH_FLTA, P_SCH_FLTR, P_SCH_K, P_SCH_KAP1, P_SCH_KAP2, P_SCH_M, P_SCH_OMC, P_SCH_OMCF,
-    P_SCH_Q, P_SLW_K1, P_CO_LAMR_SCL,
+    P_SCH_AUTH, P_SCH_Q, P_SLW_K1, P_CO_LAMR_SCL,
     P_SLW_KAPPA, P_SLW_OMC_MAX,
 )
 from fc.control.schedule_data import SCHED_N
@@ -78,7 +81,8 @@ def apply_schedule(qbar_pa, mach, par, x):
     """The scheduled gains at ``qbar_pa`` (Pa) and ``mach`` into their fixed parameters' slots
     of ``par`` (bumpless for the integral of e1 and the observer's estimate, see the module
     text)."""
-    k, f = schedule_index(qbar_pa, par)
+    km, fm = mach_index(mach, par)
+    k, f = schedule_index(qbar_pa * schedule_value(par, P_SCH_AUTH, km, fm), par)
     c_old = par[P_DOB_C]
     k_new = schedule_value(par, P_SCH_K, k, f)
     c_new = schedule_value(par, P_SCH_DOBC, k, f)
@@ -95,7 +99,7 @@ def apply_schedule(qbar_pa, mach, par, x):
     par[P_FST_CF_WN] = schedule_value(par, P_SCH_CFWN, k, f)
     par[P_FLT_RATE_HZ] = schedule_value(par, P_SCH_FLTR, k, f)
     par[P_FLT_ANG_HZ] = schedule_value(par, P_SCH_FLTA, k, f)
-    km, fm = mach_index(mach, par)
     rudder_share = schedule_value(par, P_SCH_OMCF, km, fm)
-    par[P_SLW_OMC_MAX] = schedule_value(par, P_SCH_OMC, k, f) * rudder_share
+    kq, fq = schedule_index(qbar_pa, par)
+    par[P_SLW_OMC_MAX] = schedule_value(par, P_SCH_OMC, kq, fq) * rudder_share
     par[P_CO_LAMR_SCL] = rudder_share

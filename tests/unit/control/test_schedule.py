@@ -11,17 +11,23 @@ from fc.control import layout as L
 from fc.control.law import AttitudeLaw
 from fc.control.params import (
     LAW_PARAMS, PARAM_INDEX, P_DOB_C, P_FLT_ANG_HZ, P_FLT_RATE_HZ, P_FST_CF_WN, P_FST_KAPPA,
-    P_SCH_M, P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
+    P_SCH_AUTH, P_SCH_M, P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
     default_si_array,
 )
 from fc.control.schedule import apply_schedule, mach_index, schedule_index
-from fc.control.schedule_data import SCHED_MACH, SCHED_N, SCHED_QUANTITIES, load_schedule
+from fc.control.schedule_data import (
+    SCHED_AUTH, SCHED_MACH, SCHED_N, SCHED_QUANTITIES, load_schedule,
+)
 
 DEG = math.pi / 180.0
 TAB = load_schedule()
 NODES_PA = TAB["qbar_kpa"] * 1e3
 MACH_NODES = TAB[SCHED_MACH[0]]
 MACH_FACTOR = TAB[SCHED_MACH[1]]
+AUTH = TAB[SCHED_AUTH]
+#: the authority axis off (SCH_AUTH_n = 1): the dynamic-pressure table alone, as the tests of
+#: the qbar axis need it
+AUTH_OFF = {f"SCH_AUTH_{i}": 1.0 for i in range(1, SCHED_N + 1)}
 #: a Mach number where the airframe is directionally stable: the rate-command limit's Mach
 #: factor is 1 there, so the dynamic-pressure table alone decides
 MACH_STABLE = 7.0
@@ -32,9 +38,13 @@ TARGETS = ((P_SLW_KAPPA, "kappa1", 1.0), (P_SLW_K1, "K", 1.0), (P_SLW_K1 + 1, "K
            (P_FLT_ANG_HZ, "flt_ang_hz", 1.0), (P_SLW_OMC_MAX, "omc_max_deg_s", DEG))
 
 
-def scheduled_par(qbar_pa: float, mach: float = MACH_STABLE) -> np.ndarray:
-    """A default parameter array after the schedule was applied at ``qbar_pa`` and ``mach``."""
+def scheduled_par(qbar_pa: float, mach: float = MACH_STABLE, authority: bool = False
+                  ) -> np.ndarray:
+    """A default parameter array after the schedule was applied at ``qbar_pa`` and ``mach``
+    (with the authority axis off unless ``authority``)."""
     par = default_si_array()
+    if not authority:
+        par[P_SCH_AUTH:P_SCH_AUTH + SCHED_N] = 1.0
     apply_schedule(qbar_pa, mach, par, np.zeros(L.X_N))
     return par
 
@@ -116,6 +126,7 @@ def test_non_increasing_nodes_do_not_break_the_kernel():
 def test_application_is_bumpless_for_the_integral_and_the_observer():
     """K int(e1) and d_hat = z + c omega keep their values when the gains change."""
     par = default_si_array()
+    par[P_SCH_AUTH:P_SCH_AUTH + SCHED_N] = 1.0
     x = np.zeros(L.X_N)
     x[L.X_INT_E1:L.X_INT_E1 + 3] = (0.01, -0.02, 0.03)
     x[L.X_Z:L.X_Z + 3] = (0.1, 0.2, -0.3)
@@ -194,6 +205,56 @@ def test_nodes_written_out_of_order_leave_the_mach_axis_finite():
         assert 0 <= k <= SCHED_N - 2 and 0.0 <= f <= 1.0
 
 
+def test_the_authority_axis_defaults_are_the_committed_table():
+    for i in range(SCHED_N):
+        assert LAW_PARAMS[PARAM_INDEX[f"SCH_AUTH_{i + 1}"]].default == pytest.approx(
+            AUTH[i], rel=1e-12)
+    # appended after the Mach factor: the earlier parameters keep their slots
+    assert PARAM_INDEX["SCH_AUTH_1"] > PARAM_INDEX[f"SCH_OMCF_{SCHED_N}"]
+
+
+def test_the_authority_factor_is_the_least_effective_channels_ratio():
+    """The committed factors: the least effective channel's effectiveness at each Mach node
+    over the least over Mach 6-15 (tools.schedule_design.authority_factor): >= 1, falling with
+    Mach, 1 at Mach 15 where the rudder is weakest (the nodes were designed there)."""
+    from tools.schedule_design import authority_factor
+    for m, a in zip(MACH_NODES, AUTH):
+        assert a == pytest.approx(max(authority_factor(m), 1.0), rel=1e-12)
+        # the ratio does not depend on the dynamic pressure (both scale with it)
+        assert authority_factor(m, 50e3) == pytest.approx(authority_factor(m, 250e3), rel=1e-9)
+    assert np.all(AUTH >= 1.0) and np.all(np.diff(AUTH) < 0.0)
+    assert AUTH[-1] == 1.0 and AUTH[0] > 1.4
+
+
+@pytest.mark.parametrize("mach", [0.0, 6.0, 7.4, 7.5, 9.0, 12.0, 14.5, 15.0, 20.0, math.nan])
+def test_the_gains_are_read_at_the_dynamic_pressure_times_the_authority_factor(mach):
+    """GIVEN a Mach number THEN every scheduled gain and filter is the qbar table's value at
+    qbar x SCH_AUTH(Mach) (interpolated between the Mach nodes, clamped at the ends; NaN ->
+    the first node), and SLW_OMC_MAX keeps the plain dynamic pressure (times the Mach
+    factor). A lookup at the plain dynamic pressure, or an authority index one node off,
+    fails here."""
+    m = MACH_NODES[0] if math.isnan(mach) else mach
+    auth = float(np.interp(m, MACH_NODES, AUTH))
+    fac = float(np.interp(m, MACH_NODES, MACH_FACTOR))
+    for q in (0.5 * NODES_PA[0], NODES_PA[1], 4.0e4, 6.3e4, NODES_PA[3], 2.2e5, NODES_PA[-1]):
+        par = scheduled_par(q, mach, authority=True)
+        for slot, name, scale in TARGETS[:-1]:
+            assert par[slot] == pytest.approx(expected(name, q * auth) * scale, rel=1e-12), (
+                name, q)
+        assert par[P_SLW_OMC_MAX] == pytest.approx(expected("omc_max_deg_s", q) * DEG * fac,
+                                                   rel=1e-12)
+
+
+def test_at_the_cruise_the_gains_are_those_of_a_higher_node():
+    """The cruise (Mach 7.5, 63 kPa) flies the gains the table gives at about 93 kPa: the
+    rudder there is 1.48 times as effective as at Mach 15, which the nodes were sized on."""
+    par = scheduled_par(6.3e4, 7.5, authority=True)
+    q_eff = 6.3e4 * float(np.interp(7.5, MACH_NODES, AUTH))
+    assert 9.0e4 < q_eff < 9.6e4
+    assert par[P_DOB_C] == pytest.approx(expected("dob_c", q_eff), rel=1e-12)
+    assert par[P_SLW_KAPPA] > expected("kappa1", 6.3e4) * 1.2
+
+
 def _est_at(qbar_pa: float, law: AttitudeLaw) -> np.ndarray:
     """An estimated state at Mach 8 whose nominal dynamic pressure is ``qbar_pa``."""
     from tools.schedule_design import altitude_for, atm_at
@@ -209,7 +270,7 @@ def test_the_sch_parameters_reach_the_law_through_its_estimated_air_data():
     """GIVEN a law whose SCH_KAP2_3 is set by name WHEN it flies a slow step at node 3's
     dynamic pressure (from the estimated airspeed and altitude) THEN kappa2 in use is that
     value; at CTL_SCHED 0 the fixed FST_KAPPA is back."""
-    law = AttitudeLaw({"SCH_KAP2_3": 7.25, "FST_KAPPA": 5.0})
+    law = AttitudeLaw({"SCH_KAP2_3": 7.25, "FST_KAPPA": 5.0, **AUTH_OFF})
     est = _est_at(NODES_PA[2], law)
     law.reset(est)
     law.slow_step(est, (5 * DEG, 0.0, 0.0), 0.01)
