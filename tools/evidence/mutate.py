@@ -124,6 +124,10 @@ NAMED = (
           "if st[S_SAT + 2] > 0.0 and st[S_SAT] == 0.0 and st[S_SAT + 1] == 0.0:",
           "if st[S_SAT + 2] > 0.0:",
           "yaw escalation counting whenever the rudder is short (the elevons' gate dropped)"),
+    Named("fc/control/schedule.py", "apply_schedule",
+          "k, f = schedule_index(qbar_pa * schedule_value(par, P_SCH_AUTH, km, fm), par)",
+          "k, f = schedule_index(qbar_pa, par)",
+          "schedule: the gains read at the plain dynamic pressure (the authority axis dropped)"),
 )
 
 #: --quick: the named mutants plus the first sign flip of each of these functions: a few
