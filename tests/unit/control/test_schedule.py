@@ -11,7 +11,8 @@ from fc.control import layout as L
 from fc.control.law import AttitudeLaw
 from fc.control.params import (
     LAW_PARAMS, PARAM_INDEX, P_DOB_C, P_FLT_ANG_HZ, P_FLT_RATE_HZ, P_FST_CF_WN, P_FST_KAPPA,
-    P_SCH_AUTH, P_SCH_M, P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES, SCHEDULED_NAMES,
+    P_SCH_AUTH, P_SCH_M, P_SCH_Q, P_SLW_K1, P_SLW_KAPPA, P_SLW_OMC_MAX, SCHED_FAMILIES,
+    SCHEDULED_NAMES,
     default_si_array,
 )
 from fc.control.schedule import apply_schedule, mach_index, schedule_index

@@ -80,8 +80,8 @@ def test_failsafe_holds_the_trim_flown_and_recovers_into_cruise_with_its_targets
         lo, hi = flown.min(axis=0), flown.max(axis=0)               # what the law flew
         # the trim flown is the running mean of the commands (TRIM_EST_TAU_S 3 s > the 1.5 s
         # flown): away from 0 deg (0.28 deg in the elevons with the schedule's gains read at
-        # qbar x SCH_AUTH; above 0.5 deg before them). (Not the last command: with the frame frozen at
-        # one attitude the law's commands settle on for seconds)
+        # qbar x SCH_AUTH; above 0.5 deg before them). (Not the last command: with the frame
+        # frozen at one attitude the law's commands settle on for seconds)
         assert np.max(np.abs(flown.mean(axis=0))) > math.radians(HELD_MIN_DEG)
         t_last = 0.2 + (len(flown) - 1) * DT
         # WHEN the plant data stops (FS_TIMEOUT_S of wall clock) and the fc ticks on, held
