@@ -133,3 +133,52 @@ def test_allocation_counters_count_what_the_frame_allocates(flights, monkeypatch
     assert base["py_allocs_per_frame"] >= 0.0 and base["nrt_allocs_per_frame"] >= 0.0
     assert more["py_allocs_per_frame"] - base["py_allocs_per_frame"] >= 10.0
     assert more["nrt_allocs_per_frame"] == base["nrt_allocs_per_frame"]
+
+
+class _Cycle:
+    pass
+
+
+def _collections(datagrams, monkeypatch, frames: int) -> int:
+    """Full collections the 1 Hz chore ran over ``frames`` frames after the warm-up."""
+    import fc.loops
+    done = []
+    real = fc.loops.collect_garbage
+
+    def counted():
+        done.append(1)
+        return real()
+
+    monkeypatch.setattr(fc.loops, "collect_garbage", counted)
+    rep = allocs._Replay(datagrams, "COORDINATED")
+    try:
+        rep.run(allocs.WARM_FRAMES)
+        del done[:]
+        rep.run(frames)
+    finally:
+        rep.close()
+    return len(done)
+
+
+def test_the_steady_state_runs_no_collection(flights, monkeypatch):
+    # GIVEN a controller replaying a flight, past its warm-up (the start-up's garbage collected)
+    n = _collections(flights["COORDINATED"], monkeypatch, 2000)  # 4 s: 4 rounds of 1 Hz chores
+    # THEN the 1 Hz chore found nothing to collect (fc.scheduler.garbage_due) and skipped the
+    # collection (16-28 blocks, and the free lists emptied, every second before)
+    assert n == 0
+
+
+def test_cyclic_garbage_made_per_frame_is_still_collected(flights, monkeypatch):
+    # GIVEN a controller whose frame leaks one pair of objects referring to each other
+    from fc.loops import RunLoops
+    real = RunLoops.lockstep_exchange
+
+    def leaking(self, code, now_s):
+        a, b = _Cycle(), _Cycle()
+        a.b, b.a = b, a
+        return real(self, code, now_s)
+
+    monkeypatch.setattr(RunLoops, "lockstep_exchange", leaking)
+    # THEN the 1 Hz chore collects: 1,000 leaked containers a second cross the threshold (256)
+    # in every round of the 4
+    assert _collections(flights["COORDINATED"], monkeypatch, 2000) == 4
