@@ -79,11 +79,12 @@ def test_frames_create_no_numba_array_record(flights, mode):
 
 @pytest.mark.parametrize("mode", ["COORDINATED", "CRUISE"])
 def test_the_frame_path_allocates_nothing_on_most_frames(flights, mode):
-    # GIVEN the counted replay of a flight in each mode
-    r = allocs.count_allocations(flights[mode][:allocs.WARM_FRAMES + 300], mode)
+    # GIVEN the counted replay of a flight in each mode, long enough for the internals log to
+    # hand a full chunk (1,024 rows) to its writer inside the window
+    r = allocs.count_allocations(flights[mode][:allocs.WARM_FRAMES + 1000], mode)
     # THEN the receive and the frame (decode, intake, estimator, guidance, law, PWM, answer,
-    # internals row) allocate nothing on nearly every frame: not even the stamp, which stays in
-    # int64 cells (fc/link.py ``read_frame_at``)
+    # internals row and its chunk's hand-over) allocate nothing on nearly every frame: not
+    # even the stamp, which stays in int64 cells (fc/link.py ``read_frame_at``)
     assert r["py_window_read_cost"] == 0.0, r         # the windows count nothing of their own
     assert r["py_allocs_per_frame_read"] + r["py_allocs_per_frame_frame"] <= FRAME_PATH_BLOCKS, r
     assert r["py_alloc_free_frame_paths_pct"] >= QUIET_FRAME_PATH_PCT, r
