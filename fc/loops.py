@@ -131,10 +131,13 @@ class Housekeeping:
                 values = self.param_svc.snapshot()
                 if values is not None:
                     self.io.submit(self.param_svc.save, values)
-                for snapshot, save in self.savers:
+                k = 0                   # (by index: a for loop makes an iterator object)
+                while k < len(self.savers):
+                    snapshot, save = self.savers[k]
                     data = snapshot()
                     if data is not None:
                         self.io.submit(save, data)
+                    k += 1
                 text = self.disk.report(now_s) if self.disk is not None else None
                 if text is not None:
                     self.event(text, ML.MAV_SEVERITY_ERROR)
