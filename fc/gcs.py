@@ -304,6 +304,10 @@ class GcsLink:
         # fc/iothread.py) so a slow disk never stalls the loop
         self.tlog = AppendFile(tlog_path, "tlog", disk) if tlog_path else None
         self._tlog_buf = bytearray()
+        # chunks the I/O thread has written come back here emptied and are filled again: no
+        # new bytearray per flush (issue 24); the I/O job is bound once
+        self._tlog_spare: list[bytearray] = []
+        self._tlog_put = self._put_tlog_chunk
         # the .tlog is a link of its own: its codec (own sequence numbers) and its streams,
         # paced by the time base (sim time in lockstep), not by the wall clock
         self.log_mav = new_codec(vehicle.sysid, vehicle.compid)
@@ -861,11 +865,21 @@ class GcsLink:
         """Hand the collected tlog frames to the I/O thread (called ~1 Hz)."""
         if self.tlog is None or not self._tlog_buf:
             return
-        chunk, self._tlog_buf = self._tlog_buf, bytearray()
+        chunk = self._tlog_buf
+        self._tlog_buf = self._tlog_spare.pop() if self._tlog_spare else bytearray()
         if self.io is not None:
-            self.io.submit(self.tlog.append, chunk)
+            self.io.submit(self._tlog_put, chunk)
         else:
-            self.tlog.append(chunk)
+            self._tlog_put(chunk)
+
+    def _put_tlog_chunk(self, chunk: bytearray) -> None:
+        """Append ``chunk`` to the .tlog (the I/O thread), then give it back to :meth:`flush`
+        emptied (``list.append`` and ``pop`` are atomic: the two threads share the list)."""
+        tlog = self.tlog
+        if tlog is not None:
+            tlog.append(chunk)
+        chunk.clear()
+        self._tlog_spare.append(chunk)
 
     # ------------------------------------------------------------------ receive
     def poll(self, now_s: float) -> int:

@@ -70,7 +70,9 @@ class GuidanceRunner:
         self.throttle_addr = (address_of(self.g.out, np.float64, G.GO_N)
                               + G.GO_THR * self.g.out.itemsize)
         self._out_mv = memoryview(self.g.out)
-        self.limits = 0
+        #: the limit bitfield of the last step (LIM_*), as a float: an int past 256 was a new
+        #: Python object per step (issue 24)
+        self.limits = 0.0
         self._atm = np.zeros(ATM_N)
         #: (bearing to the waypoint rad, distance m, cross-track error m, + right of the leg)
         #: for NAV_CONTROLLER_OUTPUT, set by a mission (fc/mission_mode.py)
@@ -90,7 +92,7 @@ class GuidanceRunner:
         est[0], est[E_V], est[E_H] = 0.065, 2250.0, 28000.0
         spare.reset(est)
         spare.set_targets(h_m=28000.0, chi_rad=0.0, V_m_s=2250.0)
-        spare.step(est, 0.0, self.dt_s)
+        spare.step_f(est, 0.0, self.dt_s)           # (the tick's entry)
         course_from_air_data(0.0, 0.05, 0.0, 0.05, 0.0)
         spare_count = np.zeros(1, np.int64)
         count_p(address_of(spare_count, np.int64, 1))
@@ -167,7 +169,7 @@ class GuidanceRunner:
         self._inputs(est, meas)
         if before_step is not None:
             before_step()
-        self.limits = self.g.step(self.gest, self.chi_rad, self.dt_s)
+        self.limits = self.g.step_f(self.gest, self.chi_rad, self.dt_s)
         count_p(self._steps_p)
         return True
 

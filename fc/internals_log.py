@@ -3,9 +3,11 @@
 One row per fast tick, float64 columns (names carry units). Rows go into preallocated
 chunks; a full chunk is handed to a writer thread that appends it to the crash-safe raw
 companion ``fc_internals.raw`` (column names in ``fc_internals.cols.json``), so the loop
-never waits on the disk. ``close()`` converts the raw file into ``fc_internals.npz``
-(one array per column), streaming: bounded memory however long the run. ``load(path)``
-reads either.
+never waits on the disk. The chunks are a fixed pool recycled between the two threads through
+int64 cells stepped by compiled calls (a free stack, a ring of full chunks): a hand-over
+allocates no Python object (issue 24; a queue put and get made 23 blocks per chunk).
+``close()`` converts the raw file into ``fc_internals.npz`` (one array per column), streaming:
+bounded memory however long the run. ``load(path)`` reads either.
 
 Sized for long runs (issue 24): a row is 816 bytes, so every fast tick of an hour at 500 Hz
 is 1.5 GB. By default (``python -m fc``) the first ``full_rate_s`` seconds of sensor time are
@@ -20,10 +22,10 @@ npz cannot be written at ``close()``, no partial file is left and the raw compan
 """
 from __future__ import annotations
 
+import _thread
 import json
 import math
 import os
-import queue
 import threading
 
 import numpy as np
@@ -60,6 +62,76 @@ def _take_row_p(cur, chunk_rows):
 def _count_p(cur, k):
     """``cur[k] += 1``."""
     carray(i8p(cur), (CUR_N,))[k] += 1
+
+
+# the chunk pool (int64[POOL_HDR + 3 n_chunks], ``InternalsLog._pool``), shared by the frame
+# thread and the writer thread. Only compiled calls step it, and they hold the GIL from start
+# to end, so each step is atomic with respect to the other thread
+POOL_CUR = 0            # the chunk being filled (-1: none, no chunk was free)
+POOL_HEAD = 1           # full chunks handed to the writer so far (ring position, mod n)
+POOL_TAIL = 2           # full chunks the writer has taken so far
+POOL_NFREE = 3          # chunks on the free stack
+POOL_ROWS_BEFORE = 4    # rows taken in the chunks handed over
+POOL_DROPPED = 5        # rows not logged: no chunk free (the writer is behind)
+POOL_HDR = 6            # then: the free stack [n], the ring's chunks [n], their rows [n]
+
+
+@njit(cache=True)
+def _hand_over_p(pool, cur, n_chunks, chunk_rows, take):
+    """Hand the chunk being filled to the writer (when it holds rows); with ``take``, take a
+    free chunk and its first row (``cur``: the row cursor). Returns the chunk taken, -1 when
+    none is free (the row counted as dropped) or when ``take`` is 0."""
+    p = carray(i8p(pool), (POOL_HDR + 3 * n_chunks,))
+    c = carray(i8p(cur), (CUR_N,))
+    k = p[POOL_CUR]
+    n = c[CUR_N_ROWS]
+    if k >= 0 and n > 0:
+        slot = p[POOL_HEAD] % n_chunks
+        p[POOL_HDR + n_chunks + slot] = k
+        p[POOL_HDR + 2 * n_chunks + slot] = n
+        p[POOL_HEAD] += 1
+        p[POOL_ROWS_BEFORE] += n
+        c[CUR_N_ROWS] = 0
+        p[POOL_CUR] = -1
+    if take == 0:
+        return -1
+    if p[POOL_CUR] >= 0:                # (an empty chunk kept: filled from its first row)
+        k = p[POOL_CUR]
+    elif p[POOL_NFREE] == 0:
+        p[POOL_DROPPED] += 1
+        return -1
+    else:
+        p[POOL_NFREE] -= 1
+        k = p[POOL_HDR + p[POOL_NFREE]]
+        p[POOL_CUR] = k
+    c[CUR_N_ROWS] = 1
+    c[CUR_ROW] = 0
+    return k
+
+
+@njit(cache=True)
+def _pop_full_p(pool, n_chunks, chunk_rows, rows):
+    """The writer's next full chunk, oldest first: its index when it holds ``chunk_rows``
+    rows, index + ``n_chunks`` when fewer (their number in ``rows[0]``), -1 when none."""
+    p = carray(i8p(pool), (POOL_HDR + 3 * n_chunks,))
+    if p[POOL_TAIL] == p[POOL_HEAD]:
+        return -1
+    slot = p[POOL_TAIL] % n_chunks
+    p[POOL_TAIL] += 1
+    k = p[POOL_HDR + n_chunks + slot]
+    n = p[POOL_HDR + 2 * n_chunks + slot]
+    if n == chunk_rows:
+        return k
+    carray(i8p(rows), (1,))[0] = n
+    return k + n_chunks
+
+
+@njit(cache=True)
+def _release_p(pool, n_chunks, k):
+    """Chunk ``k`` written: back on the free stack (filled next)."""
+    p = carray(i8p(pool), (POOL_HDR + 3 * n_chunks,))
+    p[POOL_HDR + p[POOL_NFREE]] = k
+    p[POOL_NFREE] += 1
 
 
 # which rows are kept past the full-rate span (int64[KS_N], ``InternalsLog._keep``)
@@ -131,25 +203,48 @@ class InternalsLog:
         # writer that keeps up cycles through two chunks and the others are never touched
         # (np.zeros: their pages are not resident until written; a FIFO touched them all,
         # 13.5 MB of the fc's RSS with 103 columns). The rest (16,384 rows, 33 s at 500 Hz)
-        # stay free for a slow disk.
-        self._free: queue.Queue = queue.LifoQueue()
-        for _ in range(n_chunks):
-            self._free.put(np.zeros((chunk_rows, self.ncol)))
-        self._full: queue.Queue = queue.Queue()
-        self.chunk = self._free.get()
-        #: the data address of ``chunk`` (C-contiguous float64[chunk_rows, ncol])
-        self.chunk_address = int(self.chunk.__array_interface__["data"][0])
+        # stay free for a slow disk. Each chunk's array, data address and bytes are made once
+        # here: a hand-over picks them from these lists by index (a cached small int)
+        if not 1 <= n_chunks <= 256:
+            raise ValueError(f"internals log: {n_chunks} chunks: need 1 to 256")
+        self._chunks = [np.zeros((chunk_rows, self.ncol)) for _ in range(n_chunks)]
+        self._addresses = [int(c.__array_interface__["data"][0]) for c in self._chunks]
+        self._bytes = [memoryview(c).cast("B") for c in self._chunks]
+        self._n_chunks = n_chunks
         self._chunk_rows = chunk_rows
+        self._pool = np.zeros(POOL_HDR + 3 * n_chunks, np.int64)
+        self._pool[POOL_HDR:POOL_HDR + n_chunks] = np.arange(n_chunks)[::-1]
+        self._pool[POOL_NFREE] = n_chunks
+        self._pool[POOL_CUR] = -1
+        self._pool_p = int(self._pool.__array_interface__["data"][0])
+        self._popped = np.zeros(1, np.int64)    # rows of a partial chunk the writer took
+        self._popped_p = int(self._popped.__array_interface__["data"][0])
         self._cur = np.zeros(CUR_N, np.int64)    # the row cursor (CUR_*)
         #: the data address of the row cursor (int64[CUR_N]): ``cur[CUR_ROW]`` is the row the
         #: last :meth:`take_row` took (fc/telemetry.py ``fill_row_p`` reads it there)
         self.cursor_address = int(self._cur.__array_interface__["data"][0])
-        self._rows_before = 0      # rows taken in the chunks before ``chunk``
-        self.dropped = 0           # rows not logged: no free buffer (the writer is behind)
         self.lost_rows = 0         # rows not written: the disk refused them
         scratch = np.zeros(CUR_N, np.int64)     # the compiled steps loaded now, not per row
         _take_row_p(int(scratch.__array_interface__["data"][0]), 1)
         _count_p(int(scratch.__array_interface__["data"][0]), CUR_DECIMATED)
+        pool = np.zeros(POOL_HDR + 3, np.int64)
+        pool_p = int(pool.__array_interface__["data"][0])
+        pool[POOL_CUR] = -1
+        _hand_over_p(pool_p, int(scratch.__array_interface__["data"][0]), 1, 1, 1)
+        _pop_full_p(pool_p, 1, 1, pool_p)
+        _release_p(pool_p, 1, 0)
+        #: the chunk being filled (float64[chunk_rows, ncol]; None when none was free) and its
+        #: data address
+        self.chunk: np.ndarray | None = None
+        self.chunk_address = 0
+        k = _hand_over_p(self._pool_p, self.cursor_address, n_chunks, chunk_rows, 1)
+        self.chunk, self.chunk_address = self._chunks[k], self._addresses[k]
+        self._cur[CUR_N_ROWS] = 0                # (no row taken yet)
+        # the writer sleeps on a held lock; a hand-over releases it (no object made)
+        self._wake = _thread.allocate_lock()
+        self._wake.acquire()
+        self._sync_done: threading.Event | None = None      # set once the writer is idle
+        self._stop = False
         self._full_us = None if full_rate_s is None else int(round(full_rate_s * 1e6))
         self._tail_us = max(1, int(round(1e6 / tail_hz)))
         # which rows are kept (``_keep``): int64[KS_N] stepped by compiled calls; the same
@@ -201,20 +296,21 @@ class InternalsLog:
         """The next row of ``chunk`` taken (a full chunk handed to the writer first); False
         when no buffer is free."""
         if self.chunk is None or not _take_row_p(self.cursor_address, self._chunk_rows):
-            n = self.n
-            if self.chunk is not None:
-                self._full.put((self.chunk, n))
+            k = _hand_over_p(self._pool_p, self.cursor_address, self._n_chunks,
+                             self._chunk_rows, 1)
+            self._wake_writer()
+            if k < 0:
                 self.chunk = None
-            try:
-                self.chunk = self._free.get_nowait()
-            except queue.Empty:
-                self.dropped += 1
                 return False
-            self.chunk_address = int(self.chunk.__array_interface__["data"][0])
-            self._rows_before += n
-            self._cur[CUR_N_ROWS] = 0
-            _take_row_p(self.cursor_address, self._chunk_rows)
+            self.chunk, self.chunk_address = self._chunks[k], self._addresses[k]
         return True
+
+    def _wake_writer(self) -> None:
+        """Let the writer look at the ring (it may be awake already)."""
+        try:
+            self._wake.release()
+        except RuntimeError:                # (not held: the writer is awake)
+            pass
 
     @property
     def n(self) -> int:
@@ -224,7 +320,12 @@ class InternalsLog:
     @property
     def rows(self) -> int:
         """Rows taken (filled) so far."""
-        return self._rows_before + self.n
+        return int(self._pool[POOL_ROWS_BEFORE]) + self.n
+
+    @property
+    def dropped(self) -> int:
+        """Rows not logged: no chunk was free (the writer is behind)."""
+        return int(self._pool[POOL_DROPPED])
 
     @property
     def decimated(self) -> int:
@@ -257,27 +358,47 @@ class InternalsLog:
         return keep
 
     def _writer(self) -> None:
+        n_chunks, rows = self._n_chunks, self._chunk_rows
+        row_b = 8 * self.ncol
         while True:
-            item = self._full.get()
-            if item is None:
-                self._full.task_done()
+            self._wake.acquire()
+            # read before the ring: every chunk handed before a sync or a close asked is in it
+            done, stop = self._sync_done, self._stop
+            while True:                     # every full chunk, oldest first
+                k = _pop_full_p(self._pool_p, n_chunks, rows, self._popped_p)
+                if k < 0:
+                    break
+                if k < n_chunks:            # no copy: the rows are contiguous
+                    ok, n = self._raw.append(self._bytes[k]), rows
+                else:
+                    k -= n_chunks
+                    n = int(self._popped[0])
+                    ok = self._raw.append(self._bytes[k][:n * row_b])
+                if not ok:
+                    self.lost_rows += n
+                _release_p(self._pool_p, n_chunks, k)
+            if done is not None:
+                self._sync_done = None
+                done.set()
+            if stop:
                 break
-            chunk, n = item
-            if not self._raw.append(chunk[:n].data):   # no copy: the rows are contiguous
-                self.lost_rows += n
-            self._free.put(chunk)
-            self._full.task_done()
 
     def flush(self) -> None:
         """Hand the partial chunk to the writer (e.g. at shutdown)."""
         if self.chunk is not None and self.n:
-            self._full.put((self.chunk, self.n))
+            _hand_over_p(self._pool_p, self.cursor_address, self._n_chunks, self._chunk_rows, 0)
             self.chunk = None
+            self._wake_writer()
 
-    def sync(self) -> None:
-        """Hand over the partial chunk and wait until the writer has put everything on disk."""
+    def sync(self, timeout_s: float = 60.0) -> None:
+        """Hand over the partial chunk and wait until the writer has put everything on disk
+        (at most ``timeout_s``: TimeoutError)."""
         self.flush()
-        self._full.join()
+        done = threading.Event()
+        self._sync_done = done
+        self._wake_writer()
+        if not done.wait(timeout_s):
+            raise TimeoutError(f"internals log: the writer did not finish in {timeout_s} s")
 
     def close(self) -> str:
         """Flush, stop the writer, write ``fc_internals.npz``; returns its path."""
@@ -285,7 +406,8 @@ class InternalsLog:
             return self.npz_path
         self.closed = True
         self.flush()
-        self._full.put(None)
+        self._stop = True
+        self._wake_writer()
         self._thread.join(timeout=10.0)
         self._raw.close()
         # streamed: the raw rows are turned into columns one block at a time (a column-major

@@ -27,7 +27,7 @@ from fc.mode_control import ModeControl
 from fc.modes import ModeManager
 from fc.param_service import ParamService
 from fc.scheduler import (FrameGate, LoopStats, TickPlanner, collect_garbage, freeze_heap,
-                          hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
+                          garbage_due, hold_cpu_wakeup_latency, release_heap, sleep_until_ns,
                           try_realtime)
 from fc.storage import DiskHealth
 from fc.telemetry import FcCounters, Telemetry, TickOutput
@@ -119,9 +119,10 @@ class Housekeeping:
                 self.stats.roll()
                 self.counters.roll_load(self.planner.period_ns)
             elif stage == 1:
-                t_gc = time.perf_counter()      # (floats: no int per reading)
-                collect_garbage()
-                self.counters.gc_us = (time.perf_counter() - t_gc) * 1e6
+                if garbage_due():               # (else gc_us keeps the last collection's time)
+                    t_gc = time.perf_counter()      # (floats: no int per reading)
+                    collect_garbage()
+                    self.counters.gc_us = (time.perf_counter() - t_gc) * 1e6
             elif stage == 2:
                 self.telemetry.refresh()
                 self._report_gnss_drops()
@@ -130,10 +131,13 @@ class Housekeeping:
                 values = self.param_svc.snapshot()
                 if values is not None:
                     self.io.submit(self.param_svc.save, values)
-                for snapshot, save in self.savers:
+                k = 0                   # (by index: a for loop makes an iterator object)
+                while k < len(self.savers):
+                    snapshot, save = self.savers[k]
                     data = snapshot()
                     if data is not None:
                         self.io.submit(save, data)
+                    k += 1
                 text = self.disk.report(now_s) if self.disk is not None else None
                 if text is not None:
                     self.event(text, ML.MAV_SEVERITY_ERROR)

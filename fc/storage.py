@@ -99,9 +99,10 @@ class DiskHealth:
         """The text to say now (a fault of something new at once, a lasting one every
         ``every_s``), or None. ``now_s``: monotonic seconds."""
         with self._lock:
-            self._said &= set(self._failing)      # what recovered is new again next time
-            if not self._failing:
+            if not self._failing:               # (no set made: the 1 Hz chore, issue 24)
+                self._said.clear()              # what recovered is new again next time
                 return None
+            self._said &= set(self._failing)
             if now_s < self._next_report_s and set(self._failing) <= self._said:
                 return None
             self._next_report_s = now_s + self.every_s

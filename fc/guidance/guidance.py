@@ -113,6 +113,16 @@ class Guidance:
         The arrays go by address (fc/control/carrays.py: no numba record per step), with the
         shapes bound at construction (the tables are never rebound); an array that cannot be
         viewed so (not C-contiguous float64) goes through the array entry."""
+        return self._step(est, chi_rad, dt_s, K.guidance_step_p)
+
+    def step_f(self, est: np.ndarray, chi_rad: float, dt_s: float) -> float:
+        """:meth:`step` returning the limit bitfield as a float (the same bits, exact): no
+        Python int made per step when a bit past 256 is set (the fc's tick)."""
+        return float(self._step(est, chi_rad, dt_s, K.guidance_step_pf))
+
+    def _step(self, est: np.ndarray, chi_rad: float, dt_s: float, kernel_p):
+        """:meth:`step` through ``kernel_p`` (the by-address entry: ``guidance_step_p`` or
+        ``guidance_step_pf``)."""
         a = self._at
         try:
             est_p = a[0].of(est)
@@ -123,9 +133,8 @@ class Guidance:
             return K.guidance_step(est, float(chi_rad), self.tgt, float(dt_s), self.par,
                                    self.mass_kg, self.xcg_m, self.gx, self.out, self.status,
                                    self.work, self.tab, self.atm, self.grid)
-        return K.guidance_step_p(est_p, float(chi_rad), tgt_p, float(dt_s), par_p,
-                                 self.mass_kg, self.xcg_m, gx_p, out_p, st_p, gw_p, tab_p,
-                                 atm_p, grid_p, self._sizes)
+        return kernel_p(est_p, float(chi_rad), tgt_p, float(dt_s), par_p, self.mass_kg,
+                        self.xcg_m, gx_p, out_p, st_p, gw_p, tab_p, atm_p, grid_p, self._sizes)
 
     def _table_dims(self) -> tuple:
         return self.tab.shape + self.atm.shape + self.grid.shape

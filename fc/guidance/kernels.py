@@ -525,3 +525,13 @@ def guidance_step_p(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw
         carray(f8p(out), (sizes[4],)), carray(f8p(gs), (sizes[5],)),
         carray(f8p(gw), (sizes[6],)), carray(f8p(tab), (sizes[7], sizes[8], sizes[9])),
         carray(f8p(atm), (sizes[10], sizes[11])), carray(f8p(grid), (sizes[12],)))
+
+
+@njit(cache=True)
+def guidance_step_pf(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs, gw, tab, atm,
+                     grid, sizes):
+    """:func:`guidance_step_p` returning the limit bitfield as a float (exact: the bits are
+    below 2^53). The returned Python float comes from CPython's free list; an int past 256
+    (LIM_* bits from 512 up, e.g. 16,384) is a new block per step (issue 24)."""
+    return float(guidance_step_p(est, chi_rad, tgt, dt_s, gp, mass_kg, xcg_m, gx, out, gs,
+                                gw, tab, atm, grid, sizes))

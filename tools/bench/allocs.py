@@ -196,23 +196,27 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
         raise ValueError(f"need more than {WARM_FRAMES} datagrams")
     stats_were_on = _nrt_python.memsys_stats_enabled()
     _nrt_python.memsys_enable_stats()
+    # the bench's own objects are made before the controller and its warm-up (whose first
+    # 1 Hz chore collects what was made before it): compiling the marker or a list per frame
+    # made enough new containers for the fc's rule (fc/scheduler.py ``garbage_due``) to run a
+    # collection in the counted window that only the bench had made due
+    counter = PyAllocCounter()
+    # the windows' edges: a compiled call copies the count into ``marks[k]`` (no Python
+    # int is made inside a window: reading the ctypes counter from Python made one or two,
+    # depending on the values, so a window's own cost was not a constant)
+    marks = np.zeros(4, np.int64)
+    mark = _marker()
+    c_p, m_p = ctypes.addressof(counter.counts), marks.ctypes.data
+    mark(c_p, m_p, 0)                       # (compiled or loaded before the count)
+    # per frame: the receive (read_frame_at), the frame (lockstep_exchange), the housekeeping
+    # (ground station, .tlog streams, 1 Hz chores), as ``_Replay.step``
+    per = np.zeros((n, 3), np.int64)
     rep = _Replay(datagrams, flight_mode, frame_hz)
     try:
         rep.run(WARM_FRAMES)
         feed, drain = rep.feed, rep.drain
-        counter = PyAllocCounter()
-        # the windows' edges: a compiled call copies the count into ``marks[k]`` (no Python
-        # int is made inside a window: reading the ctypes counter from Python made one or two,
-        # depending on the values, so a window's own cost was not a constant)
-        marks = np.zeros(4, np.int64)
-        mark = _marker()
-        c_p, m_p = ctypes.addressof(counter.counts), marks.ctypes.data
         fc = rep.rig.fc
         plant, meas, loops = fc.plant, fc.meas_scratch, fc.loops
-        mark(c_p, m_p, 0)                   # (compiled or loaded before the count)
-        # per frame: the receive (read_frame_at), the frame (lockstep_exchange), the housekeeping
-        # (ground station, .tlog streams, 1 Hz chores), as ``_Replay.step``
-        per = [[0, 0, 0] for _ in range(n)]
         with counter:
             empty = 0                       # the window's own cost: two marks, nothing between
             for _ in range(1000):
@@ -232,14 +236,14 @@ def count_allocations(datagrams: list, flight_mode: str = "COORDINATED",
                 mark(c_p, m_p, 2)
                 loops.housekeeping(now, False)
                 mark(c_p, m_p, 3)
-                row = per[k]
-                row[0] = marks.item(1) - marks.item(0)
-                row[1] = marks.item(2) - marks.item(1)
-                row[2] = marks.item(3) - marks.item(2)
+                per[k, 0] = marks.item(1) - marks.item(0)
+                per[k, 1] = marks.item(2) - marks.item(1)
+                per[k, 2] = marks.item(3) - marks.item(2)
                 drain()
             nrt1 = _nrt_stats()
             blocks1 = sys.getallocatedblocks()
             realloc = counter.counts[2]
+        per = per.tolist()
         parts = [sum(r[i] for r in per) / n - read_cost for i in range(3)]
         net = sorted(sum(r) for r in per)
         quiet = sum(1 for r in per if not any(r))

@@ -197,7 +197,8 @@ PARTS = (
     ("tlog_streams", "gcs_service", ".tlog sim-paced streams (gcs._service_log)"),
     ("gcs_streams", "gcs_service", "GCS streams (gcs._streams)"),
     ("stats_roll", "housekeeping", "1 Hz: lateness statistics (stats.roll)"),
-    ("gc", "housekeeping", "1 Hz: garbage collection (collect_garbage)"),
+    ("gc_due", "housekeeping", "1 Hz: whether a collection is due (garbage_due)"),
+    ("gc", "housekeeping", "1 Hz, when due: garbage collection (collect_garbage)"),
     ("telemetry", "housekeeping", "1 Hz: telemetry snapshot (telemetry.refresh)"),
     ("gcs_flush", "housekeeping", "1 Hz: .tlog flush (gcs.flush)"),
 )
@@ -222,7 +223,8 @@ def _target(fc, name: str):
         "housekeeping": (fc.loops, "housekeeping"), "gcs_poll": (fc.gcs, "poll"),
         "gcs_service": (fc.gcs, "service"), "tlog_streams": (fc.gcs, "_service_log"),
         "gcs_streams": (fc.gcs, "_streams"), "stats_roll": (fc.stats, "roll"),
-        "gc": (loops_mod, "collect_garbage"), "telemetry": (fc.telemetry, "refresh"),
+        "gc_due": (loops_mod, "garbage_due"), "gc": (loops_mod, "collect_garbage"),
+        "telemetry": (fc.telemetry, "refresh"),
         "gcs_flush": (fc.gcs, "flush"),
     }[name]
 

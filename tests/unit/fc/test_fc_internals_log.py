@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fc.internals_log import InternalsLog, load
+from fc.internals_log import POOL_HDR, POOL_HEAD, InternalsLog, load
 
 
 def test_rows_round_trip_through_npz(tmp_path):
@@ -89,14 +89,16 @@ def test_a_chunk_goes_to_the_writer_only_after_its_last_row_is_filled(tmp_path):
     # copied at that moment (the writer may write it to disk at once)
     log = InternalsLog(str(tmp_path), ["a"], chunk_rows=4, n_chunks=4)
     handed = []
-    real_put = log._full.put
+    real_wake = log._wake_writer
 
-    def watched_put(item):
-        if item is not None:
-            handed.append(item[0][:item[1]].copy())
-        real_put(item)
+    def watched_wake():             # (called after each hand-over: the ring's newest chunk)
+        slot = (int(log._pool[POOL_HEAD]) - 1) % 4
+        k = int(log._pool[POOL_HDR + 4 + slot])
+        n = int(log._pool[POOL_HDR + 8 + slot])
+        handed.append(log._chunks[k][:n].copy())
+        real_wake()
 
-    log._full.put = watched_put
+    log._wake_writer = watched_wake
     # WHEN ten rows are filled one after the other (two chunks fill up)
     for i in range(10):
         log.row()[:] = i + 1.0
@@ -180,3 +182,73 @@ def test_a_decimation_that_means_nothing_is_refused(tmp_path):
                        (60.0, float("inf"))):
         with pytest.raises(ValueError):
             InternalsLog(str(tmp_path), ["t_s"], full_rate_s=full_s, tail_hz=hz)
+
+
+def test_a_chunk_is_not_refilled_before_the_writer_released_it(tmp_path):
+    import threading
+    # GIVEN a pool of two chunks and a writer held inside its first write
+    log = InternalsLog(str(tmp_path), ["a"], chunk_rows=4, n_chunks=2)
+    in_write, disk_free = threading.Event(), threading.Event()
+    real_append = log._raw.append
+    written = []
+
+    def held_disk(buf):
+        written.append(np.frombuffer(bytes(buf), np.float64).tolist())  # what the disk got
+        in_write.set()
+        assert disk_free.wait(10)
+        return real_append(buf)
+
+    log._raw.append = held_disk
+    # WHEN 4 rows fill the first chunk, the writer takes it, and 4 more fill the second
+    for i in range(4):
+        log.row()[:] = i + 1.0
+    first = log.chunk
+    assert log.row() is not None        # (hands the first chunk over)
+    second = log.chunk
+    log.chunk[0] = 5.0
+    assert in_write.wait(10)
+    for i in range(5, 8):
+        log.row()[:] = i + 1.0
+    # THEN the next rows are dropped, not written into the chunk the writer holds
+    assert [log.row() for _ in range(3)] == [None, None, None] and log.dropped == 3
+    assert first[:, 0].tolist() == [1.0, 2.0, 3.0, 4.0]
+    disk_free.set()
+    log.sync()
+    # and once the writer gave both back, the one given back last is filled again, from its
+    # first row
+    assert log.row() is not None and log.chunk is second and log.n == 1
+    log.chunk[0] = 9.0
+    log.close()
+    assert written[:2] == [[1.0, 2.0, 3.0, 4.0], [5.0, 6.0, 7.0, 8.0]]
+    assert load(str(tmp_path))["a"].tolist() == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+
+
+def test_the_data_written_equals_the_rows_logged_with_a_slow_writer(tmp_path):
+    import random
+    import time
+    # GIVEN small chunks and a writer that pauses at random (0-2 ms per chunk)
+    rng = random.Random(4)
+    log = InternalsLog(str(tmp_path), ["a", "b"], chunk_rows=8, n_chunks=3)
+    real_append = log._raw.append
+
+    def slow_disk(buf):
+        time.sleep(rng.random() * 0.002)
+        return real_append(buf)
+
+    log._raw.append = slow_disk
+    # WHEN 5,000 rows are offered, some of them while every chunk is with the writer
+    kept = []
+    for i in range(5000):
+        row = log.row()
+        if row is not None:
+            row[:] = (i, -2.0 * i)
+            kept.append(i)
+        if i % 500 == 0:
+            time.sleep(0.001)
+    rows, dropped = log.rows, log.dropped
+    log.close()
+    # THEN every row logged is on disk once, in order, and every other was counted dropped
+    data = load(str(tmp_path))
+    assert data["a"].tolist() == [float(i) for i in kept]
+    assert data["b"].tolist() == [-2.0 * i for i in kept]
+    assert rows == len(kept) and dropped == 5000 - len(kept) and dropped > 0

@@ -181,16 +181,22 @@ def test_rejected_datagrams_go_to_the_general_parser_and_never_raise(link):
     assert stamp >= 0
 
 
-def test_guidance_step_by_address_equals_the_array_entry():
-    # GIVEN two guidances from the same state and targets, one stepped by Guidance.step
-    # (addresses), one through the array entry
-    from fc.guidance import kernels as GK
+def _two_guidances(h_m: float, chi_rad: float, V_m_s: float):
+    """(state, guidance a, guidance b): both reset at the same state, with the same targets."""
     from fc.guidance.guidance import Guidance
     est = np.array([0.03, 0.0, 0.0, 0.0, 0.0, 0.0, 2200.0, 21000.0, 0.0])
     a, b = Guidance(), Guidance()
     for g in (a, b):
         g.reset(est, -1.0)
-        g.set_targets(21500.0, 0.1, 2300.0)
+        g.set_targets(h_m, chi_rad, V_m_s)
+    return est, a, b
+
+
+def test_guidance_step_by_address_equals_the_array_entry():
+    # GIVEN two guidances from the same state and targets, one stepped by Guidance.step
+    # (addresses), one through the array entry
+    from fc.guidance import kernels as GK
+    est, a, b = _two_guidances(21500.0, 0.1, 2300.0)
     rng = np.random.default_rng(1)
     for _ in range(100):
         e = est + rng.normal(0.0, 1e-3, E_N)
@@ -202,3 +208,37 @@ def test_guidance_step_by_address_equals_the_array_entry():
     for name in ("gx", "out", "status", "work"):
         assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
     assert a.out.any()
+
+
+def test_guidance_step_f_gives_the_bitfield_as_a_float_and_the_same_state():
+    # GIVEN two guidances from the same state and targets far from the vehicle's (so the
+    # limits engage, bits past 256 among them), one stepped by step, one by step_f
+    est, a, b = _two_guidances(30000.0, 1.5, 3000.0)
+    rng = np.random.default_rng(2)
+    seen = set()
+    for _ in range(200):
+        e = est + rng.normal(0.0, 1e-3, E_N)
+        la = a.step(e, 0.05, 0.02)
+        lb = b.step_f(e, 0.05, 0.02)
+        # THEN step_f's float holds the same bits as step's int
+        assert type(la) is int and type(lb) is float and float(la) == lb
+        seen.add(la)
+    assert max(seen) > 256, seen            # (an int CPython does not cache was compared)
+    # and the state, outputs and status are the same bits
+    for name in ("gx", "out", "status", "work"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    # and with a bitfield past 256, step_f takes no block from Python's object allocator,
+    # step one per call (tools/bench/allocs.py's counter; the with-block's own cost measured)
+    assert la > 256, la
+    from tools.bench.allocs import PyAllocCounter
+    a.step(e, 0.05, 0.02), b.step_f(e, 0.05, 0.02)
+    counts = []
+    for g, f in ((None, None), (b, b.step_f), (a, a.step)):
+        counter = PyAllocCounter()
+        with counter:
+            if f is not None:
+                f(e, 0.05, 0.02)
+                f(e, 0.05, 0.02)
+                f(e, 0.05, 0.02)
+        counts.append(int(counter.counts[0]) + int(counter.counts[1]))
+    assert counts[1] == counts[0] and counts[2] >= counts[0] + 3, counts

@@ -1,12 +1,14 @@
 """Unit tier: fc.scheduler.FrameGate (the frame-synchronised real-time tick) and the
-garbage-collector hold (freeze_heap / collect_garbage / release_heap), with injected times."""
+garbage-collector hold (freeze_heap / garbage_due / collect_garbage / release_heap), with
+injected times."""
 from __future__ import annotations
 
 import gc
 
 import pytest
 
-from fc.scheduler import FrameGate, collect_garbage, freeze_heap, release_heap
+from fc.scheduler import (GC_NEW_CONTAINERS, FrameGate, collect_garbage, freeze_heap, garbage_due,
+                          release_heap)
 
 T = 1_000_000          # 1 kHz period, ns
 US = 1_000
@@ -132,3 +134,65 @@ def test_freeze_heap_turns_automatic_collection_off_and_release_restores_it():
         release_heap()
     assert gc.isenabled()
     assert gc.get_freeze_count() == 0
+
+
+class _Cycle:
+    pass
+
+
+def _make_cycles(n: int) -> None:
+    """``n`` pairs of objects referring to each other, dropped: 2 n containers of cyclic
+    garbage that only a collection frees."""
+    for _ in range(n):
+        a, b = _Cycle(), _Cycle()
+        a.b, b.a = b, a
+
+
+def test_no_collection_is_due_when_nothing_was_allocated():
+    # GIVEN the heap frozen and collected (the fc's state after start-up)
+    try:
+        freeze_heap()
+        collect_garbage()
+        # WHEN objects are made and freed again (no container outlives the loop), or nothing
+        for _ in range(1000):
+            x = [1.0, 2.0]
+            del x
+        # THEN no collection is due, even at a threshold of 16 containers (the test's own
+        # frame and iterator count 2)
+        assert not garbage_due(16), gc.get_count()
+        assert not garbage_due(), gc.get_count()
+    finally:
+        release_heap()
+
+
+def test_a_collection_is_due_once_cyclic_garbage_was_made():
+    # GIVEN the heap frozen and collected
+    try:
+        freeze_heap()
+        collect_garbage()
+        # WHEN fewer cycles than the threshold are leaked, then enough to cross it
+        _make_cycles(10)
+        assert not garbage_due(), gc.get_count()
+        _make_cycles(GC_NEW_CONTAINERS // 2)
+        # THEN a collection is due, frees every leaked object, and is not due after it
+        assert garbage_due(), gc.get_count()
+        assert collect_garbage() >= 2 * (10 + GC_NEW_CONTAINERS // 2)
+        assert not garbage_due(), gc.get_count()
+    finally:
+        release_heap()
+
+
+@pytest.mark.parametrize("threshold", [16, 100, 300])
+def test_the_collection_is_due_at_the_threshold(threshold):
+    # GIVEN the heap frozen and collected, and containers kept alive one by one
+    try:
+        freeze_heap()
+        collect_garbage()
+        kept = []
+        while len(kept) < 2 * threshold and not garbage_due(threshold):
+            kept.append(_Cycle())
+        # THEN it is due once the kept containers reach the threshold (give or take the list
+        # and the test's own frame)
+        assert threshold - 4 <= len(kept) <= threshold, (len(kept), gc.get_count())
+    finally:
+        release_heap()

@@ -182,3 +182,50 @@ def test_extended_sys_state_on_request(tmp_path):
     finally:
         peer.close()
         link.close()
+
+
+def test_tlog_chunks_are_recycled_only_after_the_io_thread_wrote_them(tmp_path):
+    import struct
+    import threading
+
+    from fc.iothread import IoThread
+    # GIVEN a link whose I/O thread is held by a job ahead of the .tlog's chunks
+    io = IoThread()
+    link = _link(tmp_path)
+    link.io = io
+    held, free = threading.Event(), threading.Event()
+
+    def hold():
+        held.set()
+        assert free.wait(10)
+
+    io.submit(hold)
+    assert held.wait(10)
+    frames = [bytes([k]) * (5 + k) for k in range(6)]
+    try:
+        # WHEN frames are logged and flushed twice while the thread is held
+        for k in (0, 1, 2):
+            link._tlog_write(frames[k], 1000 * k)
+        first = link._tlog_buf
+        link.flush()
+        assert link._tlog_buf is not first and link._tlog_spare == []
+        for k in (3, 4):
+            link._tlog_write(frames[k], 1000 * k)
+        second = link._tlog_buf
+        link.flush()
+        # THEN no handed chunk was taken back before it was written
+        assert link._tlog_buf is not first and link._tlog_buf is not second
+        free.set()
+        io.close()
+        # and once written, both came back emptied, and the next flush takes one of them
+        assert sorted(map(id, link._tlog_spare)) == sorted((id(first), id(second)))
+        assert first == b"" and second == b""
+        link.io = None                              # (no I/O thread now: written at once)
+        link._tlog_write(frames[5], 5000)
+        link.flush()
+        assert link._tlog_buf is first or link._tlog_buf is second
+    finally:
+        link.close()
+    # and the file holds every frame once, in order, each after its stamp
+    want = b"".join(struct.pack(">Q", link.epoch_us + 1000 * k) + f for k, f in enumerate(frames))
+    assert (tmp_path / "fc.tlog").read_bytes().endswith(want)

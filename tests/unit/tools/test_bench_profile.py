@@ -27,8 +27,11 @@ def test_profile_reports_every_frame_part(tmp_path, capsys):
     assert rows["gcs_poll"]["calls_per_frame"] == 0.0
     assert rows["pwm"]["calls_per_frame"] == 1.0       # one compiled call: 3 surfaces + throttle
     # the 1 Hz chores were made due (every 100 frames: each chore once per round of 4)
-    for part in ("stats_roll", "gc", "telemetry", "gcs_flush"):
+    for part in ("stats_roll", "gc_due", "telemetry", "gcs_flush"):
         assert rows[part]["calls_per_frame"] > 0.0, part
+    # and no collection ran: the replay's steady state leaves nothing to collect
+    # (fc/scheduler.py ``garbage_due``)
+    assert rows["gc"]["calls_per_frame"] == 0.0
     assert rows["total"]["mean_us_per_frame"] > 0.0
     assert d["plain"]["frames"] == 300 and d["plain"]["wall_median_us"] > 0.0
     # every function is listed (--top above the count), so the frame entry is there whatever the load
