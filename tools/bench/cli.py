@@ -234,7 +234,7 @@ def part_allocs(rep: Report, quick: bool) -> None:
         nrt = rep.fig(f"fc_nrt_allocs_per_frame_{mode.lower()}", m["nrt_allocs_per_frame"])
         rep.row(f"3 fc allocations per plant frame, {mode} (Python object-allocator blocks / "
                 f"numba NRT records; {m['frames']} frames in process)",
-                f"{_f(py, '.1f')} / {_f(nrt, '.1f')}", "0 / 0: " + _ok(py <= 0 and nrt <= 0),
+                f"{_f(py, '.3f')} / {_f(nrt, '.3f')}", "0 / 0: " + _ok(py <= 0 and nrt <= 0),
                 "", "", "allocs")
     rep.fig("fc_py_allocs_per_frame", max(m["py_allocs_per_frame"] for m in r.values()))
     rep.fig("fc_nrt_allocs_per_frame", max(m["nrt_allocs_per_frame"] for m in r.values()))
