@@ -358,6 +358,35 @@ def realtime(fast_hz: float, wall_s: float, keep: str | None = None,
         s.close()
 
 
+def realtime_floor(fast_hz: float, wall_s: float, keep: str | None = None) -> dict:
+    """:func:`realtime`'s measuring stand-in plant against a bare receiver instead of the fc
+    (``tools.bench.rtfloor``: the fc's link, scheduling request and ``select`` wait, no work):
+    the host's wake-up lateness floor at ``fast_hz`` at the time of the run (us)."""
+    s = Session(keep, f"rtfloor{int(fast_hz)}")
+    try:
+        port = free_udp_port()
+        out = s.dir / "rtfloor.json"
+        rx = s.start("rtfloor", [PY, "-m", "tools.bench.rtfloor", "--plant-bind",
+                                 f"127.0.0.1:{port}", "--out", str(out), "--period-us",
+                                 f"{1e6 / fast_hz:g}", "--skip", str(int(fast_hz))])
+        rx.wait_for_line("READY", READY_TIMEOUT_S)
+        pl = s.start("standin", [PY, "-m", "tools.bench.standin", "--fc", f"127.0.0.1:{port}",
+                                 "--mode", "realtime", "--frame-hz", f"{fast_hz:g}",
+                                 "--duration", f"{wall_s:g}", "--out",
+                                 str(s.dir / "standin.json")])
+        pl.wait_for_line("READY", READY_TIMEOUT_S)
+        rc = _wait_exit(pl, 60.0 + 3.0 * wall_s)
+        if rc != 0:
+            raise RuntimeError(pl.death_message())
+        if _wait_exit(rx, 30.0) != 0:
+            raise RuntimeError(rx.death_message())
+        res = json.loads(out.read_text())
+        res["fast_hz"] = fast_hz
+        return res
+    finally:
+        s.close()
+
+
 def startup(cold: bool, keep: str | None = None, precompiled: bool = False) -> dict:
     """Process start to the first SERVO_OUTPUT_RAW: ``python -m fc`` (lockstep) is started and
     a sensor frame is sent every 2 ms until the first answer. ``cold``: NUMBA_CACHE_DIR points
