@@ -3,6 +3,7 @@
     python -m tools.evidence.report import-hil runs/<run> --as hil_paper --command "python -m tools.hil run"
     python -m tools.evidence.report import-mc runs/mc-paper --as mc_paper --command "python -m tools.evidence.montecarlo ..."
     python -m tools.evidence.report import-env runs/env_b --as env_b --command "python -m tools.evidence.envelope ..."
+    python -m tools.evidence.report import-bench runs/bench.json --as bench --command "python -m tools.bench --json runs/bench.json"
     python -m tools.evidence.report write          # rewrite every generated table from docs/data/*.json
     python -m tools.evidence.report check          # exit 1 if a committed table differs from its data
 
@@ -31,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DATA_DIR = "docs/data"
 #: documents that may hold generated blocks
 DOCUMENTS = ("README.md", "docs/coordination.md", "docs/montecarlo.md", "docs/metrics.md",
-             "docs/margins.md", "docs/control_law.md")
+             "docs/margins.md", "docs/control_law.md", "docs/performance.md")
 CHANNELS = ("alpha", "beta", "mu")
 SURFACES = ("left_elevon", "right_elevon", "rudder")
 
@@ -78,8 +79,15 @@ def import_summary(summary_path: Path, name: str, command: str, kind: str,
     elif kind == "env":
         commit = _commit_now()
         created = _mtime_utc(summary_path)
+    elif kind == "bench":
+        # python -m tools.bench --json FILE: the figures and the run's record, not the details
+        s = {"meta": s.get("meta", {}), "figures": s.get("figures", {})}
+        commit = _commit_now()
+        utc = s["meta"].get("utc")
+        created = (utc.replace("Z", "+00:00") if isinstance(utc, str)
+                   else _mtime_utc(summary_path))
     else:
-        raise ValueError(f"kind must be 'hil', 'mc' or 'env', got {kind!r}")
+        raise ValueError(f"kind must be 'hil', 'mc', 'env' or 'bench', got {kind!r}")
     commit = commit_override or commit
     created = created_override or created
     out = Path(root) / DATA_DIR / f"{name}.json"
@@ -457,6 +465,57 @@ def claim_mc(root: Path = ROOT) -> str:
             "`mc_cruise_b.json`, `mc_cruise.json`.)")
 
 
+def _ok(met: bool) -> str:
+    return "met" if met else "**missed**"
+
+
+def table_bench(root: Path = ROOT, source: str = "bench") -> str:
+    """Issue 24's numbers from one ``python -m tools.bench --json FILE`` run: each figure, its
+    target, whether it is met, and the floor the same run measured under it."""
+    d = load_data(source, root)
+    f = d["summary"]["figures"]
+    g = f.get
+    nan = math.nan
+    rows = ["| figure | measured | issue 24's target | | floor, same run |",
+            "|---|---|---|---|---|"]
+    cpu = g("fc_frame_cpu_median_us", nan)
+    rows.append(f"| fc CPU per plant frame, in process (receive / frame / housekeeping) | "
+                f"{cpu:.1f} us = {g('fc_frame_read_median_us', nan):.1f} + "
+                f"{g('fc_frame_work_median_us', nan):.1f} + "
+                f"{g('fc_frame_housekeeping_median_us', nan):.1f} | <= 7 us | {_ok(cpu <= 7)} | "
+                f"the law alone (from Python) {g('law_cycle_fc_median_us', nan):.2f} us |")
+    pp = g("plant_frame_path_us", nan)
+    rk = g("plant_rk4_step_in_loop_us", nan)
+    rows.append(f"| plant per-frame path, no network | {pp:.1f} us | <= 5 us | {_ok(pp <= 5)} | "
+                f"two RK4 steps {2 * rk:.1f} us |")
+    rtf = g("lockstep_500_rtf", nan)
+    flo = g("lockstep_500_floor_rtf", nan)
+    share = rtf / flo if flo else nan
+    rows.append(f"| lockstep at 500 Hz, plant process | {rtf:.1f}x = {share * 100:.0f} % of the "
+                f"links' limit | >= 75 % | {_ok(share >= 0.75)} | the links' ping-pong "
+                f"{g('pingpong_links_median_us', nan):.0f} us ({flo:.1f}x); raw UDP "
+                f"{g('pingpong_raw_median_us', nan):.0f} us |")
+    for mode in ("coordinated", "cruise"):
+        py = g(f"fc_py_allocs_per_frame_{mode}", nan)
+        nrt = g(f"fc_nrt_allocs_per_frame_{mode}", nan)
+        rows.append(f"| fc allocations per plant frame, {mode.upper()}: Python blocks / numba "
+                    f"records | {py:.3f} / {nrt:.3f} | 0 / 0 | {_ok(py == 0 and nrt == 0)} | |")
+    lp = g("rt_1000_lateness_p99_us", nan)
+    ls = g("rt_1000_late_20pct_pct", nan)
+    fp = g("rt_1000_floor_lateness_p99_us")
+    fs = g("rt_1000_floor_late_20pct_pct")
+    floor = (f"a bare receiver: p99 {fp:.0f} us, {fs:.2f} % late" if fp is not None
+             else "not measured in this run")
+    rows.append(f"| real time 1 kHz, wake-up lateness | p99 {lp:.0f} us, {ls:.2f} % late | "
+                f"p99 <= 50 us, < 0.1 % late | {_ok(lp <= 50 and ls < 0.1)} | {floor} |")
+    rows.append(f"| peak RSS, fc / plant (lockstep run) | {g('fc_peak_rss_mb', nan):.0f} / "
+                f"{g('plant_peak_rss_mb', nan):.0f} MB | | | |")
+    load = d["summary"]["meta"].get("load_avg_1min_at_part_start", {})
+    lo = f"{min(load.values()):.1f}-{max(load.values()):.1f}" if load else "-"
+    return ("\n".join(rows) + f"\n\nLoad average at the parts' starts {lo}. " +
+            _caption(d, source))
+
+
 #: block name -> the function that renders it
 TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
           "hil_prefilter": table_hil_prefilter, "eq14_mirror_claim": claim_eq14_mirror,
@@ -466,7 +525,7 @@ TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps
           "mc_paper_gains": table_mc_paper_gains, "mc_cruise": table_mc_cruise,
           "mc_cruise_b": table_mc_cruise_b,
           "mc_surfaces": table_mc_surfaces, "mc_surfaces_claim": claim_mc_surfaces,
-          "mc_claim": claim_mc}
+          "mc_claim": claim_mc, "bench": table_bench}
 
 _BLOCK = re.compile(r"(<!-- report:(?P<name>[a-z0-9_]+) -->\n)(?P<body>(?:.*?\n)??)"
                     r"(<!-- /report:(?P=name) -->)", re.S)
@@ -521,11 +580,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.evidence.report",
                                  description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
-    for kind in ("hil", "mc", "env"):
-        what = {"hil": "run", "mc": "campaign", "env": "envelope map"}[kind]
+    for kind in ("hil", "mc", "env", "bench"):
+        what = {"hil": "run", "mc": "campaign", "env": "envelope map",
+                "bench": "benchmark run (its --json FILE)"}[kind]
         p = sub.add_parser(f"import-{kind}", help=f"copy a {what}"
                            "'s summary.json into docs/data/NAME.json")
-        p.add_argument("dir", type=Path, help="the run (or campaign) directory")
+        p.add_argument("dir", type=Path, help="the run (or campaign) directory; import-bench: "
+                       "the JSON file `python -m tools.bench --json FILE` wrote")
         p.add_argument("--as", dest="name", required=True, help="NAME of docs/data/NAME.json")
         p.add_argument("--command", required=True, help="the command that produced the run")
         p.add_argument("--commit", default=None,
@@ -538,7 +599,8 @@ def main(argv=None) -> int:
     sub.add_parser("check", help="exit 1 if a generated table differs from its data")
     a = ap.parse_args(argv)
     if a.cmd.startswith("import-"):
-        out = import_summary(a.dir / "summary.json", a.name, a.command, a.cmd[len("import-"):],
+        src = a.dir if a.cmd == "import-bench" else a.dir / "summary.json"
+        out = import_summary(src, a.name, a.command, a.cmd[len("import-"):],
                              commit_override=a.commit, created_override=a.created)
         print(f"wrote {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
         return 0

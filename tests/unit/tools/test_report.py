@@ -107,3 +107,36 @@ def test_an_envelope_map_is_imported_and_its_claim_follows_it(tmp_path):
     text = report.claim_envelope(tmp_path)
     assert "270 of 295 coordinated (92 %)" in text and "Diverged: 0 / 2 points" in text
     assert "`python -m tools.evidence.envelope X`" in text and "abc1234" in text
+
+
+def test_a_bench_run_is_imported_and_its_verdicts_follow_its_figures(tmp_path):
+    """import-bench copies ``python -m tools.bench --json FILE``'s figures (not its details);
+    the issue-24 table says met or missed from them, with the floors of the same run."""
+    fig = {"fc_frame_cpu_median_us": 6.5, "fc_frame_read_median_us": 2.0,
+           "fc_frame_work_median_us": 4.0, "fc_frame_housekeeping_median_us": 0.5,
+           "law_cycle_fc_median_us": 1.4, "plant_frame_path_us": 9.0,
+           "plant_rk4_step_in_loop_us": 2.5, "lockstep_500_rtf": 20.0,
+           "lockstep_500_floor_rtf": 25.0, "pingpong_links_median_us": 78.0,
+           "pingpong_raw_median_us": 31.0, "fc_py_allocs_per_frame_coordinated": 0.0,
+           "fc_nrt_allocs_per_frame_coordinated": 0.0, "fc_py_allocs_per_frame_cruise": 0.01,
+           "fc_nrt_allocs_per_frame_cruise": 0.0, "rt_1000_lateness_p99_us": 60.0,
+           "rt_1000_late_20pct_pct": 0.05, "rt_1000_floor_lateness_p99_us": 55.0,
+           "rt_1000_floor_late_20pct_pct": 0.04, "fc_peak_rss_mb": 185.0,
+           "plant_peak_rss_mb": 171.0}
+    src = tmp_path / "bench.json"
+    src.write_text(json.dumps({"meta": {"utc": "2026-11-26T13:00:00Z",
+                                        "load_avg_1min_at_part_start": {"law": 0.1, "x": 0.9}},
+                               "figures": fig, "rows": [["x"]], "details": {"big": [1] * 100}}))
+    report.import_summary(src, "bench", "python -m tools.bench --json F", "bench",
+                          root=tmp_path, commit_override="abc1234")
+    d = report.load_data("bench", tmp_path)
+    assert set(d["summary"]) == {"meta", "figures"} and d["created_utc"].startswith("2026-11-26T13:00")
+    rows = {r.split(" | ")[0].lstrip("| "): r for r in report.table_bench(tmp_path).splitlines()
+            if r.startswith("| ")}
+    assert "6.5 us = 2.0 + 4.0 + 0.5 | <= 7 us | met" in rows["fc CPU per plant frame, in process (receive / frame / housekeeping)"]
+    assert "9.0 us | <= 5 us | **missed** | two RK4 steps 5.0 us" in rows["plant per-frame path, no network"]
+    assert "20.0x = 80 % of the links' limit | >= 75 % | met" in rows["lockstep at 500 Hz, plant process"]
+    alloc = [r for k, r in rows.items() if k.startswith("fc allocations")]
+    assert "0.000 / 0.000 | 0 / 0 | met" in alloc[0] and "**missed**" in alloc[1]
+    assert "p99 60 us, 0.05 % late | p99 <= 50 us, < 0.1 % late | **missed** | a bare receiver: p99 55 us" in rows["real time 1 kHz, wake-up lateness"]
+    assert "`python -m tools.bench --json F`, commit abc1234, 2026-11-26 13:00" in report.table_bench(tmp_path)
