@@ -550,6 +550,7 @@ SUBCOMMANDS = {
     "campaign": "tools.bench.campaign",  # Monte Carlo campaign wall time per worker count
     "profile": "tools.bench.profile",    # where the fc's CPU per plant frame goes (issue 16)
     "treerss": "tools.bench.treerss",    # a command's process tree's memory, sampled (issue 24)
+    "hour": "tools.bench.hour",          # the 1-hour lockstep cruise: wall, logs, memory (issue 24)
 }
 
 

@@ -469,9 +469,11 @@ def _ok(met: bool) -> str:
     return "met" if met else "**missed**"
 
 
-def table_bench(root: Path = ROOT, source: str = "bench") -> str:
+def table_bench(root: Path = ROOT, source: str = "bench", hour_source: str = "hour") -> str:
     """Issue 24's numbers from one ``python -m tools.bench --json FILE`` run: each figure, its
-    target, whether it is met, and the floor the same run measured under it."""
+    target, whether it is met, and the floor the same run measured under it; with
+    ``docs/data/<hour_source>.json`` (``python -m tools.bench hour --json FILE``) the 1-hour
+    cruise's wall time (its floor: the exchanges at the bench's ping-pong), logs and memory."""
     d = load_data(source, root)
     f = d["summary"]["figures"]
     g = f.get
@@ -510,10 +512,31 @@ def table_bench(root: Path = ROOT, source: str = "bench") -> str:
                 f"p99 <= 50 us, < 0.1 % late | {_ok(lp <= 50 and ls < 0.1)} | {floor} |")
     rows.append(f"| peak RSS, fc / plant (lockstep run) | {g('fc_peak_rss_mb', nan):.0f} / "
                 f"{g('plant_peak_rss_mb', nan):.0f} MB | | | |")
+    hour_path = Path(root) / DATA_DIR / f"{hour_source}.json"
+    tail = ""
+    if hour_path.exists():
+        h = load_data(hour_source, root)
+        hf = h["summary"]["figures"]
+        wall, logs, rss = hf["hour_wall_s"], hf["hour_logs_mb"], hf["hour_peak_rss_mb"]
+        n = hf["hour_exchanges"]
+        ping = g("pingpong_links_median_us", nan)
+        sim = f"{hf['hour_duration_s'] / 3600:g}-hour" if hf["hour_duration_s"] % 3600 == 0 \
+            else f"{hf['hour_duration_s']:g} s"
+        rows.append(f"| the {sim} lockstep cruise: wall time | {wall:.0f} s | <= 80 s | "
+                    f"{_ok(wall <= 80)} | {n:,} exchanges x the links' ping-pong {ping:.0f} us "
+                    f"= {n * ping * 1e-6:.0f} s |")
+        big = sorted(hf["hour_log_files_mb"].items(), key=lambda kv: -kv[1])[:3]
+        rows.append(f"| the {sim} cruise: logs | {logs:.0f} MB | <= 300 MB | {_ok(logs <= 300)} "
+                    f"| " + ", ".join(f"{k.split('/')[-1]} {v:.0f}" for k, v in big) + " MB |")
+        procs = hf["hour_peak_rss_processes_mb"]
+        rows.append(f"| the {sim} cruise: peak RSS summed over the processes | {rss:.0f} MB | "
+                    f"<= 400 MB | {_ok(rss <= 400)} | at {hf['hour_peak_rss_at_s']:.0f} s: "
+                    + ", ".join(f"{k.split(' (')[0]} {v:.0f}" for k, v in procs.items()) + " MB |")
+        tail = " The cruise's rows: " + _caption(h, hour_source)
     load = d["summary"]["meta"].get("load_avg_1min_at_part_start", {})
     lo = f"{min(load.values()):.1f}-{max(load.values()):.1f}" if load else "-"
     return ("\n".join(rows) + f"\n\nLoad average at the parts' starts {lo}. " +
-            _caption(d, source))
+            _caption(d, source) + tail)
 
 
 #: block name -> the function that renders it

@@ -140,3 +140,28 @@ def test_a_bench_run_is_imported_and_its_verdicts_follow_its_figures(tmp_path):
     assert "0.000 / 0.000 | 0 / 0 | met" in alloc[0] and "**missed**" in alloc[1]
     assert "p99 60 us, 0.05 % late | p99 <= 50 us, < 0.1 % late | **missed** | a bare receiver: p99 55 us" in rows["real time 1 kHz, wake-up lateness"]
     assert "`python -m tools.bench --json F`, commit abc1234, 2026-11-26 13:00" in report.table_bench(tmp_path)
+
+
+def test_the_hour_rows_follow_the_hour_run(tmp_path):
+    """With docs/data/hour.json (``python -m tools.bench hour --json F``) the table gains the
+    1-hour cruise's rows: wall time against the exchanges x the bench's ping-pong, logs, RSS."""
+    (tmp_path / report.DATA_DIR).mkdir(parents=True)
+    fig = {"pingpong_links_median_us": 78.0, "fc_py_allocs_per_frame_coordinated": 0.0}
+    (tmp_path / "b.json").write_text(json.dumps({"meta": {"utc": "2026-11-26T13:00:00Z"},
+                                                 "figures": fig}))
+    report.import_summary(tmp_path / "b.json", "bench", "B", "bench", root=tmp_path)
+    assert "cruise" not in report.table_bench(tmp_path)
+    hf = {"hour_wall_s": 150.0, "hour_logs_mb": 263.0, "hour_peak_rss_mb": 401.0,
+          "hour_exchanges": 1800000, "hour_duration_s": 3600.0, "hour_peak_rss_at_s": 232.0,
+          "hour_log_files_mb": {"c/truth.npz": 81.0, "c/fc_internals.npz": 170.0, "c/x": 0.1},
+          "hour_peak_rss_processes_mb": {"fc (12)": 185.0, "plant_sim (13)": 171.0,
+                                         "tools.hil (11)": 45.0}}
+    (tmp_path / "h.json").write_text(json.dumps({"meta": {"utc": "2026-11-26T14:00:00Z"},
+                                                 "figures": hf}))
+    report.import_summary(tmp_path / "h.json", "hour", "python -m tools.bench hour", "bench",
+                          root=tmp_path)
+    t = report.table_bench(tmp_path)
+    assert "| the 1-hour lockstep cruise: wall time | 150 s | <= 80 s | **missed** | 1,800,000 exchanges x the links' ping-pong 78 us = 140 s |" in t
+    assert "| 263 MB | <= 300 MB | met | fc_internals.npz 170, truth.npz 81, x 0 MB |" in t
+    assert "| 401 MB | <= 400 MB | **missed** | at 232 s: fc 185, plant_sim 171, tools.hil 45 MB |" in t
+    assert "`python -m tools.bench hour`" in t
