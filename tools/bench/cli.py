@@ -221,6 +221,12 @@ def part_fcpath(rep: Report, quick: bool) -> None:
             f"median {_f(tot, '.1f')} us = {_f(rd, '.1f')} + {_f(fr, '.1f')} + "
             f"{_f(hk, '.1f')} us", "", f"law cycle {_f(law)} us" if law else "",
             f"law = {law / tot * 100:.0f} % of the fc's frame" if law else "", "fcpath")
+    if "link_only" in r:
+        lk = rep.fig("fc_frame_link_floor_median_us", r["link_only"]["median_us"])
+        rep.row("3 floor: the fc's link alone per frame, in process (compiled receive + decode, "
+                "framing + send: two system calls, no estimator, law, row or housekeeping)",
+                f"median {_f(lk, '.1f')} us", "", "",
+                f"{lk / tot * 100:.0f} % of the fc's frame" if tot else "", "fcpath")
 
 
 def part_allocs(rep: Report, quick: bool) -> None:

@@ -81,11 +81,30 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             _drain(plant, sink)
             cmd[:] = fc.out.delta_rad
             sim.step_frame(cmd)
+        # the floor under the frame: the same link's receive + decode and answer (framing +
+        # send), compiled, with no intake, estimator, law, row or housekeeping between them;
+        # the same datagrams' kind, the same sockets, the fc left as it flew
+        link = np.zeros(n, dtype=np.int64)
+        pwm = fc.out.pwm_us
+        for k in range(warm + n):
+            sim.measure(meas)
+            stamp = int(round(sim.t_s * 1e6))
+            plant.sendto(codec.encode(meas, stamp), addr)
+            t0 = pc()
+            if fc.plant.read_frame_at(fc.meas_scratch) >= 0:
+                fc.plant.send_servo_at(pwm)
+            t1 = pc()
+            if k >= warm:
+                link[k - warm] = t1 - t0
+            _drain(plant, sink)
+            sim.step_frame(cmd)
         return {"frames": n, "read_frame": stats_us(t[:, 0]), "frame": stats_us(t[:, 1]),
                 "housekeeping": stats_us(t[:, 2]), "total": stats_us(t.sum(axis=1)),
+                "link_only": stats_us(link),
                 "note": "in process, one thread, no peer wait; read_frame = recv + decode of "
                         "ATTITUDE+AOA_SSA+VFR_HUD; frame = estimator + law + PWM + "
-                        "SERVO_OUTPUT_RAW encode/send + internals row; housekeeping = GCS"}
+                        "SERVO_OUTPUT_RAW encode/send + internals row; housekeeping = GCS; "
+                        "link_only = read_frame_at + send_servo_at alone (the sockets' floor)"}
     finally:
         if fc is not None:
             try:

@@ -485,7 +485,10 @@ def table_bench(root: Path = ROOT, source: str = "bench", hour_source: str = "ho
                 f"{cpu:.1f} us = {g('fc_frame_read_median_us', nan):.1f} + "
                 f"{g('fc_frame_work_median_us', nan):.1f} + "
                 f"{g('fc_frame_housekeeping_median_us', nan):.1f} | <= 7 us | {_ok(cpu <= 7)} | "
-                f"the law alone (from Python) {g('law_cycle_fc_median_us', nan):.2f} us |")
+                + (f"the fc's link alone (receive + decode, framing + send) "
+                   f"{g('fc_frame_link_floor_median_us'):.1f} us; "
+                   if g("fc_frame_link_floor_median_us") is not None else "")
+                + f"the law alone (from Python) {g('law_cycle_fc_median_us', nan):.2f} us |")
     pp = g("plant_frame_path_us", nan)
     rk = g("plant_rk4_step_in_loop_us", nan)
     rows.append(f"| plant per-frame path, no network | {pp:.1f} us | <= 5 us | {_ok(pp <= 5)} | "

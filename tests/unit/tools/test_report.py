@@ -115,6 +115,7 @@ def test_a_bench_run_is_imported_and_its_verdicts_follow_its_figures(tmp_path):
     fig = {"fc_frame_cpu_median_us": 6.5, "fc_frame_read_median_us": 2.0,
            "fc_frame_work_median_us": 4.0, "fc_frame_housekeeping_median_us": 0.5,
            "law_cycle_fc_median_us": 1.4, "plant_frame_path_us": 9.0,
+           "fc_frame_link_floor_median_us": 5.5,
            "plant_rk4_step_in_loop_us": 2.5, "lockstep_500_rtf": 20.0,
            "lockstep_500_floor_rtf": 25.0, "pingpong_links_median_us": 78.0,
            "pingpong_raw_median_us": 31.0, "fc_py_allocs_per_frame_coordinated": 0.0,
@@ -133,7 +134,7 @@ def test_a_bench_run_is_imported_and_its_verdicts_follow_its_figures(tmp_path):
     assert set(d["summary"]) == {"meta", "figures"} and d["created_utc"].startswith("2026-11-26T13:00")
     rows = {r.split(" | ")[0].lstrip("| "): r for r in report.table_bench(tmp_path).splitlines()
             if r.startswith("| ")}
-    assert "6.5 us = 2.0 + 4.0 + 0.5 | <= 7 us | met" in rows["fc CPU per plant frame, in process (receive / frame / housekeeping)"]
+    assert "6.5 us = 2.0 + 4.0 + 0.5 | <= 7 us | met | the fc's link alone (receive + decode, framing + send) 5.5 us; the law alone (from Python) 1.40 us |" in rows["fc CPU per plant frame, in process (receive / frame / housekeeping)"]
     assert "9.0 us | <= 5 us | **missed** | two RK4 steps 5.0 us" in rows["plant per-frame path, no network"]
     assert "20.0x = 80 % of the links' limit | >= 75 % | met" in rows["lockstep at 500 Hz, plant process"]
     alloc = [r for k, r in rows.items() if k.startswith("fc allocations")]
