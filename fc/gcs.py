@@ -942,11 +942,17 @@ class GcsLink:
                 if now_s - t > PEER_TIMEOUT_S:
                     self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
-            pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
-            if not pool and (newcomer_signed or not self.signing):
-                pool = list(self.peers)
-            if pool:
-                self._forget(min(pool, key=self.peers.get))
+            self._make_room(newcomer_signed)
+
+    def _make_room(self, newcomer_signed: bool) -> None:
+        """Forget the oldest peer for a newcomer (``_expire_peers``' ``force``). Its own method:
+        the comprehension's closure over ``self`` made a cell object on every call of
+        ``_expire_peers``, the heartbeat second's block (issue 24)."""
+        pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
+        if not pool and (newcomer_signed or not self.signing):
+            pool = list(self.peers)
+        if pool:
+            self._forget(min(pool, key=self.peers.get))
 
     def _for_us(self, m) -> bool:
         ts = getattr(m, "target_system", 0)
@@ -1621,6 +1627,9 @@ class GcsLink:
         the int64 cell ``t_at``."""
         if msg_id in FAST_STREAMS and self._fast_ok():
             self._log_fast(msg_id, t_at)
+        elif msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION and self.home is None:
+            return      # (no message: ``service`` looked for the first fix before the streams;
+            #            building the empty list took 16 blocks every 5 s, issue 24)
         else:
             t_us = int64_at(t_at)
             for msg in self._stream_messages(msg_id):
@@ -1790,6 +1799,8 @@ class GcsLink:
                     self._send_frame(n)
                     sent += 1
                     continue
+            if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION and self.home is None:
+                continue        # (``_build`` gives None: ``service`` looked for the first fix)
             msg = self._build(msg_id, cursor)
             if msg is not None:
                 self._send_on(link, msg)
