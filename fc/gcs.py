@@ -106,6 +106,10 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
 #: SYS_STATUS are framed without home, and declined (the codec's path sets home) at a 3D fix.
 HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                           ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+#: ``STANDARD_MODE.get``, bound once: CPython 3.11 compiles a method call on a name that an
+#: import bound (``from fc.modes import STANDARD_MODE``) as an attribute load, which made a
+#: bound method object per call (CURRENT_MODE's block every 2 s, issue 24)
+_standard_mode = STANDARD_MODE.get
 #: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
 #: (and 8, 10, 12, 15, 16): ``cursor % n`` is unchanged and the cursor stays a small int
 #: (CPython caches the ints up to 256: no int object per message)
@@ -549,7 +553,7 @@ class GcsLink:
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             mode = v.modes.mode
             return GF.current_mode_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
-                                     STANDARD_MODE.get(mode, 0), custom_mode_of(mode))
+                                     _standard_mode(mode, 0), custom_mode_of(mode))
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             if self._stamp_at is None or v.meas_stamp_big:
                 return 0
@@ -1435,7 +1439,7 @@ class GcsLink:
         CRUISE, the rest none); custom = intended = the mode."""
         mode = self.v.modes.mode
         cm = custom_mode_of(mode)
-        return MD.MAVLink_current_mode_message(STANDARD_MODE.get(mode, 0), cm, cm)
+        return MD.MAVLink_current_mode_message(_standard_mode(mode, 0), cm, cm)
 
     def _available_modes(self, index: int | None) -> list:
         """AVAILABLE_MODES for every mode (``index`` 0) or the one at ``index`` (1-based)."""
@@ -1443,7 +1447,7 @@ class GcsLink:
         picked = (range(1, len(modes) + 1) if index == 0
                   else [index] if index is not None and 1 <= index <= len(modes) else [])
         return [MD.MAVLink_available_modes_message(
-                    len(modes), i, STANDARD_MODE.get(modes[i - 1], 0),
+                    len(modes), i, _standard_mode(modes[i - 1], 0),
                     custom_mode_of(modes[i - 1]), 0,
                     modes[i - 1].name.encode("ascii")) for i in picked]
 
