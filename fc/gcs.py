@@ -362,8 +362,11 @@ class GcsLink:
 
     def signing_snapshot(self) -> bytes | None:
         """The signing state file's bytes when a stream timestamp changed, else None (saved
-        on the I/O thread with ``save_signing``; fc/signing.py)."""
-        if self.guard is None or self.guard.path is None:
+        on the I/O thread with ``save_signing``; fc/signing.py). Nothing is computed while no
+        stream changed (``guard.dirty``: ``guard.snapshot`` gives None then, whatever the
+        timestamp): the 1 Hz chore took the largest timestamp over a generator and read the
+        clock as a large int every second (issue 24)."""
+        if self.guard is None or self.guard.path is None or not self.guard.dirty:
             return None
         own = max(link.mav.signing.timestamp for link in (self.default, *self.links.values()))
         return self.guard.snapshot(max(own, clock_timestamp()))

@@ -569,3 +569,28 @@ def test_sys_status_and_current_mode_are_the_codecs(law_active, failed, fix, age
     n = F.current_mode_p(b.p, ep, tl, seq, SYSID, COMPID, standard, custom)
     _check(n, b, _want(MD.MAVLink_current_mode_message(standard, custom, custom), seq,
                        us if log else None))
+
+
+def test_vfr_hud_throttle_percent_rounds_as_round_and_allocates_nothing():
+    # GIVEN a controller in CRUISE (the guidance flies the throttle)
+    from tests.unit.fc.test_gcs_links import _blocks
+    from tools.bench.profile import _Rig, record
+    flight = record(300, "CRUISE")
+    rig = _Rig("CRUISE")
+    try:
+        for data in flight:
+            rig.step(data)
+        t = rig.fc.telemetry
+        assert t.modes.guidance_active
+        # THEN VFR_HUD's throttle is ``int(round(100 * throttle))``, halves to even included
+        # (``__round__`` is what ``round`` calls), and reading it takes no Python block
+        real = t.guid.throttle
+        for thr in (0.0, 0.005, 0.015, 0.025, 0.125, 0.135, 0.5, 0.625, 0.995, 1.0, 0.3333,
+                    real()):
+            t.guid.throttle = lambda thr=thr: thr
+            assert t.throttle_percent() == int(round(100.0 * thr)), thr
+            assert type(t.throttle_percent()) is int
+        t.guid.throttle = real
+        assert _blocks(t.throttle_percent) == 0
+    finally:
+        rig.close()
