@@ -99,13 +99,14 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
                           ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
                           ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT,
-                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE})
+                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE,
+                          ML.MAVLINK_MSG_ID_HOME_POSITION})
 #: FAST_STREAMS about home: none is sent while home is not set. ``service`` looks for the first
 #: fix (``_gnss``, which sets home) before the streams, so a walk that finds home unset skips
 #: them without building them (``_build`` would look again and return None). GPS_RAW_INT and
 #: SYS_STATUS are framed without home, and declined (the codec's path sets home) at a 3D fix.
 HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED, ML.MAVLINK_MSG_ID_HOME_POSITION})
 #: ``STANDARD_MODE.get``, bound once: CPython 3.11 compiles a method call on a name that an
 #: import bound (``from fc.modes import STANDARD_MODE``) as an attribute load, which made a
 #: bound method object per call (CURRENT_MODE's block every 2 s, issue 24)
@@ -631,6 +632,9 @@ class GcsLink:
             return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
                                            self._home_p)
+        if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION:
+            return GF.home_position_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                      time_at, self._home_p)
         return 0
 
     def _frames_cell(self) -> int:
