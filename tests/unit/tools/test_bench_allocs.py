@@ -47,11 +47,12 @@ QUIET_HOUSEKEEPING_PCT = 99.8
 #: codec message object
 HOUSEKEEPING_BLOCKS = 0.002
 #: Python blocks per frame in all (``fc_py_allocs_per_frame``: receive, frame, housekeeping):
-#: 0.0005-0.001 measured (the frame path's one block in 1,000-2,000 frames; 5 in 1,000
-#: allowed), 0.007-0.038 before the housekeeping's last blocks went, 0.04-0.15 before the
-#: collection rule, the chunk pool and the float bitfield, 4.3 and 4.9 before that, 20.3 and
-#: 23.1 before the compiled stream framing
-TOTAL_BLOCKS = 0.005
+#: the two allowances together. 0.0005-0.001 measured (the frame path's one block in
+#: 1,000-2,000 frames; one bench run of 3,000 frames found 11 in CRUISE: the frame path's free
+#: lists, which the I/O thread shares), 0.007-0.038 before the housekeeping's last blocks went,
+#: 0.04-0.15 before the collection rule, the chunk pool and the float bitfield, 4.3 and 4.9
+#: before that, 20.3 and 23.1 before the compiled stream framing
+TOTAL_BLOCKS = FRAME_PATH_BLOCKS + HOUSEKEEPING_BLOCKS
 #: frames of the replay in which every stream and chore falls due at least once: HOME_POSITION
 #: (5 s, 2,500 frames at 500 Hz) in the ground station's and the .tlog's schedules
 ALL_DUE_FRAMES = 2600
