@@ -99,13 +99,18 @@ FAST_STREAMS = frozenset({ML.MAVLINK_MSG_ID_ATTITUDE, ML.MAVLINK_MSG_ID_AOA_SSA,
                           ML.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
                           ML.MAVLINK_MSG_ID_SYSTEM_TIME, ML.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
                           ML.MAVLINK_MSG_ID_MISSION_CURRENT, ML.MAVLINK_MSG_ID_HEARTBEAT,
-                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE})
+                          ML.MAVLINK_MSG_ID_SYS_STATUS, MD.MAVLINK_MSG_ID_CURRENT_MODE,
+                          ML.MAVLINK_MSG_ID_HOME_POSITION})
 #: FAST_STREAMS about home: none is sent while home is not set. ``service`` looks for the first
 #: fix (``_gnss``, which sets home) before the streams, so a walk that finds home unset skips
 #: them without building them (``_build`` would look again and return None). GPS_RAW_INT and
 #: SYS_STATUS are framed without home, and declined (the codec's path sets home) at a 3D fix.
 HOME_STREAMS = frozenset({ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED})
+                          ML.MAVLINK_MSG_ID_LOCAL_POSITION_NED, ML.MAVLINK_MSG_ID_HOME_POSITION})
+#: ``STANDARD_MODE.get``, bound once: CPython 3.11 compiles a method call on a name that an
+#: import bound (``from fc.modes import STANDARD_MODE``) as an attribute load, which made a
+#: bound method object per call (CURRENT_MODE's block every 2 s, issue 24)
+_standard_mode = STANDARD_MODE.get
 #: DEBUG_VECT's round-robin cursor wraps here, a multiple of every count of vectors up to 6
 #: (and 8, 10, 12, 15, 16): ``cursor % n`` is unchanged and the cursor stays a small int
 #: (CPython caches the ints up to 256: no int object per message)
@@ -358,8 +363,11 @@ class GcsLink:
 
     def signing_snapshot(self) -> bytes | None:
         """The signing state file's bytes when a stream timestamp changed, else None (saved
-        on the I/O thread with ``save_signing``; fc/signing.py)."""
-        if self.guard is None or self.guard.path is None:
+        on the I/O thread with ``save_signing``; fc/signing.py). Nothing is computed while no
+        stream changed (``guard.dirty``: ``guard.snapshot`` gives None then, whatever the
+        timestamp): the 1 Hz chore took the largest timestamp over a generator and read the
+        clock as a large int every second (issue 24)."""
+        if self.guard is None or self.guard.path is None or not self.guard.dirty:
             return None
         own = max(link.mav.signing.timestamp for link in (self.default, *self.links.values()))
         return self.guard.snapshot(max(own, clock_timestamp()))
@@ -549,7 +557,7 @@ class GcsLink:
         if msg_id == MD.MAVLINK_MSG_ID_CURRENT_MODE:
             mode = v.modes.mode
             return GF.current_mode_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
-                                     STANDARD_MODE.get(mode, 0), custom_mode_of(mode))
+                                     _standard_mode(mode, 0), custom_mode_of(mode))
         if msg_id == ML.MAVLINK_MSG_ID_SYS_STATUS:
             if self._stamp_at is None or v.meas_stamp_big:
                 return 0
@@ -624,6 +632,9 @@ class GcsLink:
             return GF.local_position_ned_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid,
                                            v.compid, time_at, self._gps_at.of(v.plant.gps),
                                            self._home_p)
+        if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION:
+            return GF.home_position_p(self._tx_p, log_epoch_us, log_t_at, seq, v.sysid, v.compid,
+                                      time_at, self._home_p)
         return 0
 
     def _frames_cell(self) -> int:
@@ -942,11 +953,17 @@ class GcsLink:
                 if now_s - t > PEER_TIMEOUT_S:
                     self._forget(addr)
         if force and len(self.peers) >= MAX_PEERS:
-            pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
-            if not pool and (newcomer_signed or not self.signing):
-                pool = list(self.peers)
-            if pool:
-                self._forget(min(pool, key=self.peers.get))
+            self._make_room(newcomer_signed)
+
+    def _make_room(self, newcomer_signed: bool) -> None:
+        """Forget the oldest peer for a newcomer (``_expire_peers``' ``force``). Its own method:
+        the comprehension's closure over ``self`` made a cell object on every call of
+        ``_expire_peers``, the heartbeat second's block (issue 24)."""
+        pool = [a for a in self.peers if a not in self.signed_peers] if self.signing else []
+        if not pool and (newcomer_signed or not self.signing):
+            pool = list(self.peers)
+        if pool:
+            self._forget(min(pool, key=self.peers.get))
 
     def _for_us(self, m) -> bool:
         ts = getattr(m, "target_system", 0)
@@ -1429,7 +1446,7 @@ class GcsLink:
         CRUISE, the rest none); custom = intended = the mode."""
         mode = self.v.modes.mode
         cm = custom_mode_of(mode)
-        return MD.MAVLink_current_mode_message(STANDARD_MODE.get(mode, 0), cm, cm)
+        return MD.MAVLink_current_mode_message(_standard_mode(mode, 0), cm, cm)
 
     def _available_modes(self, index: int | None) -> list:
         """AVAILABLE_MODES for every mode (``index`` 0) or the one at ``index`` (1-based)."""
@@ -1437,7 +1454,7 @@ class GcsLink:
         picked = (range(1, len(modes) + 1) if index == 0
                   else [index] if index is not None and 1 <= index <= len(modes) else [])
         return [MD.MAVLink_available_modes_message(
-                    len(modes), i, STANDARD_MODE.get(modes[i - 1], 0),
+                    len(modes), i, _standard_mode(modes[i - 1], 0),
                     custom_mode_of(modes[i - 1]), 0,
                     modes[i - 1].name.encode("ascii")) for i in picked]
 
@@ -1621,6 +1638,9 @@ class GcsLink:
         the int64 cell ``t_at``."""
         if msg_id in FAST_STREAMS and self._fast_ok():
             self._log_fast(msg_id, t_at)
+        elif msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION and self.home is None:
+            return      # (no message: ``service`` looked for the first fix before the streams;
+            #            building the empty list took 16 blocks every 5 s, issue 24)
         else:
             t_us = int64_at(t_at)
             for msg in self._stream_messages(msg_id):
@@ -1790,6 +1810,8 @@ class GcsLink:
                     self._send_frame(n)
                     sent += 1
                     continue
+            if msg_id == ML.MAVLINK_MSG_ID_HOME_POSITION and self.home is None:
+                continue        # (``_build`` gives None: ``service`` looked for the first fix)
             msg = self._build(msg_id, cursor)
             if msg is not None:
                 self._send_on(link, msg)

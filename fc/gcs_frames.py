@@ -61,6 +61,7 @@ __all__ = ["FRAME_MAX_B", "DV_CMD", "DV_EST", "DV_DELTA", "DV_GUID", "DV_SIM_T",
            "sim_t_p", "named_value_p", "gps_raw_int_p", "global_position_int_p",
            "local_position_ned_p", "nav_output_p", "heartbeat_p", "system_time_p",
            "extended_sys_state_p", "mission_current_p", "sys_status_p", "current_mode_p",
+           "home_position_p",
            "SYS_PRESENT", "HOME_LAT_DEG", "HOME_LON_DEG", "HOME_ALT_M", "HOME_COS_LAT",
            "HOME_N", "LOG_LAST", "LOG_NEXT", "LOG_DUE", "LOG_SAFE_US", "log_walk_p", "send_frame_p",
            "sockaddr_in", "SOCKADDR_IN_B"]
@@ -89,9 +90,10 @@ ID_EXT, X_EXT, N_EXT = _spec(mavlink.MAVLink_extended_sys_state_message)
 ID_MC, X_MC, N_MC = _spec(mavlink.MAVLink_mission_current_message)
 ID_SYS, X_SYS, N_SYS = _spec(mavlink.MAVLink_sys_status_message)
 ID_CM, X_CM, N_CM = _spec(development_dialect().MAVLink_current_mode_message)
+ID_HOME, X_HOME, N_HOME = _spec(mavlink.MAVLink_home_position_message)
 #: the longest frame written here, with the .tlog stamp (bytes)
 FRAME_MAX_B = 8 + _HDR + max(N_ATT, N_AOA, N_HUD, N_SERVO, N_DV, N_NV, N_GPS, N_GPI, N_LPN,
-                             N_NAV, N_HB, N_TIME, N_EXT, N_MC, N_SYS, N_CM) + 2
+                             N_NAV, N_HB, N_TIME, N_EXT, N_MC, N_SYS, N_CM, N_HOME) + 2
 #: HEARTBEAT.mavlink_version as the codec's ``heartbeat_encode`` sets it
 _MAVLINK_VERSION = 3
 #: fc/gcs_streams.py ``landed_state``: IN_AIR above this airspeed with data current
@@ -667,6 +669,34 @@ def current_mode_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, standard_mode
     if pos < 0:
         return 0
     return _frame_at(out, pos, N_CM, seq, sysid, compid, ID_CM, X_CM)
+
+
+@njit(cache=True)
+def home_position_p(tx, log_epoch_us, log_t_at, seq, sysid, compid, time_at, home):
+    """HOME_POSITION (``GcsLink._build``) of the float64[HOME_N] ``home``: latitude and
+    longitude (degE7) and altitude (mm) rounded as Python's ``round``, position and approach 0,
+    q = (1, 0, 0, 0), time_usec the time base in the int64 cell at ``time_at``. Bytes written,
+    or 0 (a value the codec's struct would refuse: beyond int32, not finite, a negative time)."""
+    time_us = carray(i8p(time_at), (1,))[0]
+    out = carray(u8p(tx), (FRAME_MAX_B,))
+    h = carray(f8p(home), (HOME_N,))
+    ok1, lat = _round_i(h[HOME_LAT_DEG] * 1e7)
+    ok2, lon = _round_i(h[HOME_LON_DEG] * 1e7)
+    ok3, alt = _round_i(h[HOME_ALT_M] * 1000.0)
+    if not (ok1 and ok2 and ok3) or time_us < 0:
+        return 0
+    for v in (lat, lon, alt):
+        if v < _I32_MIN or v > _I32_MAX:
+            return 0
+    pos = _stamp_at(out, log_epoch_us, log_t_at)
+    p = pos + _HDR
+    _put_u(out, p, lat & 0xFFFFFFFF, 4)
+    _put_u(out, p + 4, lon & 0xFFFFFFFF, 4)
+    _put_u(out, p + 8, alt & 0xFFFFFFFF, 4)
+    for k in range(10):                 # x, y, z, q[4], approach_x, _y, _z
+        _put_f32(out, p + 12 + 4 * k, 1.0 if k == 3 else 0.0)
+    _put_u(out, p + 52, time_us, 8)
+    return _frame_at(out, pos, N_HOME, seq, sysid, compid, ID_HOME, X_HOME)
 
 
 #: the .tlog schedule's state (``GcsLink._log_st``, int64[LOG_DUE + n streams]): the last time

@@ -46,6 +46,11 @@ class MissionStore:
         if key == self._saved_key:
             return None
         self._saved_key = key
+        return self._document()
+
+    def _document(self) -> bytes:
+        """The file's bytes now. Apart from :meth:`snapshot`: its comprehension's closure over
+        the mission made a cell object on every call, also when nothing changed (issue 24)."""
         m = self.mission
         doc = {"items": [m.item(i) for i in range(m.count)], "current": m.current,
                "finished": m.finished, "home": self.home_of()}

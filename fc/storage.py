@@ -98,16 +98,26 @@ class DiskHealth:
     def report(self, now_s: float) -> str | None:
         """The text to say now (a fault of something new at once, a lasting one every
         ``every_s``), or None. ``now_s``: monotonic seconds."""
-        with self._lock:
+        # the lock taken by its methods, not by ``with``: ``with`` looked up ``__enter__`` and
+        # ``__exit__`` as bound method objects, two blocks per call of the 1 Hz chore (issue 24)
+        lock = self._lock
+        lock.acquire()
+        try:
             if not self._failing:               # (no set made: the 1 Hz chore, issue 24)
                 self._said.clear()              # what recovered is new again next time
                 return None
-            self._said &= set(self._failing)
-            if now_s < self._next_report_s and set(self._failing) <= self._said:
-                return None
-            self._next_report_s = now_s + self.every_s
-            self._said = set(self._failing)
-            parts = "; ".join(f"{w} not written ({e})" for w, e in sorted(self._failing.items()))
+            return self._report_failing(now_s)
+        finally:
+            lock.release()
+
+    def _report_failing(self, now_s: float) -> str | None:
+        """:meth:`report` while something is failing (the lock held)."""
+        self._said &= set(self._failing)
+        if now_s < self._next_report_s and set(self._failing) <= self._said:
+            return None
+        self._next_report_s = now_s + self.every_s
+        self._said = set(self._failing)
+        parts = "; ".join(f"{w} not written ({e})" for w, e in sorted(self._failing.items()))
         return f"DISK: {parts}"
 
 

@@ -211,6 +211,9 @@ class Telemetry:
     _nv_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _nv_names_p: int = 0
     _nv_values_p: int = 0
+    # the address of the law's status values in ``_nv_values`` (bound once: an address plus
+    # an offset made an int at each refresh, issue 24)
+    _nv_status_p: int = 0
 
     def __post_init__(self) -> None:
         st = getattr(self.law, "status", None) if self.status_names else _NO_STATUS
@@ -282,7 +285,7 @@ class Telemetry:
         n = len(v) - _NV_FIXED
         if n:
             if self._status is not None:
-                copy_p(self._nv_values_p + 8 * _NV_FIXED, self._status_p, n)
+                copy_p(self._nv_status_p, self._status_p, n)
             else:
                 for i in range(n):
                     v[_NV_FIXED + i] = float(self.law.status[i])
@@ -300,6 +303,7 @@ class Telemetry:
             self._nv_names[i, :len(name)] = np.frombuffer(name[:NV_NAME_B], np.uint8)
         self._nv_names_p = address_of(self._nv_names, np.uint8, self._nv_names.size)
         self._nv_values_p = address_of(self._nv_values, np.float64, len(names))
+        self._nv_status_p = self._nv_values_p + 8 * _NV_FIXED
 
     def named_value_count(self) -> int:
         """How many named values :meth:`named_values` gives (0 before the first refresh)."""
@@ -361,7 +365,9 @@ class Telemetry:
 
     def throttle_percent(self) -> int:
         """VFR_HUD.throttle: the throttle command in %, 0 outside the guidance modes."""
-        return int(round(100.0 * self.guid.throttle())) if self.modes.guidance_active else 0
+        # (``__round__`` called as a method: ``round`` looked it up as a bound method object,
+        # a block per VFR_HUD in the guidance modes, issue 24; the same int)
+        return int((100.0 * self.guid.throttle()).__round__()) if self.modes.guidance_active else 0
 
     def nav_output_active(self) -> bool:
         """Whether NAV_CONTROLLER_OUTPUT is sent (a guidance mode, the guidance engaged)."""

@@ -44,3 +44,27 @@ def test_a_file_with_an_invalid_item_is_set_aside_and_nothing_restored(tmp_path,
     mis2 = Mission()
     assert MissionStore(mis2, str(path), lambda: None).load() is None
     assert mis2.count == 0 and (tmp_path / "mission.json.bad").exists()
+
+
+def test_a_snapshot_per_change_and_no_block_between(tmp_path, gcs):  # noqa: F811
+    from tests.unit.fc.test_gcs_links import _blocks
+    home = [None]
+    mis = Mission()
+    store = MissionStore(mis, str(tmp_path / "mission.json"), lambda: home[0])
+    assert store.load() is None and store.snapshot() is None      # no file, nothing changed
+    # GIVEN nothing changed: no snapshot, and the 1 Hz check takes no Python block (its
+    # document's comprehension made a cell object on every call while in the same function)
+    assert _blocks(store.snapshot) == 0
+    # WHEN home is set, a mission uploaded, its current item advanced: one snapshot each
+    home[0] = (34.9054246, -117.8839078, 27998.8)
+    assert json.loads(store.snapshot())["home"] == list(home[0])
+    assert store.snapshot() is None
+    _upload(gcs, mis, _three(gcs))
+    assert len(json.loads(store.snapshot())["items"]) == 3
+    mis.advance(0)
+    assert json.loads(store.snapshot())["current"] == 1
+    assert store.snapshot() is None and _blocks(store.snapshot) == 0
+    # AND a save that failed is tried again at the next snapshot
+    store.path = str(tmp_path / "no such dir" / "mission.json")
+    store.save(b"{}")
+    assert store.snapshot() is not None

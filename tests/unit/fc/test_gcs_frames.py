@@ -569,3 +569,60 @@ def test_sys_status_and_current_mode_are_the_codecs(law_active, failed, fix, age
     n = F.current_mode_p(b.p, ep, tl, seq, SYSID, COMPID, standard, custom)
     _check(n, b, _want(MD.MAVLink_current_mode_message(standard, custom, custom), seq,
                        us if log else None))
+
+
+def test_vfr_hud_throttle_percent_rounds_as_round_and_allocates_nothing():
+    # GIVEN a controller in CRUISE (the guidance flies the throttle)
+    from tests.unit.fc.test_gcs_links import _blocks
+    from tools.bench.profile import _Rig, record
+    flight = record(300, "CRUISE")
+    rig = _Rig("CRUISE")
+    try:
+        for data in flight:
+            rig.step(data)
+        t = rig.fc.telemetry
+        assert t.modes.guidance_active
+        # THEN VFR_HUD's throttle is ``int(round(100 * throttle))``, halves to even included
+        # (``__round__`` is what ``round`` calls), and reading it takes no Python block
+        real = t.guid.throttle
+        for thr in (0.0, 0.005, 0.015, 0.025, 0.125, 0.135, 0.5, 0.625, 0.995, 1.0, 0.3333,
+                    real()):
+            t.guid.throttle = lambda thr=thr: thr
+            assert t.throttle_percent() == int(round(100.0 * thr)), thr
+            assert type(t.throttle_percent()) is int
+        t.guid.throttle = real
+        assert _blocks(t.throttle_percent) == 0
+    finally:
+        rig.close()
+
+
+# home values on and near the rounding boundaries of degE7 and mm, beyond int32, non-finite
+home_deg = st.one_of(lat_e7.map(lambda e: e * 1e-7), lat_e7.map(lambda e: (e + 0.5) * 1e-7),
+                     st.floats(-300.0, 300.0), any_float)
+home_alt = st.one_of(alt_m, st.integers(-2_200_000_000, 2_200_000_000).map(lambda c: (c + 0.5)
+                                                                              / 1000.0),
+                     any_float)
+
+
+@settings(max_examples=300, deadline=None)
+@given(lat=home_deg, lon=home_deg, alt=home_alt, us=stamps, seq=st.integers(0, 255),
+       log=st.booleans())
+def test_home_position_is_the_codecs(lat, lon, alt, us, seq, log):
+    # GIVEN a home (any floats: on rounding boundaries, beyond int32, not finite)
+    from fc.link import mavlink as ML
+    from hyfc_wire.layout import G_N
+    home = (lat, lon, alt)
+    state = _GnssState(np.zeros(G_N), np.zeros(M_N), 50_000_000, home, seq)
+    h = np.zeros(F.HOME_N)
+    h[F.HOME_LAT_DEG], h[F.HOME_LON_DEG], h[F.HOME_ALT_M] = home
+    b = Buf()
+    ep, tl = (EPOCH_US, _lt(us)) if log else (-1, 0)
+    try:
+        want = _want(state._build(ML.MAVLINK_MSG_ID_HOME_POSITION, 0, us), seq,
+                     us if log else None)
+    except (OverflowError, ValueError):
+        want = None                 # (round() of a non-finite float: _build raises)
+    # THEN the kernel frames the codec's bytes of _build's message, or declines where the
+    # codec refuses (the codec's path then refuses it as before)
+    _check(F.home_position_p(b.p, ep, tl, seq, SYSID, COMPID, _at(us),
+                             address_of(h, np.float64, F.HOME_N)), b, want)

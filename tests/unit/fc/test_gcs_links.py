@@ -214,3 +214,103 @@ def test_a_peer_rate_request_is_served_at_once_not_at_the_next_due_time():
     finally:
         peer.close()
         link.close()
+
+
+def _blocks(f, calls: int = 5) -> int:
+    """Python object-allocator blocks ``calls`` calls of ``f`` take (tools.bench's counter),
+    less the counter's own (a window with no call)."""
+    from tools.bench.allocs import PyAllocCounter
+    f()                                    # (first-call paths, free lists filled)
+    counts = []
+    for n in (0, calls):
+        counter = PyAllocCounter()
+        with counter:
+            k = 0
+            while k < n:
+                f()
+                k += 1
+        counts.append(int(counter.counts[0]) + int(counter.counts[1]))
+    return counts[1] - counts[0]
+
+
+def test_a_full_peer_table_forgets_its_oldest_peer_for_a_newcomer():
+    from fc.gcs import MAX_PEERS
+    link = GcsLink(_Vehicle(), ("127.0.0.1", free_udp_port()), [])
+    try:
+        # GIVEN a full table of unsigned peers heard at 100 s, 101 s, ... (the first the oldest)
+        addrs = [("127.0.0.1", 40000 + i) for i in range(MAX_PEERS)]
+        for i, a in enumerate(addrs):
+            link._heard(a, 100.0 + i, False)
+        assert len(link.peers) == MAX_PEERS
+        # WHEN a newcomer is heard
+        link._heard(("127.0.0.1", 50000), 100.0 + MAX_PEERS, False)
+        # THEN the oldest peer made room for it, the others are kept
+        assert addrs[0] not in link.peers and ("127.0.0.1", 50000) in link.peers
+        assert all(a in link.peers for a in addrs[1:]) and len(link.peers) == MAX_PEERS
+        # AND a later expiry forgets the ones silent for PEER_TIMEOUT_S (the newcomer stays)
+        link._expire_peers(100.0 + MAX_PEERS - 1 + PEER_TIMEOUT_S + 0.5)
+        assert list(link.peers) == [("127.0.0.1", 50000)]
+    finally:
+        link.close()
+
+
+def test_the_heartbeat_seconds_peer_expiry_allocates_nothing_without_peers():
+    # GIVEN a link no ground station has talked to (the outputs only)
+    link = GcsLink(_Vehicle(), ("127.0.0.1", free_udp_port()), [])
+    try:
+        # THEN the heartbeat second's expiry and summaries take no Python block (the expiry's
+        # comprehension made a cell object per call while it was in the same function, issue 24)
+        assert _blocks(lambda: link._expire_peers(100.0)) == 0
+        assert _blocks(link._summaries) == 0
+    finally:
+        link.close()
+
+
+def _drain_ids(sock, ids: list) -> None:
+    rx = ML.MAVLink(_Null())
+    while True:
+        try:
+            data = sock.recv(4096)
+        except BlockingIOError:
+            return
+        ids.extend(m.get_msgId() for m in rx.parse_buffer(data) or [])
+
+
+def test_home_position_goes_out_and_into_the_tlog_only_once_home_is_set(tmp_path):
+    from pymavlink import mavutil
+    out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    out.bind(("127.0.0.1", 0))
+    out.setblocking(False)
+    v = _Vehicle()
+    tlog = str(tmp_path / "fc.tlog")
+    link = GcsLink(v, ("127.0.0.1", free_udp_port()), [out.getsockname()], tlog_path=tlog,
+                   sim_time=True)
+    home_id = ML.MAVLINK_MSG_ID_HOME_POSITION
+    before, after = [], []
+    try:
+        # GIVEN 11 s of streams without a GNSS fix (HOME_POSITION's period is 5 s), 100 calls/s
+        for k in range(1100):
+            v.meas_stamp_us = k * 10_000
+            link.service(100.0 + k * 0.01)
+            _drain_ids(out, before)
+        # WHEN home is set, and 11 s more
+        link.home = (34.9054246, -117.8839078, 27998.8)
+        for k in range(1100, 2200):
+            v.meas_stamp_us = k * 10_000
+            link.service(100.0 + k * 0.01)
+            _drain_ids(out, after)
+    finally:
+        link.close()
+        out.close()
+    # THEN no HOME_POSITION before home, and one every 5 s after, to the outputs and the .tlog
+    assert home_id not in before and ML.MAVLINK_MSG_ID_ATTITUDE in before
+    assert 2 <= after.count(home_id) <= 3
+    logged = []
+    mlog = mavutil.mavlink_connection(tlog)
+    while True:
+        m = mlog.recv_match(type="HOME_POSITION")
+        if m is None:
+            break
+        logged.append(m.time_usec)
+    assert logged and min(logged) >= 11_000_000, logged
+    assert 2 <= len(logged) <= 3 and logged[0].__class__ is int

@@ -180,3 +180,30 @@ def test_unsigned_heartbeats_from_many_ports_never_evict_a_signed_gcs(signed_lin
         gcs.close()
         for p in ports:
             p.close()
+
+
+def test_the_signing_snapshot_is_taken_when_a_stream_changed_and_costs_nothing_else(signed_link):
+    import json
+    from tests.unit.fc.test_gcs_links import _blocks
+    _v, link = signed_link()
+    gcs = _Station()
+    try:
+        # GIVEN no signed stream heard: no snapshot, and the 1 Hz check takes no Python block
+        assert link.signing_snapshot() is None
+        assert _blocks(link.signing_snapshot) == 0
+        # WHEN a signed message comes: one snapshot with that stream and the fc's timestamp
+        mav = _codec(KEY)
+        gcs.send(link, _param_set(mav, 6.0))
+        data = link.signing_snapshot()
+        assert data is not None
+        doc = json.loads(data)
+        assert doc["timestamp"] >= link.mav.signing.timestamp
+        assert doc["streams"][0][:3] == [GCS_LINK, GCS_SYS, GCS_COMP]
+        assert 0 < doc["streams"][0][3] <= mav.signing.timestamp      # its last message's
+        # THEN nothing more until the stream moves on; a failed save is tried again
+        assert link.signing_snapshot() is None and _blocks(link.signing_snapshot) == 0
+        link.guard.path = os.path.join(os.path.dirname(link.guard.path), "no such dir", "s")
+        link.save_signing(data)
+        assert link.signing_snapshot() is not None
+    finally:
+        gcs.close()
