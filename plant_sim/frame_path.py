@@ -10,6 +10,7 @@ Inside, the arrays are ``numba.carray`` views (no record, no reference count), a
 kernels run on the same memory in the same order as the Python path, so the bytes sent, the
 state and the truth rows are the same:
 
+0. (``MODE_WAIT``) libc ``poll`` until the socket is readable, at most ``wait_ms``;
 1. (``MODE_RECV``) one datagram from the socket with libc ``recvfrom`` (``MSG_DONTWAIT``), its
    source checked against the fc's ``sockaddr_in``;
 2. (``MODE_DECODE``) ``hyfc_wire.frame_kernels.decode_servo`` of it, the system id, the stamp
@@ -58,7 +59,7 @@ drop_stale(__file__, [_jitcache._HERE / f for f in _jitcache.KERNEL_SOURCES]
            + [_fk_mod.__file__, _codec_mod.__file__, _pwm_mod.__file__])
 
 __all__ = ["FramePath", "lockstep_frame_p", "warm_up", "FAST_IO", "MODE_RECV", "MODE_DECODE",
-           "MODE_ENCODE", "MODE_SEND", "R_NONE", "R_SOURCE", "R_FALLBACK", "R_SYSID", "R_STALE",
+           "MODE_ENCODE", "MODE_SEND", "MODE_WAIT", "MODE_FRAME", "R_NONE", "R_SOURCE", "R_FALLBACK", "R_SYSID", "R_STALE",
            "B_CLIP", "B_FLUSH", "B_ENCODE_REFUSED", "B_SEND_FAILED"]
 
 
@@ -96,7 +97,11 @@ _recvfrom = types.ExternalFunction("recvfrom", types.intp(
 _sendto = types.ExternalFunction("sendto", types.intp(
     types.intc, types.CPointer(types.uint8), types.uintp, types.intc, types.CPointer(types.uint8),
     types.uint32))
+_poll = types.ExternalFunction("poll", types.intc(types.CPointer(types.uint8), types.uint64,
+                                                  types.intc))
 _errno_location = types.ExternalFunction("__errno_location", types.CPointer(types.intc)())
+_POLLIN = 1
+POLLFD_B = 8            # sizeof(struct pollfd): int fd, short events, short revents
 _MSG_DONTWAIT = 0x40    # Linux
 _ECONNREFUSED = 111     # Linux: ICMP port unreachable from an earlier send (the socket's drain skips it)
 _EAGAIN = 11
@@ -109,11 +114,13 @@ MODE_RECV = 1           # receive one datagram first (libc recvfrom; else it is 
 MODE_DECODE = 2         # decode the datagram in rx (else the command is latched in x already)
 MODE_ENCODE = 4         # frame the sensors of frame k+1 (without GNSS) into the send buffer
 MODE_SEND = 8           # and send them (libc sendto)
+MODE_WAIT = 16          # before the receive, wait up to ``wait_ms`` for a datagram (libc poll)
 #: the lockstep's ordinary frame
-MODE_FRAME = MODE_RECV | MODE_DECODE | MODE_ENCODE | MODE_SEND
+MODE_FRAME = MODE_WAIT | MODE_RECV | MODE_DECODE | MODE_ENCODE | MODE_SEND
 
 # ---- codes (< 0: nothing stepped) and bits of the result (>= 0: the frame ran)
-R_NONE = -1             # nothing received (EAGAIN, EINTR; another error is counted malformed)
+R_NONE = -1             # nothing received (the wait timed out or was interrupted by a signal;
+#                         EAGAIN, EINTR; another receive error is counted malformed)
 R_SOURCE = -2           # a datagram from another address than the fc's (counted)
 R_FALLBACK = -3         # a datagram the compiled decoder rejects: the codec's general parser
 R_SYSID = -4            # a SERVO_OUTPUT_RAW from another system id (counted)
@@ -126,6 +133,7 @@ B_SEND_FAILED = 8       # sendto failed: send again from Python (counts or raise
 # ---- the int64 table (addresses, sizes, constants, cells)
 A_X, A_P, A_W, A_RING, A_RING_COUNT, A_RNG, A_MEAS_WORK, A_MEAS = range(8)
 A_RX, A_TX, A_REC, A_BLOCK, A_DISCARD, A_SA, A_SALEN, A_PEER, A_F = range(8, 17)
+A_POLLFD = 46           # struct pollfd of the socket (uint8[POLLFD_B])
 C_P_N, C_RX_N, C_TX_N, C_BLOCK_ROWS, C_N_SUB, C_FD, C_SYSID, C_COMPID, C_FC_SYSID = range(17, 26)
 C_FULL_ROWS, C_EVERY = 26, 27        # truth decimation (C_FULL_ROWS -1: every row)
 # cells the kernel writes
@@ -145,7 +153,7 @@ C_APPLIED = 42          # link.applied_count
 C_MALFORMED = 43        # link.rejected_malformed (a receive error)
 C_STAMP = 44            # the last applied stamp (link.cmd_stamp_u32)
 C_THR_SET = 45          # 1 once a servo4 value was latched
-A_N = 46
+A_N = 47
 _COUNTS = range(C_FRAMES, C_MALFORMED + 1)
 # the float64 table
 F_TRIM, F_MIN, F_MAX, F_UP, F_DOWN, F_THR_SCALE, F_FRAME_DT = range(7)
@@ -170,15 +178,23 @@ def _throttle_from_pwm(pwm):
     return 0.0 if fr < 0.0 else 1.0 if fr > 1.0 else fr
 
 
-@njit(cache=True)
-def lockstep_frame_p(a, k, mode):
+@njit(cache=True, nogil=True)
+def lockstep_frame_p(a, k, mode, wait_ms):
     """Frame ``k`` of the lockstep loop over the arrays of the int64 table at address ``a``
-    (:class:`FramePath`): see the module's docstring for the steps ``mode`` selects. Returns
-    an ``R_*`` code (< 0, the frame did not run) or the ``B_*`` bits of a frame that ran."""
+    (:class:`FramePath`): see the module's docstring for the steps ``mode`` selects
+    (``wait_ms``: the longest wait of ``MODE_WAIT``, ms). Returns an ``R_*`` code (< 0, the
+    frame did not run) or the ``B_*`` bits of a frame that ran. Runs without the GIL (it
+    touches no Python object): a thread of the same process, such as a test's fc stand-in,
+    runs while it waits in ``poll``, as during ``select``."""
     t = carray(_i8p(a), (A_N,))
     f = carray(_f8p(t[A_F]), (F_N,))
     x = carray(_f8p(t[A_X]), (dy.X_N,))
     stamp_k = np.int64(np.rint(k * f[F_FRAME_DT] * 1e6))
+    if mode & MODE_WAIT:
+        # poll(): the socket readable within wait_ms; 0 (timed out) or -1 (a signal): Python
+        # decides (stop, re-request); select() before did the same with us timeouts
+        if _poll(_u8p(t[A_POLLFD]), 1, wait_ms) <= 0:
+            return R_NONE
     if mode & MODE_RECV:
         ln = carray(_u4p(t[A_SALEN]), (1,))
         while True:
@@ -267,9 +283,9 @@ def lockstep_frame_p(a, k, mode):
 
 def warm_up() -> None:
     """Load :func:`lockstep_frame_p` from numba's cache (or compile it) now, not at the first
-    frame: the signature the process calls it with (three int64)."""
+    frame: the signature the process calls it with (four int64)."""
     if FAST_IO:
-        lockstep_frame_p.compile((types.int64, types.int64, types.int64))
+        lockstep_frame_p.compile((types.int64, types.int64, types.int64, types.int64))
 
 
 def _addr(arr: np.ndarray, dtype, n: int) -> int:
@@ -328,6 +344,11 @@ class FramePath:
         t[A_SALEN] = _addr(self._salen, np.uint32, 1)
         t[A_PEER] = _addr(self._peer, np.uint8, SOCKADDR_IN_B)
         t[A_F] = _addr(self.f, np.float64, F_N)
+        self._pollfd = np.zeros(POLLFD_B, np.uint8)       # {int fd; short events, revents}
+        self._pollfd[0:4] = np.frombuffer(int(link.sock.fileno()).to_bytes(4, sys.byteorder),
+                                          np.uint8)
+        self._pollfd[4:6] = np.frombuffer(_POLLIN.to_bytes(2, sys.byteorder), np.uint8)
+        t[A_POLLFD] = _addr(self._pollfd, np.uint8, POLLFD_B)
         t[C_N_SUB] = sim.n_sub
         t[C_FD] = link.sock.fileno()
         mav = link.mav

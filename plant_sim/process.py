@@ -37,7 +37,7 @@ from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
 from plant_sim.frame_path import (B_CLIP, B_ENCODE_REFUSED, B_FLUSH, B_SEND_FAILED, FAST_IO,
-                                  MODE_DECODE, MODE_FRAME, MODE_RECV, R_FALLBACK, R_NONE, R_STALE,
+                                  MODE_DECODE, MODE_FRAME, MODE_RECV, MODE_WAIT, R_FALLBACK, R_NONE, R_STALE,
                                   FramePath, lockstep_frame_p)
 from plant_sim.frame_path import warm_up as frame_path_warm_up
 from plant_sim.hold import HOLD_TAU_S, SilentHold  # noqa: F401  (HOLD_TAU_S: also here)
@@ -49,7 +49,7 @@ from plant_sim.truthlog import TruthWriter
 
 U32 = 1 << 32
 DEG = math.pi / 180.0
-MODE_RECV_DECODE = MODE_RECV | MODE_DECODE
+MODE_IN = MODE_WAIT | MODE_RECV | MODE_DECODE      # the lockstep's answer, without sending
 SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
 
 
@@ -263,7 +263,7 @@ def _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log):
     fp = FramePath(sim, link, writer, thr_scale)
     step = lockstep_frame_p
     a = fp.addr
-    wait = link.wait_readable
+    wait_ms = math.ceil(timeout * 1e3)     # poll()'s wait for the answer, ms
     t_wall0 = perf()
     next_progress = t_wall0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
     next_gc = t_wall0 + 1.0
@@ -281,14 +281,11 @@ def _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log):
                 return
             k1 = k + 1
             # frame k+1 in Python when it has a GNSS event, none after the last frame
-            mode = MODE_RECV_DECODE if k1 >= gnss_next or k == last else MODE_FRAME
+            mode = MODE_IN if k1 >= gnss_next or k == last else MODE_FRAME
             t_sent = perf()
             t_first = t_sent
+            r = step(a, k, mode, wait_ms)        # waits (poll) for the answer, runs the frame
             while True:
-                wait(t_sent + timeout - perf())
-                if stop.requested:                       # the run ends after this frame
-                    mode = MODE_RECV_DECODE
-                r = step(a, k, mode)
                 while r < R_NONE:                        # drain as PlantLink._drain does
                     if r == R_STALE:
                         stats.stale_commands += 1
@@ -307,12 +304,13 @@ def _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log):
                         fp.enter()
                         if match:
                             stats.stale_commands += acc - 1
-                            r = step(a, k, mode & ~MODE_RECV_DECODE)
+                            r = step(a, k, mode & ~MODE_IN, 0)
                             break
                         stats.stale_commands += acc
-                    r = step(a, k, mode)
+                    r = step(a, k, mode & ~MODE_WAIT, 0)  # the next datagram, no wait
                 if r >= 0:
                     break
+                # nothing (more) waiting: the wait timed out, a signal came, or the drain is done
                 if stop.requested:
                     stats.exit_reason = f"stopped by {stop.signal_name}"
                     return
@@ -327,6 +325,7 @@ def _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log):
                     fp.enter()
                     stats.rerequests += 1
                     t_sent = now
+                r = step(a, k, mode, max(0, math.ceil((t_sent + timeout - perf()) * 1e3)))
             stats.frames = k1
             if r:
                 if r & B_FLUSH:

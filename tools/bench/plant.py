@@ -91,7 +91,7 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
             for _ in range(frames):
                 # frame 0 each time: the datagram's stamp answers it (the work does not depend
                 # on k); the next frame's datagram is framed with stamp 2000 us
-                if step(a, 0, mode) & B_FLUSH:
+                if step(a, 0, mode, 0) & B_FLUSH:
                     fp.flush_truth()
             res.append((time.perf_counter() - t) / frames * 1e6)
             fp.leave()

@@ -166,10 +166,10 @@ def test_kernel_codes_leave_the_state_alone(tmp_path):
                            (resp.servo_frame(0, (1600, 1400, 1500), sysid=9), fpm.R_SYSID),
                            (resp.servo_frame(2000, (1600, 1400, 1500)), fpm.R_STALE)):
             fp.set_rx_len(link.put_rx(data))
-            assert fpm.lockstep_frame_p(fp.addr, 0, mode) == code
+            assert fpm.lockstep_frame_p(fp.addr, 0, mode, 0) == code
             assert np.array_equal(sim.x, x0, equal_nan=True)
         fp.set_rx_len(link.put_rx(resp.servo_frame(0, (1600, 1400, 1500))))
-        assert fpm.lockstep_frame_p(fp.addr, 0, mode) >= 0
+        assert fpm.lockstep_frame_p(fp.addr, 0, mode, 0) >= 0
         fp.leave()
         assert sim.frames == 1 and writer.rows == 1 and link.cmd_count == 2
         assert link.rejected_sysid == 1 and link.applied_count == 1
