@@ -58,7 +58,7 @@ from plant_sim.sim import TRUTH_N, truth_kernel
 drop_stale(__file__, [_jitcache._HERE / f for f in _jitcache.KERNEL_SOURCES]
            + [_fk_mod.__file__, _codec_mod.__file__, _pwm_mod.__file__])
 
-__all__ = ["FramePath", "lockstep_frame_p", "warm_up", "FAST_IO", "MODE_RECV", "MODE_DECODE",
+__all__ = ["FramePath", "lockstep_frame_p", "physics_loop", "warm_up", "FAST_IO", "MODE_RECV", "MODE_DECODE",
            "MODE_ENCODE", "MODE_SEND", "MODE_WAIT", "MODE_FRAME", "R_NONE", "R_SOURCE", "R_FALLBACK", "R_SYSID", "R_STALE",
            "B_CLIP", "B_FLUSH", "B_ENCODE_REFUSED", "B_SEND_FAILED"]
 
@@ -279,6 +279,15 @@ def lockstep_frame_p(a, k, mode, wait_ms):
                 return res | B_SEND_FAILED
             t[C_SENT] += 1
     return res
+
+
+@njit(cache=True)
+def physics_loop(a, n):
+    """``n`` frames of :func:`lockstep_frame_p` in mode 0 (no wire: truth row, physics,
+    sensors) from inside numba: the frame's floor without a Python call (tools.bench plant).
+    Needs a truth log that keeps no row (else a full block would need Python)."""
+    for _ in range(n):
+        lockstep_frame_p(a, 0, 0, 0)
 
 
 def warm_up() -> None:

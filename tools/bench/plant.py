@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from plant_sim import dynamics as dy
+from hyfc_wire.pwm import DEFAULT_PWM
 from plant_sim.link import PlantLink, PwmMap, ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
@@ -93,6 +94,36 @@ def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
                 # on k); the next frame's datagram is framed with stamp 2000 us
                 if step(a, 0, mode, 0) & B_FLUSH:
                     fp.flush_truth()
+            res.append((time.perf_counter() - t) / frames * 1e6)
+            fp.leave()
+        writer.close()
+    link.close()
+    resp.close()
+    return _median_spread(res)
+
+
+def bench_frame_physics(sc_name: str, frames: int = 5000, batches: int = 5):
+    """The floor under :func:`bench_frame_path`: the same compiled frame without the wire
+    (``lockstep_frame_p`` with mode 0: truth row, two RK4 steps, sensors) called from a loop
+    inside numba, so no Python call either. (median, min, max) us per frame."""
+    from plant_sim.frame_path import FramePath, physics_loop
+    from plant_sim.truthlog import TruthWriter
+    sc = load(sc_name)
+    sim = PlantSim(sc)
+    resp = ServoResponder()
+    link = PlantLink(("127.0.0.1", resp.addr[1]), ("127.0.0.1", 0), DEFAULT_PWM)
+    res = []
+    with tempfile.TemporaryDirectory() as tmp:
+        # every row decimated: no block fills, the loop never needs Python
+        writer = TruthWriter(tmp, sim.TRUTH_NAMES, full_rows=0, every=1 << 40)
+        fp = FramePath(sim, link, writer, 1e-4)
+        physics_loop(fp.addr, 1)
+        for _ in range(batches):
+            sim.reset()
+            sim.measure(sim.last_meas)
+            fp.enter()
+            t = time.perf_counter()
+            physics_loop(fp.addr, frames)
             res.append((time.perf_counter() - t) / frames * 1e6)
             fp.leave()
         writer.close()
@@ -201,6 +232,9 @@ def main(argv=None) -> int:
         print("jsbsim_x15_step_us                   n/a (jsbsim not installed)")
     f_med, f_lo, f_hi = bench_frame_path(args.scenario)
     print(f"plant_frame_path_us (no network)     median {f_med:.1f}  min {f_lo:.1f}  max {f_hi:.1f}")
+    f_med, f_lo, f_hi = bench_frame_physics(args.scenario)
+    print(f"plant_frame_physics_us (truth row, 2 RK4 steps, sensors; loop in numba) median "
+          f"{f_med:.2f}  min {f_lo:.2f}  max {f_hi:.2f}")
     f_med, f_lo, f_hi = bench_frame_path_python(args.scenario)
     print(f"plant_frame_path_us (Python path, before the compiled frame) median {f_med:.1f}  "
           f"min {f_lo:.1f}  max {f_hi:.1f}")
