@@ -44,6 +44,7 @@ from numba.extending import intrinsic
 
 import hyfc_wire.codec as _codec_mod
 import hyfc_wire.frame_kernels as _fk_mod
+import hyfc_wire.layout as _layout_mod
 import hyfc_wire.pwm as _pwm_mod
 from hyfc_wire.frame_kernels import SENSOR_FRAME_MAX_B, SV_N, decode_servo, sensor_frame
 from hyfc_wire.layout import G_N
@@ -55,11 +56,13 @@ from plant_sim import sensors as se
 from plant_sim.sensors import M_N, RING_N
 from plant_sim.sim import TRUTH_N, truth_kernel
 
+# the kernels it calls (and their constants) are compiled into this module's cache
 drop_stale(__file__, [_jitcache._HERE / f for f in _jitcache.KERNEL_SOURCES]
-           + [_fk_mod.__file__, _codec_mod.__file__, _pwm_mod.__file__])
+           + [_fk_mod.__file__, _codec_mod.__file__, _pwm_mod.__file__, _layout_mod.__file__])
 
-__all__ = ["FramePath", "lockstep_frame_p", "physics_loop", "warm_up", "FAST_IO", "MODE_RECV", "MODE_DECODE",
-           "MODE_ENCODE", "MODE_SEND", "MODE_WAIT", "MODE_FRAME", "R_NONE", "R_SOURCE", "R_FALLBACK", "R_SYSID", "R_STALE",
+__all__ = ["FramePath", "lockstep_frame_p", "physics_loop", "warm_up", "sockaddr_in", "FAST_IO",
+           "MODE_RECV", "MODE_DECODE", "MODE_ENCODE", "MODE_SEND", "MODE_WAIT", "MODE_FRAME",
+           "R_NONE", "R_SOURCE", "R_FALLBACK", "R_SYSID", "R_STALE",
            "B_CLIP", "B_FLUSH", "B_ENCODE_REFUSED", "B_SEND_FAILED"]
 
 
@@ -103,7 +106,7 @@ _errno_location = types.ExternalFunction("__errno_location", types.CPointer(type
 _POLLIN = 1
 POLLFD_B = 8            # sizeof(struct pollfd): int fd, short events, short revents
 _MSG_DONTWAIT = 0x40    # Linux
-_ECONNREFUSED = 111     # Linux: ICMP port unreachable from an earlier send (the socket's drain skips it)
+_ECONNREFUSED = 111     # Linux: ICMP port unreachable from an earlier send (the drain skips it)
 _EAGAIN = 11
 _EINTR = 4
 SOCKADDR_IN_B = 16

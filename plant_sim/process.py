@@ -37,8 +37,8 @@ from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
 from plant_sim.frame_path import (B_CLIP, B_ENCODE_REFUSED, B_FLUSH, B_SEND_FAILED, FAST_IO,
-                                  MODE_DECODE, MODE_FRAME, MODE_RECV, MODE_WAIT, R_FALLBACK, R_NONE, R_STALE,
-                                  FramePath, lockstep_frame_p)
+                                  MODE_DECODE, MODE_FRAME, MODE_RECV, MODE_WAIT, R_FALLBACK,
+                                  R_NONE, R_STALE, FramePath, lockstep_frame_p)
 from plant_sim.frame_path import warm_up as frame_path_warm_up
 from plant_sim.hold import HOLD_TAU_S, SilentHold  # noqa: F401  (HOLD_TAU_S: also here)
 from plant_sim.link import PlantLink

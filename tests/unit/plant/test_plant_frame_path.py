@@ -179,3 +179,26 @@ def test_kernel_codes_leave_the_state_alone(tmp_path):
         writer.close()
         link.close()
         resp.close()
+
+
+@pytest.mark.parametrize("every", [1, 3, 50])
+@pytest.mark.parametrize("delay", [0, 1, 7, 50, 120])
+def test_gnss_next_event_is_the_first_frame_update_acts_on(every, delay):
+    """The compiled loop frames in Python only from ``GnssSensor.next_event``: before it,
+    ``update`` must return None and change nothing (no capture, no sample)."""
+    from plant_sim.sim import PlantSim
+    sim = PlantSim(load("paper"))
+    g = sim.gnss
+    g.every, g.delay = every, delay
+    g.reset()
+    nxt = g.next_event(0)
+    acted = 0
+    for k in range(400):
+        before = (len(g._pending), g.samples)
+        out = g.update(k, sim.x)
+        changed = out is not None or (len(g._pending), g.samples) != before
+        assert k >= nxt or not changed, k
+        if k >= nxt:
+            acted += changed
+            nxt = g.next_event(k + 1)
+    assert acted >= 400 // every - 1
