@@ -63,6 +63,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--truth-full-rate", action="store_true",
                    help="truth log: every frame however long the run (about 0.7 GB per hour "
                         "at 500 Hz)")
+    r.add_argument("--python-frame", action="store_true",
+                   help="lockstep: each frame through the Python path (build_sensors, "
+                        "poll_for, PlantSim.frame) instead of the one compiled call; the same "
+                        "outputs (a reference for tests and benchmarks)")
     t = sub.add_parser("trim", help="report the trim deflections of a scenario",
                        description="Surface deflections that balance the moments at the "
                                    "scenario's initial state and at each commanded attitude "
@@ -161,7 +165,7 @@ def main(argv=None) -> int:
                     rerequest_timeout_s=args.rerequest_timeout, give_up_s=args.give_up,
                     progress_every_s=args.progress_every,
                     truth_full_rate_s=None if args.truth_full_rate else args.truth_full_s,
-                    truth_tail_hz=args.truth_tail_hz)
+                    truth_tail_hz=args.truth_tail_hz, compiled_frame=not args.python_frame)
     try:
         stats = run(sc, cfg, log)
     except _Fatal as e:

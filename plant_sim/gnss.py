@@ -121,6 +121,17 @@ class GnssSensor:
         self._pending.clear()
         self.samples = 0
 
+    def next_event(self, k: int) -> int:
+        """The first frame from ``k`` at which ``update`` does something (captures a sample or
+        returns one); ``update`` of any frame before it returns None and changes nothing. A
+        very large frame index when the receiver is off."""
+        if not self.enabled:
+            return 1 << 62
+        cap = k + (-(k + self.delay)) % self.every
+        if self._pending:
+            return min(cap, self._pending[0][0])
+        return cap
+
     def update(self, k: int, x) -> np.ndarray | None:
         """Frame ``k`` (state ``x`` at t_k = k frame_dt): capture the clean sample that will be
         sent ``delay`` frames later, and return the sample due with this frame, if any."""

@@ -207,7 +207,6 @@ class PlantLink:
         accepted = 0
         match = False
         sock = self.sock
-        mav = self.mav
         while True:
             try:
                 n, addr = sock.recvfrom_into(self._rxbuf)
@@ -239,36 +238,49 @@ class PlantLink:
                     continue
                 self._apply(stamp, s1, s2, s3, s4)
                 continue
-            try:
-                msgs = mav.parse_buffer(self._rx_mv[:n])
-            except Exception:       # never die on input; pymavlink may raise on odd bytes
-                msgs = None
+            acc, got = self.parse_rx(n, want)
+            accepted += acc
+            match = match or got
+
+    def parse_rx(self, n: int, want: int) -> tuple[int, bool]:
+        """The codec's general parser on the datagram in the first ``n`` bytes of the receive
+        buffer (one the compiled decoder did not take): counts what it rejects, accepts and
+        applies SERVO_OUTPUT_RAW frames as the drain does (``want``: the lockstep's stamp, or
+        -1 for the newest). Returns (frames accepted, whether ``want`` was among them)."""
+        mav = self.mav
+        accepted = 0
+        match = False
+        try:
+            msgs = mav.parse_buffer(self._rx_mv[:n])
+        except Exception:       # never die on input; pymavlink may raise on odd bytes
+            msgs = None
+            self.rejected_malformed += 1
+        if mav.buf_len() > 0:   # a datagram is self-contained: drop leftover partial bytes
+            self.rejected_malformed += 1
+        reset_parser(mav)
+        if not msgs:
+            return accepted, match
+        for m in msgs:
+            if isinstance(m, BAD_DATA):
                 self.rejected_malformed += 1
-            if mav.buf_len() > 0:   # a datagram is self-contained: drop leftover partial bytes
-                self.rejected_malformed += 1
-            reset_parser(mav)
-            if not msgs:
                 continue
-            for m in msgs:
-                if isinstance(m, BAD_DATA):
-                    self.rejected_malformed += 1
+            if m.get_msgId() != MSG_ID_SERVO_OUTPUT_RAW:
+                self.ignored_messages += 1
+                continue
+            if m.get_srcSystem() != self.fc_sysid:
+                self.rejected_sysid += 1
+                continue
+            accepted += 1
+            self.cmd_count += 1
+            stamp = m.time_usec
+            if want >= 0:
+                if stamp != want:
                     continue
-                if m.get_msgId() != MSG_ID_SERVO_OUTPUT_RAW:
-                    self.ignored_messages += 1
-                    continue
-                if m.get_srcSystem() != self.fc_sysid:
-                    self.rejected_sysid += 1
-                    continue
-                accepted += 1
-                self.cmd_count += 1
-                stamp = m.time_usec
-                if want >= 0:
-                    if stamp != want:
-                        continue
-                    match = True
-                elif self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
-                    continue        # older than the command already applied
-                self._apply(stamp, m.servo1_raw, m.servo2_raw, m.servo3_raw, m.servo4_raw)
+                match = True
+            elif self.cmd_stamp_u32 >= 0 and ((stamp - self.cmd_stamp_u32) % U32) >= (U32 >> 1):
+                continue        # older than the command already applied
+            self._apply(stamp, m.servo1_raw, m.servo2_raw, m.servo3_raw, m.servo4_raw)
+        return accepted, match
 
     def _apply(self, stamp: int, s1: int, s2: int, s3: int, s4: int = 0) -> None:
         """Latch a servo frame: PWM -> rad per surface channel, servo4 PWM -> throttle 0..1

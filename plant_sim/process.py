@@ -36,6 +36,10 @@ import numpy as np
 from hyfc_wire.numba_cache import cache_report
 from hyfc_wire.pwm import PwmMap
 from plant_sim import dynamics as dy
+from plant_sim.frame_path import (B_CLIP, B_ENCODE_REFUSED, B_FLUSH, B_SEND_FAILED, FAST_IO,
+                                  MODE_DECODE, MODE_FRAME, MODE_RECV, MODE_WAIT, R_FALLBACK,
+                                  R_NONE, R_STALE, FramePath, lockstep_frame_p)
+from plant_sim.frame_path import warm_up as frame_path_warm_up
 from plant_sim.hold import HOLD_TAU_S, SilentHold  # noqa: F401  (HOLD_TAU_S: also here)
 from plant_sim.link import PlantLink
 from plant_sim.scenario import Scenario
@@ -45,6 +49,7 @@ from plant_sim.truthlog import TruthWriter
 
 U32 = 1 << 32
 DEG = math.pi / 180.0
+MODE_IN = MODE_WAIT | MODE_RECV | MODE_DECODE      # the lockstep's answer, without sending
 SPIN_S = 200e-6      # real time: busy-poll the last 200 us before a frame deadline
 
 
@@ -66,6 +71,9 @@ class RunConfig:
     #: ``truth_tail_hz`` rows per second; None: every frame however long the run
     truth_full_rate_s: float | None = 60.0
     truth_tail_hz: float = 50.0
+    #: lockstep: each frame in one compiled call (plant_sim/frame_path.py); False: the Python
+    #: path (the reference; the same outputs)
+    compiled_frame: bool = True
 
 
 @dataclass
@@ -109,6 +117,8 @@ def run(sc: Scenario, cfg: RunConfig, log: logging.Logger) -> RunStats:
     stats = RunStats()
     t_warm = time.perf_counter()
     sim.warm_up()       # the numba kernels loaded (or compiled) before the first frame is due
+    if cfg.mode == "lockstep" and cfg.compiled_frame:
+        frame_path_warm_up()
     log.info(cache_report(("plant_sim",), time.perf_counter() - t_warm))
 
     text, ok = trim_report(sc)
@@ -229,6 +239,129 @@ def gc_off_schedule():
 
 
 def _lockstep(sim, link, writer, cfg, stats, stop, n_frames, log):
+    """The lockstep loop: the compiled frame path (plant_sim/frame_path.py) when the link
+    frames lean and libc's calls compile, else the Python path (the same outputs)."""
+    if cfg.compiled_frame and link.lean and FAST_IO:
+        return _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log)
+    return _lockstep_python(sim, link, writer, cfg, stats, stop, n_frames, log)
+
+
+def _lockstep_compiled(sim, link, writer, cfg, stats, stop, n_frames, log):
+    """``_lockstep_python`` with each frame in one compiled call (``lockstep_frame_p``: receive,
+    decode, latch, truth row, physics, sensors, frame and send the next frame's datagram).
+    Python takes what the call hands back: waiting, datagrams the compiled decoder rejects
+    (the codec's parser, as before), re-requests, GNSS frames, truth blocks to flush, the
+    clip warning, the end of the run."""
+    meas = sim.last_meas
+    frame_dt = sim.frame_dt_s
+    timeout = cfg.rerequest_timeout_s
+    perf = time.perf_counter
+    x = sim.x
+    gnss = sim.gnss
+    tmax = float(sim.p[dy.P_TMAX])
+    thr_scale = 100.0 / tmax if tmax > 0 else 0.0
+    fp = FramePath(sim, link, writer, thr_scale)
+    step = lockstep_frame_p
+    a = fp.addr
+    wait_ms = math.ceil(timeout * 1e3)     # poll()'s wait for the answer, ms
+    t_wall0 = perf()
+    next_progress = t_wall0 + cfg.progress_every_s if cfg.progress_every_s > 0 else math.inf
+    next_gc = t_wall0 + 1.0
+    last = n_frames - 1 if n_frames is not None else -1
+    sim.measure(meas)
+    # frame 0's datagram from Python; each compiled frame k then sends frame k+1's
+    link.build_sensors(0, meas, x[dy.X_THRUST] * thr_scale, gnss.update(0, x))
+    gnss_next = gnss.next_event(1)
+    link.send_sensors()
+    fp.enter()
+    try:
+        for k in range(n_frames) if n_frames is not None else itertools.count():
+            if stop.requested:            # also when the fc answers every frame at once
+                stats.exit_reason = f"stopped by {stop.signal_name}"
+                return
+            k1 = k + 1
+            # frame k+1 in Python when it has a GNSS event, none after the last frame
+            mode = MODE_IN if k1 >= gnss_next or k == last else MODE_FRAME
+            t_sent = perf()
+            t_first = t_sent
+            r = step(a, k, mode, wait_ms)        # waits (poll) for the answer, runs the frame
+            while True:
+                while r < R_NONE:                        # drain as PlantLink._drain does
+                    if r == R_STALE:
+                        stats.stale_commands += 1
+                    elif r == R_FALLBACK:                # the codec's general parser
+                        want = int(round(k * frame_dt * 1e6)) % U32
+                        fp.leave()
+                        acc, match = link.parse_rx(fp.rx_len(), want)
+                        if match:                        # the drain went on after such a match
+                            acc += link.poll_for(want)[0]
+                            c = link.cmd_rad
+                            x[dy.X_CMD_L] = c[0]
+                            x[dy.X_CMD_L + 1] = c[1]
+                            x[dy.X_CMD_L + 2] = c[2]
+                            if link.cmd_throttle >= 0.0:
+                                x[dy.X_CMD_THR] = link.cmd_throttle
+                        fp.enter()
+                        if match:
+                            stats.stale_commands += acc - 1
+                            r = step(a, k, mode & ~MODE_IN, 0)
+                            break
+                        stats.stale_commands += acc
+                    r = step(a, k, mode & ~MODE_WAIT, 0)  # the next datagram, no wait
+                if r >= 0:
+                    break
+                # nothing (more) waiting: the wait timed out, a signal came, or the drain is done
+                if stop.requested:
+                    stats.exit_reason = f"stopped by {stop.signal_name}"
+                    return
+                now = perf()
+                if now >= t_sent + timeout:
+                    if now - t_first > cfg.give_up_s:
+                        stats.exit_reason = (f"no SERVO_OUTPUT_RAW answering frame {k} "
+                                             f"(t={k * frame_dt:.3f} s) for {cfg.give_up_s} s")
+                        raise _Fatal(stats.exit_reason)
+                    fp.leave()
+                    link.send_sensors()
+                    fp.enter()
+                    stats.rerequests += 1
+                    t_sent = now
+                r = step(a, k, mode, max(0, math.ceil((t_sent + timeout - perf()) * 1e3)))
+            stats.frames = k1
+            if r:
+                if r & B_FLUSH:
+                    fp.flush_truth()
+                if r & B_CLIP and "aero_clip_first_t_s" not in stats.extra:
+                    _warn_clip(sim, stats, log)
+                if r & (B_ENCODE_REFUSED | B_SEND_FAILED):
+                    fp.leave()
+                    if r & B_ENCODE_REFUSED:             # the Python framer (raises, as before)
+                        link.build_sensors(int(round(k1 * frame_dt * 1e6)), meas,
+                                           x[dy.X_THRUST] * thr_scale, None)
+                    link.send_sensors()
+                    fp.enter()
+            if mode != MODE_FRAME and k != last and not stop.requested:
+                fp.leave()
+                link.build_sensors(int(round(k1 * frame_dt * 1e6)), meas,
+                                   x[dy.X_THRUST] * thr_scale, gnss.update(k1, x))
+                gnss_next = gnss.next_event(k1 + 1)
+                link.send_sensors()
+                fp.enter()
+            if k & 63 == 0:
+                now = perf()
+                if now >= next_gc:
+                    gc.collect()
+                    next_gc = now + 1.0
+                if now >= next_progress:
+                    _progress(cfg, sim, t_wall0, now)
+                    next_progress = now + cfg.progress_every_s
+    finally:
+        fp.leave()
+
+
+def _lockstep_python(sim, link, writer, cfg, stats, stop, n_frames, log):
+    """The lockstep loop in Python (each frame: ``build_sensors``, ``send_sensors``,
+    ``poll_for``, ``PlantSim.frame``): the reference of the compiled loop, and the path of a
+    link that does not frame lean or of NUMBA_DISABLE_JIT."""
     meas = sim.last_meas
     cmd = np.zeros(3)
     frame_dt = sim.frame_dt_s

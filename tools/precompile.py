@@ -51,6 +51,8 @@ def compile_plant() -> tuple[int, int]:
     from plant_sim.scenario import load
     from plant_sim.sim import PlantSim
     PlantSim(load("paper")).warm_up()
+    from plant_sim.frame_path import warm_up
+    warm_up()           # the lockstep's compiled frame (plant_sim/frame_path.py)
     # the link's start-up check runs its compiled framing and servo decoding
     # (hyfc_wire.frame_kernels.sensor_frame, decode_servo) with the signatures of the run
     PlantLink(("127.0.0.1", 9), ("127.0.0.1", 0), DEFAULT_PWM).close()

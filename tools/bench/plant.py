@@ -5,9 +5,10 @@
 Prints (medians of repeated batches; the machine is shared, so read the spread too):
 1. RK4 step (us): the whole loop inside numba (dynamics.advance_frames), and one
    PlantSim.step_frame call from Python per frame divided by the steps per frame.
-2. The plant's per-frame path without the network (us): pack the three sensor messages,
-   decode one SERVO_OUTPUT_RAW datagram, PWM -> rad, then PlantSim.frame (latch, truth row,
-   advance, measure), as the lockstep loop does.
+2. The plant's per-frame path without the network (us): decode one SERVO_OUTPUT_RAW datagram,
+   PWM -> rad, latch, truth row, advance, measure, frame the three sensor messages, as the
+   lockstep loop does (one compiled call, plant_sim/frame_path.py); and the same work through
+   the earlier Python path (build_sensors, decode_rx, to_rad, PlantSim.frame) for comparison.
 3. Lockstep: `python -m plant_sim run --mode lockstep` as a process against a trivial
    responder in this process (decode the stamp, answer with a fixed PWM); exchanges per second
    and the real-time factor from plant_summary.json.
@@ -29,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from plant_sim import dynamics as dy
+from hyfc_wire.pwm import DEFAULT_PWM
 from plant_sim.link import PlantLink, PwmMap, ServoResponder
 from plant_sim.scenario import load
 from plant_sim.sim import PlantSim
@@ -61,6 +63,79 @@ def bench_rk4(sc_name: str, sim_seconds: float, batches: int = 7):
 
 
 def bench_frame_path(sc_name: str, frames: int = 5000, batches: int = 5):
+    """The lockstep loop's per-frame work as the plant process does it now, without the
+    network: one ``plant_sim.frame_path.lockstep_frame_p`` call per frame that decodes the
+    servo datagram in the receive buffer, maps PWM to rad, writes the truth row into the truth
+    log's block (flushed to a temporary file when full, as in a run), advances the frame,
+    measures and frames the next sensor datagram (``MODE_DECODE | MODE_ENCODE``: no receive,
+    no send). (median, min, max) us per frame over ``batches`` batches of ``frames``."""
+    from plant_sim.frame_path import MODE_DECODE, MODE_ENCODE, B_FLUSH, FramePath, lockstep_frame_p
+    from plant_sim.truthlog import TruthWriter
+    sc = load(sc_name)
+    sim = PlantSim(sc)
+    sv = sc.data["servo"]
+    pwm = PwmMap(sv["pwm_min_us"], sv["pwm_trim_us"], sv["pwm_max_us"], sim.p[dy.P_ACT_LIMIT])
+    resp = ServoResponder()
+    link = PlantLink(("127.0.0.1", resp.addr[1]), ("127.0.0.1", 0), pwm)
+    res = []
+    with tempfile.TemporaryDirectory() as tmp:
+        writer = TruthWriter(tmp, sim.TRUTH_NAMES)
+        fp = FramePath(sim, link, writer, 1e-4)
+        n_servo = link.put_rx(resp.servo_frame(0, (1510, 1490, 1500)))  # as a receive leaves it
+        fp.set_rx_len(n_servo)
+        step, a, mode = lockstep_frame_p, fp.addr, MODE_DECODE | MODE_ENCODE
+        for _ in range(batches):
+            sim.reset()
+            sim.measure(sim.last_meas)
+            fp.enter()
+            t = time.perf_counter()
+            for _ in range(frames):
+                # frame 0 each time: the datagram's stamp answers it (the work does not depend
+                # on k); the next frame's datagram is framed with stamp 2000 us
+                if step(a, 0, mode, 0) & B_FLUSH:
+                    fp.flush_truth()
+            res.append((time.perf_counter() - t) / frames * 1e6)
+            fp.leave()
+        writer.close()
+    link.close()
+    resp.close()
+    return _median_spread(res)
+
+
+def bench_frame_physics(sc_name: str, frames: int = 5000, batches: int = 5):
+    """The floor under :func:`bench_frame_path`: the same compiled frame without the wire
+    (``lockstep_frame_p`` with mode 0: truth row, two RK4 steps, sensors) called from a loop
+    inside numba, so no Python call either. (median, min, max) us per frame."""
+    from plant_sim.frame_path import FramePath, physics_loop
+    from plant_sim.truthlog import TruthWriter
+    sc = load(sc_name)
+    sim = PlantSim(sc)
+    resp = ServoResponder()
+    link = PlantLink(("127.0.0.1", resp.addr[1]), ("127.0.0.1", 0), DEFAULT_PWM)
+    res = []
+    with tempfile.TemporaryDirectory() as tmp:
+        # every row decimated: no block fills, the loop never needs Python
+        writer = TruthWriter(tmp, sim.TRUTH_NAMES, full_rows=0, every=1 << 40)
+        fp = FramePath(sim, link, writer, 1e-4)
+        physics_loop(fp.addr, 1)
+        for _ in range(batches):
+            sim.reset()
+            sim.measure(sim.last_meas)
+            fp.enter()
+            t = time.perf_counter()
+            physics_loop(fp.addr, frames)
+            res.append((time.perf_counter() - t) / frames * 1e6)
+            fp.leave()
+        writer.close()
+    link.close()
+    resp.close()
+    return _median_spread(res)
+
+
+def bench_frame_path_python(sc_name: str, frames: int = 5000, batches: int = 5):
+    """The per-frame path before the compiled frame (plant_sim/frame_path.py), kept to
+    reproduce the earlier figure: ``build_sensors``, ``decode_rx``, ``PwmMap.to_rad`` and
+    ``PlantSim.frame`` from Python, the truth row into a fixed array."""
     sc = load(sc_name)
     sim = PlantSim(sc)
     sv = sc.data["servo"]
@@ -157,6 +232,12 @@ def main(argv=None) -> int:
         print("jsbsim_x15_step_us                   n/a (jsbsim not installed)")
     f_med, f_lo, f_hi = bench_frame_path(args.scenario)
     print(f"plant_frame_path_us (no network)     median {f_med:.1f}  min {f_lo:.1f}  max {f_hi:.1f}")
+    f_med, f_lo, f_hi = bench_frame_physics(args.scenario)
+    print(f"plant_frame_physics_us (truth row, 2 RK4 steps, sensors; loop in numba) median "
+          f"{f_med:.2f}  min {f_lo:.2f}  max {f_hi:.2f}")
+    f_med, f_lo, f_hi = bench_frame_path_python(args.scenario)
+    print(f"plant_frame_path_us (Python path, before the compiled frame) median {f_med:.1f}  "
+          f"min {f_lo:.1f}  max {f_hi:.1f}")
     s = bench_lockstep(args.scenario, args.lockstep_seconds)
     ex = s["frames"] / s["wall_time_s"]
     print(f"lockstep_exchanges_per_s             {ex:.0f}  ({1e6 / ex:.0f} us per exchange, "
