@@ -16,7 +16,8 @@ same time.
 
 Ends after ``--idle-s`` without a datagram (the stand-in finished) and writes ``--out``:
 the lateness figures in us (median, p99, max, share of frames later than 20 % of
-``--period-us``) and the frame count. Exits 0; 2 with a one-line reason on a bad argument.
+``--period-us``), one per wake-up that found a frame (``frames``: as the fc's ticks, the
+first frame's stamp), and the frames answered. Exits 0; 2 with a one-line reason on a bad argument.
 """
 from __future__ import annotations
 
@@ -86,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     meas = np.zeros(M_N)
     pwm = np.array([1500, 1500, 1500, 0], dtype=np.int64)
     lateness_ns = np.zeros(MAX_FRAMES, dtype=np.int64)
-    n = 0
+    n = 0                   # wake-ups with a frame: one lateness each (the first frame's)
+    answered = 0            # frames answered
     fds = [ep.fileno()]
     print("READY", flush=True)
     wall_ns = time.time_ns
@@ -104,9 +106,10 @@ def main(argv: list[str] | None = None) -> int:
                 lateness_ns[n] = wake_wall - link.frame_rx_ns if stamped else 0
                 n += 1
             got_frame = True
+            answered += 1
             link.send_servo(stamp, pwm)
     res = lateness_figures(lateness_ns[:n], args.period_us, args.skip)
-    res.update({"sched_fifo": ok, "scheduling": msg, "rx_timestamps": stamped})
+    res.update({"frames_answered": answered, "sched_fifo": ok, "scheduling": msg, "rx_timestamps": stamped})
     with open(args.out, "w", encoding="utf-8") as fh:
         json.dump(res, fh, indent=1)
     print("DONE", flush=True)

@@ -68,6 +68,9 @@ def test_the_receiver_answers_and_counts_every_frame(tmp_path):
             p.kill()
             p.wait(timeout=10)
     f = json.loads(out.read_text())
-    assert f["frames"] == 20
+    assert f["frames_answered"] == 20
+    # one lateness per wake-up: a frame that came in before the receiver looked again after
+    # its answer is read in the same wake-up (as the fc's ticks), so at most one per frame
+    assert 1 <= f["frames"] <= 20
     assert f["rx_timestamps"] is True
     assert 0.0 <= f["lateness_median_us"] < 1e6
