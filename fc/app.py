@@ -22,6 +22,7 @@ import numpy as np
 
 from fc.cruise_track import CruiseTrack
 from fc.estimator import E_N, Estimator
+from fc.fused import FusedFrame
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
@@ -217,6 +218,9 @@ class FlightController:
                               self.gcs, self.intake, self.planner, self.gate, self.stats,
                               self.counters, self.telemetry, self.ilog, self.modes,
                               self.mode_ctl, self.out, self._fast_tick, housekeeping, self.log)
+        # lockstep: the common frame in one compiled call (fc/fused.py), built on the parts
+        # above; it says per frame whether it may run
+        self.loops.fused = FusedFrame(self) if cfg.mode == "lockstep" else None
         for sev, text in startup_texts:
             self.gcs.statustext(sev, text)
         if cfg.flight_mode:
