@@ -535,6 +535,11 @@ class FlightController:
             self.telemetry.skipped_ticks(), self.counters.law_errors,
             self.counters.reordered_frames, self.counters.fc_stalls,
             self.counters.fc_stall_max_s, c.gnss, c.gnss_rejected)
+        fused = self.loops.fused
+        if fused is not None:
+            self.log.info("lockstep frames in one compiled step (fc/fused.py): %d of %d%s",
+                          fused.frames, c.frames, "" if fused.enabled else " (not available: "
+                          "another law, no libc I/O, or NUMBA_BOUNDSCHECK)")
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

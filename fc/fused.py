@@ -19,7 +19,7 @@ sequence number: three arguments to unbox per frame.
 takes the unfused path, unchanged: a guidance mode (CRUISE, GUIDED, MISSION, RTL), FAILSAFE
 while armed (the hold's trim), a mode change to act on (``modes.changes`` not yet seen by
 ``ModeControl``), the law's reset pending, plant data lost (its recovery is bookkeeping in
-Python), a command timeline, a stamp or deadline beyond the int64 cells, a law other than the
+Python), a command of the timeline due at this frame, a stamp or deadline beyond the int64 cells, a law other than the
 built-in ``fc.control`` one, the answer not sent by libc (no ``FAST_IO``: NUMBA_DISABLE_JIT, or
 a socket that is not plain IPv4), or a law without a status record. A law fault cannot happen
 on this path: the built-in law's kernels are compiled without bounds checks and with numpy's
@@ -115,7 +115,8 @@ F_SLOW_DT = 39          # slow period (s)
 F_FAST_DT = 40          # fast period (s)
 F_TAU = 41              # the hold's time constant (s)
 F_LIMITS = 42           # the guidance's limit bits, logged (as the float the row takes)
-C_N = 43
+C_FUSED_N = 43          # frames the step took all the way (fc.log at exit)
+C_N = 44
 
 # ---- frame_step_p's code: the intake's verdict in the low bits, flags above
 FUSED_VERDICT = 0xF     # INTAKE_DUPLICATE / _LATE / _RESTART: nothing done after the verdict
@@ -182,6 +183,7 @@ def frame_step_p(ctx, now_s, seq):
         else:
             surfaces_pwm(carray(f8p(c[C_TRIM]), (3,)), delta, 0, pwm)
         k -= 1
+    c[C_FUSED_N] += 1
     code = FUSED_DONE
     if healthy:
         code |= FUSED_HEALTHY
@@ -220,8 +222,7 @@ class FusedFrame:
         #: whether this controller can take the fused path at all (module docstring)
         self.enabled = bool(
             FAST_IO and not _numba_config.BOUNDSCHECK and fc.cfg.mode == "lockstep"
-            and type(fc.law) is AttitudeLaw and fc.intake.timeline is None
-            and fc.plant._fast_io and fc.telemetry._status is not None)
+            and type(fc.law) is AttitudeLaw and fc.plant._fast_io and fc.telemetry._status is not None)
         self._changes = -1          # modes.changes the mode cells were written for
         self._mode_ok = False       # the mode (at _changes) flies the fused path
         self._law_on = False
@@ -276,6 +277,11 @@ class FusedFrame:
         spare[C_INTAKE] = spare[C_STAMP]
         frame_step_p(address_of(spare, np.int64, C_N), 0.0, 0)
 
+    @property
+    def frames(self) -> int:
+        """Frames the fused step took all the way (verdict INTAKE_NEW)."""
+        return self.ctx.item(C_FUSED_N)
+
     def _refresh_mode(self) -> None:
         """The mode cells for ``modes.changes`` (a mode or arming change since the last)."""
         fc = self.fc
@@ -314,6 +320,10 @@ class FusedFrame:
             return False
         if fc.guid.engaged:
             return False
+        tl = fc.intake.timeline
+        if tl is not None and tl.next < len(tl.commands) \
+                and tl.commands[tl.next].t_s <= fc.meas_scratch.item(M_T_S) + 1e-9:
+            return False                # a command due at this frame (Timeline.due's test)
         ilog = fc.ilog
         chunk = ilog.chunk              # (a new chunk after a hand-over, or None: none free)
         if chunk is not self._chunk:

@@ -149,13 +149,26 @@ def _events(datagrams):
             260: mode(FlightMode.MANUAL), 300: mode(FlightMode.FAILSAFE), 360: disarm}
 
 
+def _timeline_rig(flight_mode: str) -> _Rig:
+    """A rig whose controller has a command timeline (``--timeline``): at 0, 0.1 s and 0.3 s
+    of sensor time (frames 0, 50 and 150 at 500 Hz)."""
+    from fc.timeline import Command, Timeline
+    rig = _Rig(flight_mode)
+    rig.fc.intake.timeline = Timeline([
+        Command(0.0, (("CMD_ALPHA_DEG", 4.0),)),
+        Command(0.1, (("CMD_ALPHA_DEG", 5.0), ("CMD_MU_DEG", 3.0))),
+        Command(0.3, (("CMD_BETA_DEG", 0.5),))])
+    return rig
+
+
 def test_each_exceptional_frame_takes_the_unfused_path_and_flies_the_same(flight):
-    # GIVEN the same flight with a repeated frame, a mode change, plant time going back, the
-    # law switched off (MANUAL: the trim), FAILSAFE while armed (the hold's trim), a disarm
+    # GIVEN the same flight with a command timeline, a repeated frame, a mode change, plant
+    # time going back (the timeline starts over), the law switched off (MANUAL: the trim),
+    # FAILSAFE while armed (the hold's trim), a disarm
     events = _events(flight)
     # WHEN it is replayed with and without the fused step
-    unfused = _fly(flight, False, events)
-    fused = _fly(flight, True, events)
+    unfused = _fly(flight, False, events, _timeline_rig)
+    fused = _fly(flight, True, events, _timeline_rig)
     # THEN everything is the same
     _same(unfused, fused)
     c = fused["python"][0]
