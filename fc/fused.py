@@ -52,17 +52,18 @@ from fc.control.carrays import address_of, f8p, i8p
 from fc.control.kernels import MEM_DELTA, fast_entry, slow_entry
 from fc.control.layout import E_N
 from fc.estimator import EM_EST, EM_N, accept_entry
-from fc.frame_calls import FAST_IO, INTAKE_NEW, _send_servo, intake_p
+from fc.frame_calls import (FAST_IO, INTAKE_NEW, RX_FRAME, _send_servo, intake_p,
+                            recv_sensor_p)
 from fc.internals_log import CUR_DECIMATED, _count_p, _keep_at_p, _take_row_p
-from fc.link import M_N, M_T_S, SERVO_FRAME_MAX_B
+from fc.link import M_N, M_T_S, MAX_DATAGRAM_B, SERVO_FRAME_MAX_B
 from fc.mode_control import HOLD_FLOWN, HOLD_N
 from fc.modes import FlightMode
 from fc.scheduler import _due_at_p, _slow_due_p
 from fc.telemetry import fill_row_p
-from hyfc_wire.frame_kernels import surfaces_pwm
+from hyfc_wire.frame_kernels import GR_N, GR_PRESENT, surfaces_pwm
 from hyfc_wire.numba_cache import drop_stale
 
-__all__ = ["FusedFrame", "frame_step_p", "FUSED_DONE", "FUSED_HEALTHY", "FUSED_SEND_FAILED",
+__all__ = ["EXCHANGE_DONE", "EXCHANGE_VERDICT", "FusedFrame", "frame_step_p", "frame_rx_step_p", "FUSED_RX", "FUSED_DONE", "FUSED_HEALTHY", "FUSED_SEND_FAILED",
            "FUSED_TICKED", "FUSED_ROW_SLOW", "FUSED_VERDICT"]
 
 # numba's cache checks only this file: the step inlines the kernels of all these
@@ -116,7 +117,16 @@ F_FAST_DT = 40          # fast period (s)
 F_TAU = 41              # the hold's time constant (s)
 F_LIMITS = 42           # the guidance's limit bits, logged (as the float the row takes)
 C_FUSED_N = 43          # frames the step took all the way (fc.log at exit)
-C_N = 44
+C_RX = 44               # uint8[C_RX_N] the link's receive buffer
+C_RX_N = 45
+C_SA = 46               # uint8[16] the last datagram's source (sockaddr_in)
+C_SALEN = 47            # uint32[1] its length
+C_PLANT_SYSID = 48
+C_GPS = 49              # float64[GR_N] the frame's raw GPS_INPUT fields
+C_IO = 50               # int64[IO_N] the receive's length and stamp
+F_TL_NEXT = 51          # sensor time of the timeline's next command (s; inf: none)
+F_NOW = 52              # frame_rx_step_p: the frame's arrival (CLOCK_MONOTONIC, s)
+C_N = 53
 
 # ---- frame_step_p's code: the intake's verdict in the low bits, flags above
 FUSED_VERDICT = 0xF     # INTAKE_DUPLICATE / _LATE / _RESTART: nothing done after the verdict
@@ -125,6 +135,10 @@ FUSED_HEALTHY = 0x10    # the estimator's verdict (Estimator.healthy)
 FUSED_SEND_FAILED = 0x20  # sendto failed (counted in Python: endpoint.send_errors)
 FUSED_TICKED = 0x40     # at least one fast tick ran
 FUSED_ROW_SLOW = 0x80   # the row kept but not taken: the chunk is full or none is free
+#: frame_rx_step_p: the receive's code + 8 in the low byte (``RX_*``), nothing stepped: not
+#: a frame from the locked peer, a big stamp, or a frame to take unfused (RX_FRAME: a GNSS
+#: sample in it, or a command of the timeline due)
+FUSED_RX = 0x100
 
 _CLOCK_MONOTONIC = 1    # Linux (time.perf_counter's clock)
 _clock_gettime = types.ExternalFunction("clock_gettime", types.intc(
@@ -144,9 +158,37 @@ def frame_step_p(ctx, now_s, seq):
     arrived at ``now_s`` (wall clock, s), answered with sequence number ``seq``. Returns the
     intake's verdict when it is not INTAKE_NEW (nothing else done), else FUSED_DONE with the
     FUSED_* flags."""
+    return _frame_step(ctx, now_s, seq, _now_ns(ctx + 8 * C_TS))
+
+
+@njit(cache=True, error_model="numpy")
+def frame_rx_step_p(ctx, seq):
+    """:func:`frame_step_p` from the receive: one datagram from the plant socket
+    (``recv_sensor_p``, libc ``recvfrom``, counted there), and when it is a frame of the
+    locked peer with no GNSS sample and no timeline command due, its step, arrived now (its
+    time in ``F_NOW``, s, as ``time.monotonic`` gives it). Otherwise FUSED_RX with the
+    receive's code (module docstring)."""
     c = carray(i8p(ctx), (C_N,))
     f = carray(f8p(ctx), (C_N,))
     t0 = _now_ns(ctx + 8 * C_TS)
+    rx = recv_sensor_p(c[C_FD], c[C_RX], c[C_RX_N], c[C_SA], c[C_SALEN], c[C_PEER], True,
+                       c[C_PLANT_SYSID], c[C_SCRATCH], M_N, c[C_GPS], GR_N, c[C_HOT], c[C_IO])
+    if rx != RX_FRAME:
+        return FUSED_RX | (rx + 8)
+    t = _now_ns(ctx + 8 * C_TS)
+    # time.monotonic's conversion (CPython _PyTime_AsSecondsDouble)
+    now_s = np.float64(t // 1_000_000_000) if t % 1_000_000_000 == 0 else np.float64(t) / 1e9
+    f[F_NOW] = now_s
+    if carray(f8p(c[C_GPS]), (GR_N,))[GR_PRESENT] != 0.0 \
+            or carray(f8p(c[C_SCRATCH]), (M_N,))[M_T_S] + 1e-9 >= f[F_TL_NEXT]:
+        return FUSED_RX | (RX_FRAME + 8)
+    return _frame_step(ctx, now_s, seq, t0)
+
+
+@njit(cache=True, error_model="numpy")
+def _frame_step(ctx, now_s, seq, t0):
+    c = carray(i8p(ctx), (C_N,))
+    f = carray(f8p(ctx), (C_N,))
     stamp_at = c[C_STAMP]
     verdict = intake_p(stamp_at, c[C_INTAKE], c[C_LATE_WIN])
     if verdict != INTAKE_NEW:
@@ -207,6 +249,11 @@ def frame_step_p(ctx, now_s, seq):
 
 
 _FAILSAFE = FlightMode.FAILSAFE
+_INF = math.inf
+#: FusedFrame.exchange's codes beside read_frame_at's (FRAME_AT, FRAME_BIG, FRAME_NONE): the
+#: frame answered; this plus the intake's verdict
+EXCHANGE_DONE = 8
+EXCHANGE_VERDICT = 16
 
 
 class FusedFrame:
@@ -256,6 +303,13 @@ class FusedFrame:
         c[C_PEER] = plant._peer_sa_addr
         self._hot = plant.counters.hot
         c[C_HOT] = address_of(self._hot, np.int64, self._hot.size)
+        c[C_RX] = plant._rx_addr
+        c[C_RX_N] = MAX_DATAGRAM_B
+        c[C_SA] = plant._sa_addr
+        c[C_SALEN] = plant._salen_addr
+        c[C_PLANT_SYSID] = plant.plant_sysid
+        c[C_GPS] = plant._gps_raw_addr
+        c[C_IO] = plant._io_addr
         c[C_TGT] = tel._tgt_p
         c[C_STATUS] = tel._status_p
         c[C_DIMS] = tel._dims_p
@@ -276,6 +330,16 @@ class FusedFrame:
         spare[C_STAMP] = address_of(st, np.int64, 2)
         spare[C_INTAKE] = spare[C_STAMP]
         frame_step_p(address_of(spare, np.int64, C_N), 0.0, 0)
+        # the receive's entry too: on a spare socket with nothing waiting (RX_NONE, counted in
+        # a spare counter array)
+        import socket
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.bind(("127.0.0.1", 0))
+            spare_hot = np.zeros(self._hot.size, np.int64)
+            spare[:] = c
+            spare[C_FD] = sock.fileno()
+            spare[C_HOT] = address_of(spare_hot, np.int64, spare_hot.size)
+            frame_rx_step_p(address_of(spare, np.int64, C_N), 0)
 
     @property
     def frames(self) -> int:
@@ -303,6 +367,24 @@ class FusedFrame:
     def ready(self) -> bool:
         """Whether the frame ``read_frame_at`` just answered FRAME_AT for may take
         :meth:`step` (module docstring); False: the unfused path."""
+        if not self._ready():
+            return False
+        tl = self.fc.intake.timeline
+        return tl is None or tl.next >= len(tl.commands) \
+            or tl.commands[tl.next].t_s > self.fc.meas_scratch.item(M_T_S) + 1e-9
+        # (a command due at this frame: Timeline.due's test)
+
+    def ready_rx(self) -> bool:
+        """Whether the next plant datagram may be read by :meth:`exchange` (module docstring;
+        the timeline's test is the compiled step's, on the frame)."""
+        if not self._ready() or self.fc.plant.endpoint.stamped:
+            return False
+        tl = self.fc.intake.timeline
+        self.ctx_f[F_TL_NEXT] = _INF if tl is None or tl.next >= len(tl.commands) \
+            else tl.commands[tl.next].t_s
+        return True
+
+    def _ready(self) -> bool:
         if not self.enabled:
             return False
         fc = self.fc
@@ -320,10 +402,6 @@ class FusedFrame:
             return False
         if fc.guid.engaged:
             return False
-        tl = fc.intake.timeline
-        if tl is not None and tl.next < len(tl.commands) \
-                and tl.commands[tl.next].t_s <= fc.meas_scratch.item(M_T_S) + 1e-9:
-            return False                # a command due at this frame (Timeline.due's test)
         ilog = fc.ilog
         chunk = ilog.chunk              # (a new chunk after a hand-over, or None: none free)
         if chunk is not self._chunk:
@@ -336,12 +414,31 @@ class FusedFrame:
         ``perf_counter`` reading the exchange started at (the row's exec time when the row
         falls back). Returns the intake's verdict when it is not INTAKE_NEW (the caller takes
         the unfused path from the verdict on), else FUSED_DONE."""
-        fc = self.fc
-        plant = fc.plant
-        code = frame_step_p(self.ctx_p, now_s, plant._tx_codec.seq)
+        code = frame_step_p(self.ctx_p, now_s, self.fc.plant._tx_codec.seq)
+        return self._finish(code, now_s, t_exec, perf_counter)
+
+    def exchange(self, t_exec: float, perf_counter) -> int:
+        """The next plant datagram read and, when it may be, stepped in one compiled call
+        (:func:`frame_rx_step_p`). Returns EXCHANGE_DONE (answered), FRAME_NONE (no frame: read
+        as ``read_frame_at`` reads), FRAME_AT or FRAME_BIG (``read_frame_at``'s codes: a frame
+        read, to take unfused) or EXCHANGE_VERDICT + the intake's verdict (the unfused path
+        from the verdict on)."""
+        plant = self.fc.plant
+        code = frame_rx_step_p(self.ctx_p, plant._tx_codec.seq)
+        if code & FUSED_RX:
+            return plant.read_frame_after((code & 0xFF) - 8, self.fc.meas_scratch)
+        plant.frame_rx_ns = plant.endpoint.rx_ns        # (read_frame_at's bookkeeping)
+        plant.ended = False
+        v = self._finish(code, self.ctx_f.item(F_NOW), t_exec, perf_counter)
+        return EXCHANGE_DONE if v == FUSED_DONE else EXCHANGE_VERDICT + v
+
+    def _finish(self, code: int, now_s: float, t_exec: float, perf_counter) -> int:
+        """After the compiled step's ``code``: the Python state the unfused path keeps beside
+        the compiled one; the verdict (not INTAKE_NEW) or FUSED_DONE."""
         if code & FUSED_VERDICT:
             return code & FUSED_VERDICT
-        # the Python state the unfused path keeps beside the compiled one
+        fc = self.fc
+        plant = fc.plant
         fc.est.healthy = code & FUSED_HEALTHY != 0
         intake = fc.intake
         fc.mode_ctl.on_frame(now_s, intake.meas.item(M_T_S))   # (bookkeeping only here)

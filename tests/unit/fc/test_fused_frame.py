@@ -18,7 +18,7 @@ import types
 import numpy as np
 import pytest
 
-from fc.fused import FUSED_DONE
+from fc.fused import EXCHANGE_DONE, EXCHANGE_VERDICT, FUSED_DONE
 from fc.modes import FlightMode
 from tools.bench.profile import _drain, _Rig, record
 
@@ -48,10 +48,13 @@ class _Counted:
         setattr(obj, attr, counted)
 
 
-def _fly(datagrams: list, fused: bool, events=None, rig_factory=None) -> dict:
-    """Replay ``datagrams`` (one lockstep loop step each, as ``tools.bench.profile``) into a
-    fresh controller, its fused step on or off; ``events[k](rig)`` runs before frame k's
-    datagram is sent (a callable may return datagrams to send instead of frame k's)."""
+def _fly(datagrams: list, fused: bool, events=None, rig_factory=None, loop=False) -> dict:
+    """Replay ``datagrams`` into a fresh controller, its fused step on or off: one lockstep
+    loop step each, as ``tools.bench.profile`` (``read_frame_at`` + ``lockstep_exchange``:
+    the fused step from the decoded frame), or ``loop``: its lockstep loop itself
+    (``RunLoops.run``: the fused step from the receive), the next datagram sent once the
+    previous ones were answered. ``events[k](rig)`` runs before frame k's datagram is sent (a
+    callable may return datagrams to send instead of frame k's)."""
     rig = (rig_factory or _Rig)("COORDINATED")
     try:
         fc = rig.fc
@@ -60,23 +63,47 @@ def _fly(datagrams: list, fused: bool, events=None, rig_factory=None) -> dict:
         else:
             assert fc.loops.fused.enabled
         steps = _Counted(fc.loops.fused, "step") if fused else None
+        exchanges = _Counted(fc.loops.fused, "exchange") if fused else None
         verdicts = _Counted(fc.intake, "after_verdict")
         answers = []
-        for k, data in enumerate(datagrams):
-            sends = [data]
+
+        def sends_of(k):
+            sends = [datagrams[k]]
             if events and k in events:
                 more = events[k](rig)
                 if more is not None:
                     sends = more
-            for d in sends:
-                rig.plant.sendto(d, rig.addr)
-                rig.fc_step()
+            return sends
+        if loop:
+            state = {"k": 0, "waiting": 0}
+
+            def stop():
                 while True:
                     try:
                         answers.append(rig.plant.recv(65536))
+                        state["waiting"] -= 1
                     except BlockingIOError:
                         break
                 _drain(rig.sink)
+                if state["waiting"] == 0 and state["k"] < len(datagrams):
+                    sends = sends_of(state["k"])
+                    state["k"] += 1
+                    state["waiting"] = len(sends)
+                    for d in sends:
+                        rig.plant.sendto(d, rig.addr)
+                return state["waiting"] == 0 and state["k"] == len(datagrams)
+            fc.loops.run(stop)
+        else:
+            for k in range(len(datagrams)):
+                for d in sends_of(k):
+                    rig.plant.sendto(d, rig.addr)
+                    rig.fc_step()
+                    while True:
+                        try:
+                            answers.append(rig.plant.recv(65536))
+                        except BlockingIOError:
+                            break
+                    _drain(rig.sink)
         ilog = fc.ilog
         cols = ilog.columns
         rows = ilog.chunk[:ilog.n].copy()
@@ -99,8 +126,13 @@ def _fly(datagrams: list, fused: bool, events=None, rig_factory=None) -> dict:
                        int(fc.modes.mode), fc.modes.armed, fc.modes.changes,
                        fc.mode_ctl.changes_seen, fc.mode_ctl.reset_pending,
                        fc.mode_ctl.hold.flown_s, link.frames, link.outputs),
-            "fused_steps": steps.n if steps else 0,
-            "fused_done": sum(1 for r in steps.results if r == FUSED_DONE) if steps else 0,
+            "fused_steps": (steps.n + sum(1 for r in exchanges.results
+                                          if r == EXCHANGE_DONE or r >= EXCHANGE_VERDICT)
+                            if steps else 0),
+            "fused_done": (sum(1 for r in steps.results if r == FUSED_DONE)
+                           + sum(1 for r in exchanges.results if r == EXCHANGE_DONE)
+                           if steps else 0),
+            "exchanges": exchanges.n if exchanges else 0,
             "verdicts": verdicts.n,
         }
     finally:
@@ -117,17 +149,19 @@ def _same(a: dict, b: dict) -> None:
     assert a["python"] == b["python"]
 
 
-def test_the_fused_step_flies_the_unfused_frames(flight):
+@pytest.mark.parametrize("loop", [False, True], ids=["from-the-frame", "from-the-receive"])
+def test_the_fused_step_flies_the_unfused_frames(flight, loop):
     # GIVEN a recorded COORDINATED flight
     # WHEN it is replayed with and without the fused step
-    unfused = _fly(flight, False)
-    fused = _fly(flight, True)
+    unfused = _fly(flight, False, loop=loop)
+    fused = _fly(flight, True, loop=loop)
     # THEN the fused step flew all its frames but the first (the law's engagement, a mode
     # change to act on), and everything the controller sent, logged and keeps is the same
     assert fused["fused_done"] >= FRAMES - 2
     assert fused["verdicts"] == FRAMES - fused["fused_done"]    # (the intake's, unfused)
     _same(unfused, fused)
     assert len(fused["answers"]) == FRAMES
+    assert fused["exchanges"] == (FRAMES - 1 if loop else 0)   # (the first: no peer yet)
 
 
 def _events(datagrams):
@@ -161,14 +195,15 @@ def _timeline_rig(flight_mode: str) -> _Rig:
     return rig
 
 
-def test_each_exceptional_frame_takes_the_unfused_path_and_flies_the_same(flight):
+@pytest.mark.parametrize("loop", [False, True], ids=["from-the-frame", "from-the-receive"])
+def test_each_exceptional_frame_takes_the_unfused_path_and_flies_the_same(flight, loop):
     # GIVEN the same flight with a command timeline, a repeated frame, a mode change, plant
     # time going back (the timeline starts over), the law switched off (MANUAL: the trim),
     # FAILSAFE while armed (the hold's trim), a disarm
     events = _events(flight)
     # WHEN it is replayed with and without the fused step
-    unfused = _fly(flight, False, events, _timeline_rig)
-    fused = _fly(flight, True, events, _timeline_rig)
+    unfused = _fly(flight, False, events, _timeline_rig, loop)
+    fused = _fly(flight, True, events, _timeline_rig, loop)
     # THEN everything is the same
     _same(unfused, fused)
     c = fused["python"][0]
