@@ -22,6 +22,7 @@ import numpy as np
 
 from fc.cruise_track import CruiseTrack
 from fc.estimator import E_N, Estimator
+from fc.fused import FusedFrame
 from fc.gcs import GcsLink
 from fc.guided import GuidanceRunner
 from fc.intake import REORDER_WINDOW_US, FrameIntake
@@ -217,6 +218,9 @@ class FlightController:
                               self.gcs, self.intake, self.planner, self.gate, self.stats,
                               self.counters, self.telemetry, self.ilog, self.modes,
                               self.mode_ctl, self.out, self._fast_tick, housekeeping, self.log)
+        # lockstep: the common frame in one compiled call (fc/fused.py), built on the parts
+        # above; it says per frame whether it may run
+        self.loops.fused = FusedFrame(self) if cfg.mode == "lockstep" else None
         for sev, text in startup_texts:
             self.gcs.statustext(sev, text)
         if cfg.flight_mode:
@@ -531,6 +535,11 @@ class FlightController:
             self.telemetry.skipped_ticks(), self.counters.law_errors,
             self.counters.reordered_frames, self.counters.fc_stalls,
             self.counters.fc_stall_max_s, c.gnss, c.gnss_rejected)
+        fused = self.loops.fused
+        if fused is not None:
+            self.log.info("lockstep frames in one compiled step (fc/fused.py): %d of %d%s",
+                          fused.frames, c.frames, "" if fused.enabled else " (not available: "
+                          "another law, no libc I/O, or NUMBA_BOUNDSCHECK)")
         if self.cfg.mode == "realtime" and self.cfg.sync == "frame":
             g = self.gate
             self.log.info("frame-synchronised ticks: on a frame %d, on the deadline after an "

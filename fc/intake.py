@@ -116,7 +116,12 @@ class FrameIntake:
         plant time (s) read from ``scratch`` as a float (the decoder wrote stamp x 1e-6)."""
         if self._big is not None:
             return self.take(int64_at(stamp_at), now_s)
-        verdict = intake_p(stamp_at, self._st_p, self.late_window_us)
+        return self.after_verdict(intake_p(stamp_at, self._st_p, self.late_window_us), now_s)
+
+    def after_verdict(self, verdict: int, now_s: float) -> bool:
+        """:meth:`take_at` after ``intake_p``'s ``verdict`` (it has stepped the stamps): the
+        counters, the restart, the estimator and the rest (also the fused frame's way back,
+        fc/fused.py, when the verdict is not INTAKE_NEW)."""
         if verdict == INTAKE_DUPLICATE:
             self.counters.duplicate_frames += 1
             return False

@@ -434,13 +434,7 @@ class PlantLink:
                                  self.plant_sysid, meas, M_N, self._gps_raw_addr, GR_N, hot,
                                  self._io_addr)
             if code == RX_FRAME or code == RX_FRAME_BIG:
-                if self._gps_raw_mv[GR_PRESENT]:       # (a float: no numpy scalar per frame)
-                    self._take_gps(self._io.item(IO_STAMP))
-                self.frame_rx_ns = self.endpoint.rx_ns
-                self.ended = False
-                if code == RX_FRAME_BIG:
-                    return self._stamp_code(self._io.item(IO_STAMP))
-                return FRAME_AT
+                return self._frame_received(code)
             if code == RX_NONE:
                 return FRAME_NONE
             src = self.peer if code == RX_REJECTED else self._source()
@@ -451,6 +445,31 @@ class PlantLink:
             if self.peer is not self._peer_sa_of:
                 self._bind_peer_sa()
         return FRAME_NONE
+
+    def _frame_received(self, code: int) -> int:
+        """After ``recv_sensor_p`` answered RX_FRAME or RX_FRAME_BIG: the frame's GNSS sample
+        (if any), its arrival, the run not ended; FRAME_AT or FRAME_BIG."""
+        if self._gps_raw_mv[GR_PRESENT]:       # (a float: no numpy scalar per frame)
+            self._take_gps(self._io.item(IO_STAMP))
+        self.frame_rx_ns = self.endpoint.rx_ns
+        self.ended = False
+        if code == RX_FRAME_BIG:
+            return self._stamp_code(self._io.item(IO_STAMP))
+        return FRAME_AT
+
+    def read_frame_after(self, code: int, meas_out: np.ndarray) -> int:
+        """:meth:`read_frame_at` when ``recv_sensor_p`` has already answered ``code`` for the
+        first datagram (the fused lockstep exchange, fc/fused.py, with ``meas_out`` as its
+        frame): that datagram as the receive loop takes it, then the next ones as it would."""
+        if code == RX_FRAME or code == RX_FRAME_BIG:
+            return self._frame_received(code)
+        if code == RX_NONE:
+            return FRAME_NONE
+        src = self.peer if code == RX_REJECTED else self._source()
+        stamp = self._accept(int(self._io[IO_LEN]), src, meas_out)
+        if stamp >= 0:
+            return self._stamp_code(stamp)
+        return self._read_frame_compiled(meas_out)
 
     def _accept(self, n: int, addr: tuple, meas_out: np.ndarray) -> int:
         """The datagram of ``n`` bytes in the receive buffer, from ``addr`` (counted as

@@ -17,11 +17,12 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
+from fc.fused import EXCHANGE_DONE, EXCHANGE_VERDICT, FUSED_DONE, FusedFrame
 from fc.gcs import GcsLink
 from fc.intake import FrameIntake
 from fc.internals_log import InternalsLog
 from fc.iothread import IoThread
-from fc.link import FRAME_AT, FRAME_BIG, PlantLink
+from fc.link import FRAME_AT, FRAME_BIG, FRAME_NONE, PlantLink
 from fc.link import mavlink as ML
 from fc.mode_control import ModeControl
 from fc.modes import ModeManager
@@ -199,6 +200,8 @@ class RunLoops:
     law_held: bool = False
     last_frame_wall_s: float = -1.0
     last_pass_wall_s: float = -1.0  # wall clock of the loop's previous pass (stall check)
+    #: lockstep: the frame in one compiled call when it may (fc/fused.py ``FusedFrame``)
+    fused: FusedFrame | None = None
 
     def _check_stall(self, now_s: float) -> None:
         """A pass of the loop at ``now_s``: a stall if the previous one was FC_STALL_S ago."""
@@ -248,12 +251,32 @@ class RunLoops:
             # follows every frame: the .tlog's sim-paced streams fall due on a frame's stamp,
             # so the log does not depend on how the frames were batched.
             if plant_fd in ready:
-                code = self.plant.read_frame_at(self.intake.scratch)
-                if code >= 0:
+                fused = self.fused
+                if fused is not None and fused.ready_rx():
+                    # the receive and the frame in one compiled call (fc/fused.py); what it
+                    # does not take comes back as read_frame_at's code or the intake's verdict
                     t0 = pc()
-                    self.lockstep_exchange(code, mono())   # the arrival time, for the failsafe
-                    self.counters.add_exec((pc() - t0) * 1e9)
+                    code = fused.exchange(t0, pc)
+                    if code != FRAME_NONE:
+                        if code != EXCHANGE_DONE:
+                            self.lockstep_rest(code, mono())
+                        self.counters.add_exec((pc() - t0) * 1e9)
+                else:
+                    code = self.plant.read_frame_at(self.intake.scratch)
+                    if code >= 0:
+                        t0 = pc()
+                        self.lockstep_exchange(code, mono())   # the arrival, for the failsafe
+                        self.counters.add_exec((pc() - t0) * 1e9)
             self.housekeeping(now_s, gcs_ready)
+
+    def lockstep_rest(self, code: int, now_s: float) -> None:
+        """The unfused rest of a ``FusedFrame.exchange`` that answered ``code``: a frame read
+        (FRAME_AT, FRAME_BIG) as :meth:`lockstep_exchange`, or EXCHANGE_VERDICT + the intake's
+        verdict from the verdict on."""
+        if code >= EXCHANGE_VERDICT:
+            self._frame_after_verdict(code - EXCHANGE_VERDICT, now_s, time.perf_counter())
+        else:
+            self.lockstep_exchange(code, now_s)
 
     def lockstep_exchange(self, code: int, now_s: float) -> None:
         """The exchange of the frame ``PlantLink.read_frame_at`` read (``code`` FRAME_AT: its
@@ -288,10 +311,31 @@ class RunLoops:
         object (issue 24): the clock is read as floats, the ticks counted down without a
         range."""
         t_exec = time.perf_counter()
+        fused = self.fused
+        if fused is not None and fused.ready():
+            # the common case in one compiled call; back here from the intake's verdict for
+            # a repeat or a restart (fc/fused.py)
+            verdict = fused.step(now_s, t_exec, time.perf_counter)
+            if verdict != FUSED_DONE:
+                self._frame_after_verdict(verdict, now_s, t_exec)
+            return
         at = self.plant.stamp_cell_at
         if not self.intake.take_at(at, now_s):
             self.plant.send_servo_at(self.out.pwm_us)   # a re-sent frame: the same answer
             return
+        self._frame_taken_at(now_s, t_exec)
+
+    def _frame_after_verdict(self, verdict: int, now_s: float, t_exec: float) -> None:
+        """:meth:`lockstep_frame_at` after the intake's ``verdict`` on the frame (the fused
+        step gave it back: not INTAKE_NEW)."""
+        if not self.intake.after_verdict(verdict, now_s):
+            self.plant.send_servo_at(self.out.pwm_us)   # a re-sent frame: the same answer
+            return
+        self._frame_taken_at(now_s, t_exec)
+
+    def _frame_taken_at(self, now_s: float, t_exec: float) -> None:
+        """:meth:`lockstep_frame_at` once the intake took the frame: ticks, answer, row."""
+        at = self.plant.stamp_cell_at
         if self.modes.changes != self.mode_ctl.changes_seen:
             self.mode_ctl.sync()
         n = self._run_ticks(self.planner.due_at(at))

@@ -32,7 +32,8 @@ from fc.param_service import ProcessSettings
 from fc.params import ParamTable
 from fc.scheduler import TickPlanner
 
-__all__ = ["DATA_LOSS_BITS", "ModeControl", "SurfaceHold", "TRIM_EST_TAU_S"]
+__all__ = ["DATA_LOSS_BITS", "HOLD_FLOWN", "HOLD_N", "ModeControl", "SurfaceHold",
+           "TRIM_EST_TAU_S"]
 
 #: SYS_STATUS health bits cleared while plant data is lost (docs/fc.md, failsafe).
 DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -42,6 +43,9 @@ DATA_LOSS_BITS = (ML.MAV_SYS_STATUS_SENSOR_3D_GYRO | ML.MAV_SYS_STATUS_SENSOR_AB
 
 #: time constant of the trim estimate (the law's commands low-passed), s
 TRIM_EST_TAU_S = 3.0
+#: SurfaceHold.cells: the estimate (rad) at 0..2, the law time averaged (s) at HOLD_FLOWN
+HOLD_FLOWN = 3
+HOLD_N = 4
 
 #: how the law and guidance resume after a data-loss FAILSAFE
 RESUME_NONE, RESUME_FROZEN, RESUME_FLOWN = 0, 1, 2
@@ -56,16 +60,29 @@ class SurfaceHold:
 
     def __init__(self, tau_s: float = TRIM_EST_TAU_S) -> None:
         self.tau_s = tau_s
-        self.est_rad = np.zeros(3)
-        self.flown_s = 0.0          # law time averaged so far (0: no estimate)
+        # est_rad (rad) and the law time averaged so far (s) in one float64[4]: the fc's fused
+        # frame step (fc/fused.py) updates both in place
+        self.cells = np.zeros(HOLD_N)
+        self.est_rad = self.cells[:3]
         # update()'s arrays by address (fc/frame_calls.py: no object allocated per tick)
         self._est_p = address_of(self.est_rad, np.float64, 3)
         self._src_at = ArrayAddress(np.float64, 3)
 
+    @property
+    def flown_s(self) -> float:
+        """Law time averaged so far, s (0: no estimate)."""
+        return self.cells.item(HOLD_FLOWN)
+
+    @flown_s.setter
+    def flown_s(self, value: float) -> None:
+        self.cells[HOLD_FLOWN] = value
+
     def update(self, delta_rad: np.ndarray, dt_s: float) -> None:
         """One fast tick of the law's fresh command ``delta_rad`` (rad)."""
-        self.flown_s += dt_s
-        f, tau = self.flown_s, self.tau_s
+        c = self.cells
+        f = c.item(HOLD_FLOWN) + dt_s
+        c[HOLD_FLOWN] = f
+        tau = self.tau_s
         k = dt_s / (tau if tau < f else f)      # min(f, tau) without min's argument iterator
         blend3_p(self._est_p, self._src_at.of(delta_rad), k)
 
@@ -74,7 +91,7 @@ class SurfaceHold:
 
     def hold_rad(self, fallback_rad: np.ndarray) -> np.ndarray:
         """The estimate once the law flew, else ``fallback_rad`` (the TRIM_* parameters)."""
-        return self.est_rad if self.flown_s > 0.0 else fallback_rad
+        return self.est_rad if self.cells.item(HOLD_FLOWN) > 0.0 else fallback_rad
 
 
 class ModeControl:

@@ -224,6 +224,14 @@ def part_fcpath(rep: Report, quick: bool) -> None:
     fr = rep.fig("fc_frame_work_median_us", r["frame"]["median_us"])
     hk = rep.fig("fc_frame_housekeeping_median_us", r["housekeeping"]["median_us"])
     law = rep.figures.get("law_cycle_fc_median_us")
+    if "loop_total" in r:
+        lt = rep.fig("fc_frame_loop_cpu_median_us", r["loop_total"]["median_us"])
+        lf = rep.fig("fc_frame_loop_recv_frame_median_us", r["loop_recv_and_frame"]["median_us"])
+        lh = rep.fig("fc_frame_loop_housekeeping_median_us",
+                     r["loop_housekeeping"]["median_us"])
+        rep.row("3 fc per-frame CPU as the lockstep loop reads (recv and frame in one compiled "
+                "call / GCS housekeeping)", f"median {_f(lt, '.1f')} us = {_f(lf, '.1f')} + "
+                f"{_f(lh, '.1f')} us", "", "", "", "fcpath")
     rep.row("3 fc per-frame CPU, in process (recv+decode / frame / GCS housekeeping)",
             f"median {_f(tot, '.1f')} us = {_f(rd, '.1f')} + {_f(fr, '.1f')} + "
             f"{_f(hk, '.1f')} us", "", f"law cycle {_f(law)} us" if law else "",

@@ -63,6 +63,8 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
         t = np.zeros((n, 3), dtype=np.int64)
         cmd = np.zeros(3)
         warm = 200
+        fused = getattr(fc.loops, "fused", None)
+        rx = np.zeros((n, 2), dtype=np.int64) if fused is not None else None
         for k in range(warm + n):
             sim.measure(meas)
             stamp = int(round(sim.t_s * 1e6))
@@ -81,6 +83,32 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             _drain(plant, sink)
             cmd[:] = fc.out.delta_rad
             sim.step_frame(cmd)
+        # a second pass as the lockstep loop reads since the fused step (fc/loops.py
+        # ``_run_lockstep``): the receive and the frame in one call where it may
+        from fc.fused import EXCHANGE_DONE
+        from fc.link import FRAME_NONE
+        for k in range(n if rx is not None else 0):
+            sim.measure(meas)
+            stamp = int(round(sim.t_s * 1e6))
+            plant.sendto(codec.encode(meas, stamp), addr)
+            t0 = pc()
+            if fused.ready_rx():
+                code = fused.exchange(t0 * 1e-9, time.perf_counter)
+                if code != FRAME_NONE and code != EXCHANGE_DONE:
+                    fc.loops.lockstep_rest(code, mono())
+            else:
+                code = fc.plant.read_frame_at(fc.meas_scratch)
+                if code >= 0:
+                    fc.loops.lockstep_exchange(code, mono())
+            t1 = pc()
+            fc.loops.housekeeping(mono(), False)
+            rx[k] = (t1 - t0, pc() - t1)
+            _drain(plant, sink)
+            cmd[:] = fc.out.delta_rad
+            sim.step_frame(cmd)
+        loop = {} if rx is None else {
+            "loop_recv_and_frame": stats_us(rx[:, 0]), "loop_housekeeping": stats_us(rx[:, 1]),
+            "loop_total": stats_us(rx.sum(axis=1))}
         # the floor under the frame: the same link's receive + decode and answer (framing +
         # send), compiled, with no intake, estimator, law, row or housekeeping between them;
         # the same datagrams' kind, the same sockets, the fc left as it flew
@@ -100,11 +128,14 @@ def fc_frame_path(quick: bool = False, frames: int | None = None) -> dict:
             sim.step_frame(cmd)
         return {"frames": n, "read_frame": stats_us(t[:, 0]), "frame": stats_us(t[:, 1]),
                 "housekeeping": stats_us(t[:, 2]), "total": stats_us(t.sum(axis=1)),
-                "link_only": stats_us(link),
+                "link_only": stats_us(link), **loop,
                 "note": "in process, one thread, no peer wait; read_frame = recv + decode of "
                         "ATTITUDE+AOA_SSA+VFR_HUD; frame = estimator + law + PWM + "
                         "SERVO_OUTPUT_RAW encode/send + internals row; housekeeping = GCS; "
-                        "link_only = read_frame_at + send_servo_at alone (the sockets' floor)"}
+                        "loop_*: a second pass of as many frames read as the lockstep loop "
+                        "reads them (fc/fused.py: the receive and the frame in one compiled "
+                        "call); link_only = read_frame_at + send_servo_at alone (the sockets' "
+                        "floor)"}
     finally:
         if fc is not None:
             try:

@@ -180,6 +180,10 @@ PARTS = (
     ("recv", "read_frame", "socket recv + source check + decode ATTITUDE+AOA_SSA+VFR_HUD "
                            "(recv_sensor_p, compiled, libc recvfrom)"),
     ("frame", None, "frame (loops.lockstep_exchange)"),
+    ("fused_ready", "frame", "whether the frame takes the fused step (fused.ready, Python)"),
+    ("fused", "frame", "fused frame (fused.step): the compiled step + its Python bookkeeping"),
+    ("fused_kernel", "fused", "intake + estimator + planner + law + hold + PWM + framing + "
+                              "libc sendto + row (frame_step_p, one compiled call)"),
     ("new_frame", "frame", "frame intake (intake.take)"),
     ("estimator", "new_frame", "frame copy + estimator (est.accept)"),
     ("sync_mode", "frame", "mode sync (mode_ctl.sync)"),
@@ -208,12 +212,15 @@ def _target(fc, name: str):
     """(object, attribute) to wrap for a part; attributes of modules are patched on the
     module (``fc.app``'s global), the rest on the instance (shadowing the class method)."""
     import fc.app as app
+    import fc.fused as fused_mod
     import fc.link as link_mod
     import fc.loops as loops_mod
     plant = fc.plant
     return {
         "read_frame": (plant, "read_frame_at"), "recv": (link_mod, "recv_sensor_p"),
         "frame": (fc.loops, "lockstep_exchange"),
+        "fused_ready": (fc.loops.fused, "ready"), "fused": (fc.loops.fused, "step"),
+        "fused_kernel": (fused_mod, "frame_step_p"),
         "new_frame": (fc.intake, "take_at"), "estimator": (fc.est, "accept"),
         "sync_mode": (fc.mode_ctl, "sync"), "fast_tick": (fc.loops, "tick"),
         "guidance": (fc.guid, "tick"), "slow_step": (fc.law, "slow_step"),

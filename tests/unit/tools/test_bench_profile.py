@@ -17,15 +17,17 @@ def test_profile_reports_every_frame_part(tmp_path, capsys):
                          "--json", str(out)]) == 0
     d = json.loads(out.read_text())
     rows = {r["part"]: r for r in d["parts"]}
-    # the per-frame parts were wrapped and called once per frame
-    for part in ("read_frame", "recv", "estimator", "fast_step", "send_servo", "framing",
-                 "log_row", "gcs_service", "tlog_streams"):
+    # the per-frame parts were wrapped and called once per frame: in COORDINATED the frame is
+    # one compiled call (fc/fused.py), the unfused parts are not called
+    for part in ("read_frame", "recv", "fused_ready", "fused", "fused_kernel", "gcs_service",
+                 "tlog_streams"):
         assert rows[part]["calls_per_frame"] == 1.0, part
         assert rows[part]["mean_us_per_frame"] > 0.0, part
+    for part in ("estimator", "fast_step", "pwm", "send_servo", "framing", "log_row"):
+        assert rows[part]["calls_per_frame"] == 0.0, part
     # no ground-station traffic in the replay: its socket is not read (the lockstep loop reads
     # it only when its select says so)
     assert rows["gcs_poll"]["calls_per_frame"] == 0.0
-    assert rows["pwm"]["calls_per_frame"] == 1.0       # one compiled call: 3 surfaces + throttle
     # the 1 Hz chores were made due (every 100 frames: each chore once per round of 4)
     for part in ("stats_roll", "gc_due", "telemetry", "gcs_flush"):
         assert rows[part]["calls_per_frame"] > 0.0, part
@@ -45,3 +47,9 @@ def test_guidance_part_runs_in_cruise(tmp_path):
                          "--json", str(out)]) == 0
     rows = {r["part"]: r for r in json.loads(out.read_text())["parts"]}
     assert rows["guidance"]["calls_per_frame"] == 1.0
+    # a guidance mode takes the unfused frame: its parts are wrapped and called once per frame
+    # (its PWM is surfaces_throttle_pwm_p, not the wrapped surfaces_pwm_p)
+    for part in ("estimator", "fast_step", "send_servo", "framing", "log_row"):
+        assert rows[part]["calls_per_frame"] == 1.0, part
+    assert rows["fused_ready"]["calls_per_frame"] == 1.0
+    assert rows["fused_kernel"]["calls_per_frame"] == 0.0
