@@ -121,8 +121,24 @@ def freeze_heap() -> str:
     gc.collect()
     gc.freeze()
     gc.disable()
+    refill_float_free_list()
     return f"garbage collector: {gc.get_freeze_count()} start-up objects frozen, " \
            "collections at most at 1 Hz outside the tick, when garbage may be due"
+
+
+#: CPython 3.11 keeps up to this many freed float objects for reuse (``PyFloat_MAXFREELIST``);
+#: a full collection empties the list (``clear_freelists``), and the frame path's floats (clock
+#: readings, times) then come from the object allocator whenever the list runs dry: the I/O
+#: thread, which shares it, takes floats from it too (measured: one block on the main thread a
+#: few frames after a .tlog chunk went to the I/O thread, docs/performance.md)
+FLOAT_FREE_LIST_N = 100
+
+
+def refill_float_free_list(n: int = FLOAT_FREE_LIST_N) -> None:
+    """Fill CPython's float free list: ``n`` floats made and dropped at once (called after each
+    full collection, outside the tick), so the loop's floats are reused, not allocated."""
+    floats = [k + 0.5 for k in range(n)]        # n new float objects ...
+    del floats                                  # ... freed together: onto the free list
 
 
 def release_heap() -> None:
@@ -145,8 +161,11 @@ def garbage_due(threshold: int = GC_NEW_CONTAINERS) -> bool:
 
 def collect_garbage() -> int:
     """One full collection of what was allocated since :func:`freeze_heap` (the start-up heap is
-    frozen, so this scans only the run's own objects). Returns the number of objects freed."""
-    return gc.collect()
+    frozen, so this scans only the run's own objects), then the float free list it emptied
+    refilled (:func:`refill_float_free_list`). Returns the number of objects freed."""
+    freed = gc.collect()
+    refill_float_free_list()
+    return freed
 
 
 def try_realtime(priority: int = 50) -> tuple[bool, str]:

@@ -7,8 +7,8 @@ import gc
 
 import pytest
 
-from fc.scheduler import (GC_NEW_CONTAINERS, FrameGate, collect_garbage, freeze_heap, garbage_due,
-                          release_heap)
+from fc.scheduler import (FLOAT_FREE_LIST_N, GC_NEW_CONTAINERS, FrameGate, collect_garbage,
+                          freeze_heap, garbage_due, release_heap)
 
 T = 1_000_000          # 1 kHz period, ns
 US = 1_000
@@ -194,5 +194,36 @@ def test_the_collection_is_due_at_the_threshold(threshold):
         # THEN it is due once the kept containers reach the threshold (give or take the list
         # and the test's own frame)
         assert threshold - 4 <= len(kept) <= threshold, (len(kept), gc.get_count())
+    finally:
+        release_heap()
+
+
+def _floats_allocated_after(collect, n: int) -> int:
+    """Python object-allocator blocks taken by ``n`` floats made (and kept) right after
+    ``collect()`` (tools.bench.allocs' counter: every block of PYMEM_DOMAIN_OBJ)."""
+    from tools.bench.allocs import PyAllocCounter
+    counter = PyAllocCounter()
+    keep = [None] * n
+    idx = list(range(n))
+    base = 0.25
+    collect()
+    with counter:
+        for i in idx:                   # (one block: the list's iterator)
+            keep[i] = base + i          # a new float object each
+    return int(counter.counts[0]) + int(counter.counts[1])
+
+
+def test_the_floats_after_a_collection_come_from_the_free_list():
+    # GIVEN a full collection, which empties CPython's free lists: plain gc.collect() makes the
+    # next floats come from the object allocator, a block each
+    try:
+        freeze_heap()
+        n = FLOAT_FREE_LIST_N // 2
+        plain = _floats_allocated_after(gc.collect, n)
+        # WHEN the fc's collection runs instead, THEN the same floats take no block (the list
+        # refilled after the collection): what the window costs beside them is the same code
+        ours = _floats_allocated_after(collect_garbage, n)
+        assert plain >= n, plain
+        assert plain - ours >= n - 1, (plain, ours)
     finally:
         release_heap()

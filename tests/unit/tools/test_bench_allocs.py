@@ -27,10 +27,15 @@ ALLOWANCE_BLOCKS = 12
 #: 1024 rows, about 21 blocks; CRUISE's bitfield 16,384 as a new int). The stamp made an int
 #: per frame before it was kept in int64 cells (1.03-1.04 in all), and the code before issue
 #: 24's frame-path work made 25.8 (COORDINATED) and 42.5 (CRUISE)
-FRAME_PATH_BLOCKS = 0.02
-#: frames whose receive and frame allocate nothing: 99.67-99.95 % measured (98.1-99.7 % before
-#: the chunk pool and the float bitfield, 0 % while the stamp was an int)
-QUIET_FRAME_PATH_PCT = 99.0
+#: 0 measured (6 bench runs of 3,000 frames, COORDINATED and CRUISE) once the float free list
+#: is refilled after each full collection (fc/scheduler.py ``refill_float_free_list``): the
+#: one block left was a float taken from the allocator when the I/O thread, which shares the
+#: list, had emptied it. 2 blocks in 1,000 frames allowed
+FRAME_PATH_BLOCKS = 0.002
+#: frames whose receive and frame allocate nothing: 100 % measured with the free list refilled
+#: (99.67-99.95 % before it, 98.1-99.7 % before the chunk pool and the float bitfield, 0 %
+#: while the stamp was an int)
+QUIET_FRAME_PATH_PCT = 99.8
 #: frames whose housekeeping allocates nothing: 100 % measured (in 6 windows of 1,000-3,000
 #: frames; at most 2 in 1,000 frames allowed) once the heartbeat second, the 1 Hz chores and
 #: CURRENT_MODE allocated nothing and HOME_POSITION before home was skipped before its build
@@ -47,7 +52,8 @@ QUIET_HOUSEKEEPING_PCT = 99.8
 #: codec message object
 HOUSEKEEPING_BLOCKS = 0.002
 #: Python blocks per frame in all (``fc_py_allocs_per_frame``: receive, frame, housekeeping):
-#: the two allowances together. 0.0005-0.001 measured (the frame path's one block in
+#: the two allowances together. 0 measured with the float free list refilled; 0.0005-0.001
+#: before it (the frame path's one block in
 #: 1,000-2,000 frames; one bench run of 3,000 frames found 11 in CRUISE: the frame path's free
 #: lists, which the I/O thread shares), 0.007-0.038 before the housekeeping's last blocks went,
 #: 0.04-0.15 before the collection rule, the chunk pool and the float bitfield, 4.3 and 4.9
