@@ -542,6 +542,56 @@ def table_bench(root: Path = ROOT, source: str = "bench", hour_source: str = "ho
             _caption(d, source) + tail)
 
 
+#: the rows of the before/after table: (figure key in tools.bench's JSON, label, format)
+BENCH_COMPARE_ROWS = (
+    ("fc_frame_cpu_median_us", "fc CPU per plant frame, in process (us)", "{:.1f}"),
+    ("fc_frame_read_median_us", ". receive + decode (us)", "{:.1f}"),
+    ("fc_frame_work_median_us", ". frame (us)", "{:.1f}"),
+    ("fc_frame_housekeeping_median_us", ". housekeeping (us)", "{:.1f}"),
+    ("fc_frame_loop_cpu_median_us", "fc CPU per plant frame as the lockstep loop reads (us)",
+     "{:.1f}"),
+    ("fc_frame_link_floor_median_us", "floor: the fc's link alone (us)", "{:.1f}"),
+    ("fc_py_allocs_per_frame_coordinated", "fc Python blocks per frame, COORDINATED", "{:.3f}"),
+    ("fc_py_allocs_per_frame_cruise", "fc Python blocks per frame, CRUISE", "{:.3f}"),
+    ("fc_nrt_allocs_per_frame", "fc numba records per frame (worse mode)", "{:.3f}"),
+    ("plant_frame_path_us", "plant per-frame path (us)", "{:.1f}"),
+    ("plant_frame_physics_us", "floor: the plant's frame without the wire, in numba (us)",
+     "{:.1f}"),
+    ("plant_rk4_step_in_loop_us", "plant RK4 step in the loop (us)", "{:.2f}"),
+    ("pingpong_raw_median_us", "floor: raw UDP ping-pong (us)", "{:.1f}"),
+    ("pingpong_links_median_us", "floor: ping-pong through the links (us)", "{:.1f}"),
+    ("lockstep_500_rtf", "lockstep 500 Hz, plant process (x real time)", "{:.1f}"),
+    ("lockstep_500_floor_rtf", "the links' limit at 500 Hz (x real time)", "{:.1f}"),
+    ("lockstep_1000_rtf", "lockstep 1 kHz, plant process (x real time)", "{:.1f}"),
+    ("rt_1000_lateness_p99_us", "real time 1 kHz, lateness p99 (us)", "{:.0f}"),
+    ("rt_1000_late_20pct_pct", "real time 1 kHz, late > 20 % of the period (%)", "{:.2f}"),
+    ("rt_1000_floor_lateness_p99_us", "floor: a bare receiver's lateness p99 (us)", "{:.0f}"),
+    ("rt_1000_latency_p99_us", "real time 1 kHz, sensor-to-servo latency p99 (us)", "{:.0f}"),
+    ("closed_loop_sim_s_per_wall_s", "in-process closed loop (x real time)", "{:.0f}"),
+    ("startup_warm_first_servo_s", "warm start-up to the first servo output (s)", "{:.2f}"),
+    ("fc_peak_rss_mb", "peak RSS, fc (MB)", "{:.0f}"),
+    ("plant_peak_rss_mb", "peak RSS, plant (MB)", "{:.0f}"),
+)
+
+
+def table_bench_compare(root: Path = ROOT, before: str = "bench_before",
+                        after: str = "bench") -> str:
+    """Two ``python -m tools.bench --json`` runs side by side (``BENCH_COMPARE_ROWS``); a figure
+    one run did not measure shows as -."""
+    b, a = load_data(before, root), load_data(after, root)
+    fb, fa = b["summary"]["figures"], a["summary"]["figures"]
+    head = (f"| figure | before ({b['commit']}, {b['created_utc'][11:16]} UTC) | after "
+            f"({a['commit']}, {a['created_utc'][11:16]} UTC) |")
+    rows = [head, "|---|---|---|"]
+    for key, label, fmt in BENCH_COMPARE_ROWS:
+        x, y = fb.get(key), fa.get(key)
+        if x is None and y is None:
+            continue
+        rows.append(f"| {label} | {_f(x, fmt)} | {_f(y, fmt)} |")
+    return ("\n".join(rows) + "\n\nBefore: " + _caption(b, before) + " After: " +
+            _caption(a, after))
+
+
 #: block name -> the function that renders it
 TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps_paper_gains,
           "hil_prefilter": table_hil_prefilter, "eq14_mirror_claim": claim_eq14_mirror,
@@ -551,7 +601,7 @@ TABLES = {"hil_steps": table_hil_steps, "hil_steps_paper_gains": table_hil_steps
           "mc_paper_gains": table_mc_paper_gains, "mc_cruise": table_mc_cruise,
           "mc_cruise_b": table_mc_cruise_b,
           "mc_surfaces": table_mc_surfaces, "mc_surfaces_claim": claim_mc_surfaces,
-          "mc_claim": claim_mc, "bench": table_bench}
+          "mc_claim": claim_mc, "bench": table_bench, "bench_compare": table_bench_compare}
 
 _BLOCK = re.compile(r"(<!-- report:(?P<name>[a-z0-9_]+) -->\n)(?P<body>(?:.*?\n)??)"
                     r"(<!-- /report:(?P=name) -->)", re.S)

@@ -20,7 +20,7 @@ def test_committed_tables_match_their_data():
     assert {"hil_steps", "hil_steps_paper_gains", "mc_paper", "mc_paper_gains", "mc_cruise",
             "mc_cruise_b", "mc_surfaces", "beta0_dip", "hil_prefilter",
             "eq14_mirror_claim", "hil_compare_claim", "hil_alpha_claim",
-            "envelope_claim", "mc_claim"} <= set(blocks), blocks
+            "envelope_claim", "mc_claim", "bench", "bench_compare"} <= set(blocks), blocks
     assert report.check() == []
 
 
@@ -166,3 +166,19 @@ def test_the_hour_rows_follow_the_hour_run(tmp_path):
     assert "| 263 MB | <= 300 MB | met | fc_internals.npz 170, truth.npz 81, x 0 MB |" in t
     assert "| 401 MB | <= 400 MB | **missed** | at 232 s: fc 185, plant_sim 171, tools.hil 45 MB |" in t
     assert "`python -m tools.bench hour`" in t
+
+
+def test_the_before_after_table_shows_both_runs_and_what_one_did_not_measure(tmp_path):
+    (tmp_path / report.DATA_DIR).mkdir(parents=True)
+    for name, commit, fig in (("bench_before", "aaa1111", {"fc_frame_cpu_median_us": 34.876}),
+                              ("bench", "bbb2222", {"fc_frame_cpu_median_us": 25.168,
+                                                    "fc_frame_link_floor_median_us": 12.0})):
+        (tmp_path / f"{name}.json").write_text(json.dumps(
+            {"meta": {"utc": "2026-11-26T12:24:00Z"}, "figures": fig}))
+        report.import_summary(tmp_path / f"{name}.json", name, f"cmd {name}", "bench",
+                              root=tmp_path, commit_override=commit)
+    t = report.table_bench_compare(tmp_path)
+    assert "| fc CPU per plant frame, in process (us) | 34.9 | 25.2 |" in t
+    assert "| floor: the fc's link alone (us) | - | 12.0 |" in t
+    assert "before (aaa1111, 12:24 UTC)" in t and "`cmd bench_before`" in t
+    assert "RSS" not in t.split("Before:")[0]            # measured by neither run: no row
