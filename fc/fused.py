@@ -15,8 +15,13 @@ addresses and constants, bound once by :class:`FusedFrame`; ``F_*`` cells are fl
 same buffer), the frame's arrival time (wall clock, s: the row's ``wall_s``) and the answer's
 sequence number: three arguments to unbox per frame.
 
-:meth:`FusedFrame.ready` says in Python whether the frame may take this path; everything else
-takes the unfused path, unchanged: a guidance mode (CRUISE, GUIDED, MISSION, RTL), FAILSAFE
+:meth:`FusedFrame.ready` says in Python whether the frame may take this path. In a guidance mode
+(CRUISE, GUIDED, MISSION, RTL, the guidance engaged) the step flies the guidance's command and
+throttle on the ticks where the guidance is not due (its count stepped in its int64 cell); a
+frame with a guidance step due on one of its ticks is taken (intake, estimator, planner) and
+its ticks, answer and row are left to Python (FUSED_TICKS): the guidance step, CRUISE's course
+and the navigators stay Python's, on one frame in ``div`` (10 at 500 Hz). Everything else
+takes the unfused path, unchanged: a guidance mode whose guidance is not engaged, FAILSAFE
 while armed (the hold's trim), a mode change to act on (``modes.changes`` not yet seen by
 ``ModeControl``), the law's reset pending, plant data lost (its recovery is bookkeeping in
 Python), a command of the timeline due at this frame, a stamp or deadline beyond the int64 cells, a law other than the
@@ -60,11 +65,12 @@ from fc.mode_control import HOLD_FLOWN, HOLD_N
 from fc.modes import FlightMode
 from fc.scheduler import _due_at_p, _slow_due_p
 from fc.telemetry import fill_row_p
-from hyfc_wire.frame_kernels import GR_N, GR_PRESENT, surfaces_pwm
+from hyfc_wire.frame_kernels import GR_N, GR_PRESENT, surfaces_pwm, throttle_pwm
 from hyfc_wire.numba_cache import drop_stale
 
-__all__ = ["EXCHANGE_DONE", "EXCHANGE_VERDICT", "FusedFrame", "frame_step_p", "frame_rx_step_p", "FUSED_RX", "FUSED_DONE", "FUSED_HEALTHY", "FUSED_SEND_FAILED",
-           "FUSED_TICKED", "FUSED_ROW_SLOW", "FUSED_VERDICT"]
+__all__ = ["EXCHANGE_DONE", "EXCHANGE_VERDICT", "FusedFrame", "frame_step_p", "frame_rx_step_p",
+           "FUSED_RX", "FUSED_DONE", "FUSED_HEALTHY", "FUSED_SEND_FAILED", "FUSED_TICKED",
+           "FUSED_ROW_SLOW", "FUSED_TICKS", "FUSED_VERDICT"]
 
 # numba's cache checks only this file: the step inlines the kernels of all these
 _law_files = [str(p) for p in __import__("pathlib").Path(_fc_control.__file__).parent.glob("*.py")]
@@ -126,11 +132,19 @@ C_GPS = 49              # float64[GR_N] the frame's raw GPS_INPUT fields
 C_IO = 50               # int64[IO_N] the receive's length and stamp
 F_TL_NEXT = 51          # sensor time of the timeline's next command (s; inf: none)
 F_NOW = 52              # frame_rx_step_p: the frame's arrival (CLOCK_MONOTONIC, s)
-C_N = 53
+C_GUID = 53             # 1: the guidance flies (a guidance mode, engaged): its command, throttle
+C_GCOUNT = 54           # int64[1] the guidance's tick count (GuidanceRunner.count)
+C_GDIV = 55             # fast ticks per guidance step (GuidanceRunner.div)
+C_THR = 56              # float64 the guidance's throttle command, 0..1 (its out[GO_THR])
+C_TICKS = 57            # FUSED_TICKS: the ticks the planner made due, to run unfused
+C_N = 58
 
 # ---- frame_step_p's code: the intake's verdict in the low bits, flags above
 FUSED_VERDICT = 0xF     # INTAKE_DUPLICATE / _LATE / _RESTART: nothing done after the verdict
 FUSED_DONE = 0          # the frame went all the way (verdict INTAKE_NEW)
+#: (in the verdict's bits) the frame taken (intake, estimator, planner) but a guidance step is
+#: due on one of its ticks: the C_TICKS ticks, the answer and the row are left to Python
+FUSED_TICKS = 0x8
 FUSED_HEALTHY = 0x10    # the estimator's verdict (Estimator.healthy)
 FUSED_SEND_FAILED = 0x20  # sendto failed (counted in Python: endpoint.send_errors)
 FUSED_TICKED = 0x40     # at least one fast tick ran
@@ -197,6 +211,18 @@ def _frame_step(ctx, now_s, seq, t0):
     emem = carray(f8p(c[C_EMEM]), (EM_N,))
     healthy = accept_entry(carray(f8p(c[C_SCRATCH]), (M_N,)), meas, emem)
     n = _due_at_p(c[C_PLANNER], stamp_at, c[C_PERIOD_NS], c[C_MAX_CATCHUP])
+    guid = c[C_GUID] != 0
+    if guid and n > 0:
+        # the guidance steps on a tick that starts with its count at 0 (GuidanceRunner.tick):
+        # none of this frame's n ticks may (else Python flies them: its navigators and
+        # CRUISE's course run before the step); their counts stepped as tick() steps them
+        gcount = carray(i8p(c[C_GCOUNT]), (1,))
+        c0 = gcount[0]
+        if c0 == 0 or c0 + n > c[C_GDIV]:
+            c[C_TICKS] = n
+            return FUSED_TICKS | FUSED_HEALTHY if healthy else FUSED_TICKS
+        gcount[0] = c0 + n if c0 + n < c[C_GDIV] else 0
+    thr_pwm = throttle_pwm(carray(f8p(c[C_THR]), (1,))[0]) if guid else 0
     est = emem[EM_EST:EM_EST + E_N]
     mem = carray(f8p(c[C_LAW_MEM]), (c[C_LAW_MEM_N],))
     cmd = carray(f8p(c[C_CMD]), (3,))
@@ -221,7 +247,7 @@ def _frame_step(ctx, now_s, seq, t0):
             g = fast_dt / (tau if tau < fl else fl)
             for i in range(3):
                 hold[i] += g * (src[i] - hold[i])
-            surfaces_pwm(src, delta, 0, pwm)
+            surfaces_pwm(src, delta, thr_pwm, pwm)
         else:
             surfaces_pwm(carray(f8p(c[C_TRIM]), (3,)), delta, 0, pwm)
         k -= 1
@@ -244,7 +270,8 @@ def _frame_step(ctx, now_s, seq, t0):
     exec_ns = np.float64(_now_ns(ctx + 8 * C_TS) - t0)
     fill_row_p(c[C_CHUNK], c[C_CURSOR], c[C_DIMS], c[C_MEAS], now_s, 0.0, stamp_at,
                c[C_MODE], c[C_ARMED] != 0, healthy, c[C_EMEM], c[C_ROW_CMD], c[C_DELTA], 0.0,
-               exec_ns, c[C_STATUS], math.nan, f[F_LIMITS], c[C_TGT])
+               exec_ns, c[C_STATUS], carray(f8p(c[C_THR]), (1,))[0] if guid else math.nan,
+               f[F_LIMITS], c[C_TGT])
     return code
 
 
@@ -273,6 +300,7 @@ class FusedFrame:
         self._changes = -1          # modes.changes the mode cells were written for
         self._mode_ok = False       # the mode (at _changes) flies the fused path
         self._law_on = False
+        self._guid = False          # the guidance flies (the context's C_GUID)
         self._chunk = None          # the ilog.chunk whose address the context holds
         if not self.enabled:
             return
@@ -319,6 +347,10 @@ class FusedFrame:
         c[C_TAIL_US] = ilog._tail_us
         c[C_CURSOR] = ilog.cursor_address
         c[C_CHUNK_ROWS] = ilog._chunk_rows
+        guid = fc.guid
+        c[C_GCOUNT] = guid.count_addr
+        c[C_GDIV] = guid.div
+        c[C_THR] = guid.throttle_addr
         f = self.ctx_f
         f[F_SLOW_DT] = planner.slow_dt_s
         f[F_FAST_DT] = planner.fast_dt_s
@@ -342,6 +374,11 @@ class FusedFrame:
             frame_rx_step_p(address_of(spare, np.int64, C_N), 0)
 
     @property
+    def ticks(self) -> int:
+        """FUSED_TICKS: the fast ticks the planner made due for the frame, to run unfused."""
+        return self.ctx.item(C_TICKS)
+
+    @property
     def frames(self) -> int:
         """Frames the fused step took all the way (verdict INTAKE_NEW)."""
         return self.ctx.item(C_FUSED_N)
@@ -352,15 +389,25 @@ class FusedFrame:
         modes = fc.modes
         self._changes = modes.changes
         self._law_on = modes.law_active
-        self._mode_ok = not modes.guidance_active and not (modes.armed
-                                                           and modes.mode == _FAILSAFE)
+        self._mode_ok = not (modes.armed and modes.mode == _FAILSAFE)
         c = self.ctx
         c[C_LAW_ON] = 1 if self._law_on else 0
         c[C_MODE] = int(modes.mode)
         c[C_ARMED] = 1 if modes.armed else 0
-        # the command the row logs: CMD_* while the law flies (``_fast_tick`` sets it), else
-        # whatever the last tick left
-        cmd = fc.settings.cmd_rad if self._law_on else fc.out.cmd_active
+        self._set_guidance(fc.guid.engaged)
+
+    def _set_guidance(self, engaged: bool) -> None:
+        """The cells that depend on whether the guidance flies (``engaged`` in a guidance mode;
+        ``_ready`` takes the unfused path while a guidance mode flies without it, or it flies
+        outside one): the law's command and the row's (``_fast_tick``: the guidance's, else
+        CMD_* while the law flies, else whatever the last tick left), the throttle."""
+        fc = self.fc
+        self._guid = engaged
+        c = self.ctx
+        c[C_GUID] = 1 if engaged else 0
+        law_cmd = fc.guid.cmd_rad if engaged else fc.settings.cmd_rad
+        c[C_CMD] = address_of(law_cmd, np.float64, 3)
+        cmd = law_cmd if self._law_on else fc.out.cmd_active
         c[C_ROW_CMD] = address_of(cmd, np.float64, 3)
         self.ctx_f[F_LIMITS] = float(fc.guid.limits)
 
@@ -400,8 +447,13 @@ class FusedFrame:
                 or fc.ilog._ks_big is not None or plant.peer is None \
                 or plant.peer is not plant._peer_sa_of or plant.counters.hot is not self._hot:
             return False
-        if fc.guid.engaged:
-            return False
+        guid = fc.guid
+        if guid.engaged != modes.guidance_active:
+            return False                # (a guidance mode not engaged yet, or the reverse)
+        if guid.engaged != self._guid:
+            self._set_guidance(guid.engaged)
+        if self._guid:
+            self.ctx_f[F_LIMITS] = guid.limits          # (stepped by the last guidance step)
         ilog = fc.ilog
         chunk = ilog.chunk              # (a new chunk after a hand-over, or None: none free)
         if chunk is not self._chunk:
@@ -413,7 +465,9 @@ class FusedFrame:
         """The fused frame arrived at ``now_s`` (wall clock, s); ``t_exec`` the
         ``perf_counter`` reading the exchange started at (the row's exec time when the row
         falls back). Returns the intake's verdict when it is not INTAKE_NEW (the caller takes
-        the unfused path from the verdict on), else FUSED_DONE."""
+        the unfused path from the verdict on), FUSED_TICKS (the frame taken, a guidance step
+        due: the caller runs the :attr:`ticks` ticks, the answer and the row), else
+        FUSED_DONE."""
         code = frame_step_p(self.ctx_p, now_s, self.fc.plant._tx_codec.seq)
         return self._finish(code, now_s, t_exec, perf_counter)
 
@@ -422,7 +476,7 @@ class FusedFrame:
         (:func:`frame_rx_step_p`). Returns EXCHANGE_DONE (answered), FRAME_NONE (no frame: read
         as ``read_frame_at`` reads), FRAME_AT or FRAME_BIG (``read_frame_at``'s codes: a frame
         read, to take unfused) or EXCHANGE_VERDICT + the intake's verdict (the unfused path
-        from the verdict on)."""
+        from the verdict on; + FUSED_TICKS: the ticks on, as :meth:`step`)."""
         plant = self.fc.plant
         code = frame_rx_step_p(self.ctx_p, plant._tx_codec.seq)
         if code & FUSED_RX:
@@ -435,15 +489,18 @@ class FusedFrame:
     def _finish(self, code: int, now_s: float, t_exec: float, perf_counter) -> int:
         """After the compiled step's ``code``: the Python state the unfused path keeps beside
         the compiled one; the verdict (not INTAKE_NEW) or FUSED_DONE."""
-        if code & FUSED_VERDICT:
-            return code & FUSED_VERDICT
+        v = code & FUSED_VERDICT
+        if v and v != FUSED_TICKS:
+            return v
         fc = self.fc
         plant = fc.plant
         fc.est.healthy = code & FUSED_HEALTHY != 0
         intake = fc.intake
         fc.mode_ctl.on_frame(now_s, intake.meas.item(M_T_S))   # (bookkeeping only here)
+        if v:
+            return FUSED_TICKS          # (the ticks, the answer and the row: Python's)
         if code & FUSED_TICKED and self._law_on:
-            fc.out.cmd_active = fc.settings.cmd_rad
+            fc.out.cmd_active = fc.guid.cmd_rad if self._guid else fc.settings.cmd_rad
         plant._sent(code & FUSED_SEND_FAILED == 0)
         if code & FUSED_ROW_SLOW:
             ilog = fc.ilog

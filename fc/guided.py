@@ -53,7 +53,10 @@ class GuidanceRunner:
         self.params = params
         self.div = max(1, int(round(fast_hz / GUIDANCE_HZ)))
         self.dt_s = self.div / fast_hz
-        self.count = 0                  # fast ticks since the last guidance step, mod div
+        # fast ticks since the last guidance step, mod div: an int64 cell (``count``), so the
+        # fused lockstep frame (fc/fused.py) steps it on the ticks where the guidance is not due
+        self._count = np.zeros(1, np.int64)
+        self.count_addr = address_of(self._count, np.int64, 1)
         # guidance steps since start (tests, telemetry): an int64 counted by a compiled call
         # (an int past 256 per step otherwise)
         self._steps = np.zeros(1, np.int64)
@@ -154,16 +157,25 @@ class GuidanceRunner:
         self.count = 0
         self.engaged = True
 
+    @property
+    def count(self) -> int:
+        """Fast ticks since the last guidance step, mod ``div`` (0: the next tick steps it)."""
+        return self._count.item(0)
+
+    @count.setter
+    def count(self, n: int) -> None:
+        self._count[0] = n
+
     # ------------------------------------------------------------------ the tick
     def tick(self, est: np.ndarray, meas: np.ndarray, before_step=None) -> bool:
         """Called every fast tick while a guidance mode flies: steps the guidance on every
         ``div``-th call (the first call after engagement included). True if it stepped.
         ``before_step`` (no arguments), if given, is called after the frame's inputs are read
         and before the step: CRUISE's course target for this frame (fc/cruise_track.py)."""
-        due = self.count == 0
-        self.count += 1
-        if self.count >= self.div:
-            self.count = 0
+        c = self._count.item(0)
+        due = c == 0
+        c += 1
+        self._count[0] = c if c < self.div else 0
         if not due:
             return False
         self._inputs(est, meas)

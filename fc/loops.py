@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from fc.fused import EXCHANGE_DONE, EXCHANGE_VERDICT, FUSED_DONE, FusedFrame
+from fc.fused import EXCHANGE_DONE, EXCHANGE_VERDICT, FUSED_DONE, FUSED_TICKS, FusedFrame
 from fc.gcs import GcsLink
 from fc.intake import FrameIntake
 from fc.internals_log import InternalsLog
@@ -274,7 +274,7 @@ class RunLoops:
         (FRAME_AT, FRAME_BIG) as :meth:`lockstep_exchange`, or EXCHANGE_VERDICT + the intake's
         verdict from the verdict on."""
         if code >= EXCHANGE_VERDICT:
-            self._frame_after_verdict(code - EXCHANGE_VERDICT, now_s, time.perf_counter())
+            self._frame_after_fused(code - EXCHANGE_VERDICT, now_s, time.perf_counter())
         else:
             self.lockstep_exchange(code, now_s)
 
@@ -317,13 +317,23 @@ class RunLoops:
             # a repeat or a restart (fc/fused.py)
             verdict = fused.step(now_s, t_exec, time.perf_counter)
             if verdict != FUSED_DONE:
-                self._frame_after_verdict(verdict, now_s, t_exec)
+                self._frame_after_fused(verdict, now_s, t_exec)
             return
         at = self.plant.stamp_cell_at
         if not self.intake.take_at(at, now_s):
             self.plant.send_servo_at(self.out.pwm_us)   # a re-sent frame: the same answer
             return
         self._frame_taken_at(now_s, t_exec)
+
+    def _frame_after_fused(self, code: int, now_s: float, t_exec: float) -> None:
+        """The rest of a frame the fused step gave back with ``code`` (not FUSED_DONE):
+        FUSED_TICKS (taken, a guidance step due: its ticks on) or the intake's verdict."""
+        if code == FUSED_TICKS:
+            if self.modes.changes != self.mode_ctl.changes_seen:
+                self.mode_ctl.sync()
+            self._answer_at(self._run_ticks(self.fused.ticks), now_s, t_exec)
+        else:
+            self._frame_after_verdict(code, now_s, t_exec)
 
     def _frame_after_verdict(self, verdict: int, now_s: float, t_exec: float) -> None:
         """:meth:`lockstep_frame_at` after the intake's ``verdict`` on the frame (the fused
@@ -335,13 +345,16 @@ class RunLoops:
 
     def _frame_taken_at(self, now_s: float, t_exec: float) -> None:
         """:meth:`lockstep_frame_at` once the intake took the frame: ticks, answer, row."""
-        at = self.plant.stamp_cell_at
         if self.modes.changes != self.mode_ctl.changes_seen:
             self.mode_ctl.sync()
-        n = self._run_ticks(self.planner.due_at(at))
+        self._answer_at(self._run_ticks(self.planner.due_at(self.plant.stamp_cell_at)), now_s,
+                        t_exec)
+
+    def _answer_at(self, n: int, now_s: float, t_exec: float) -> None:
+        """After the ``n`` ticks of the frame in the link's stamp cell: the answer, the row."""
         self.plant.send_servo_at(self.out.pwm_us)
         if n:
-            self.telemetry.log_row_at(self.ilog, self.intake.meas, at, 0,
+            self.telemetry.log_row_at(self.ilog, self.intake.meas, self.plant.stamp_cell_at, 0,
                                       (time.perf_counter() - t_exec) * 1e9, now_s)
 
     def _run_ticks(self, n: int) -> int:
